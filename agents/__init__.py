@@ -1,0 +1,5 @@
+"""Learners that drive the steering environments."""
+
+from ilc_steering.agents.ilc import ILCAgent
+
+__all__ = ["ILCAgent"]

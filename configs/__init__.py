@@ -1,0 +1,1 @@
+"""Packaged scenario configs (YAML); see ilc_steering.config."""

@@ -1,0 +1,158 @@
+"""``ChainedSteeringEnv``: one episode is one trial of the paper's learning scheme."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.envs.scenario import NominalModel, Scenario
+
+__all__ = ["ChainedSteeringEnv", "check_action"]
+
+Array = npt.NDArray[np.float64]
+
+
+def check_action(action: Any, shape: tuple[int, ...], names: str) -> Array:
+    """``action`` as float64 of exactly ``shape``, or ``ValueError`` saying what is wrong."""
+    try:
+        c = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"action must be numeric {names}, got {action!r}") from error
+    if c.shape != shape:
+        raise ValueError(f"action must have shape {shape} = {names}, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"action must be finite, got {c.tolist()}")
+    return c
+
+
+class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
+    r"""Steer a nonholonomic robot to a goal in one trial of fixed duration ``T``.
+
+    ## Description
+
+    The robot (the car-like robot of eq. 3, or the chained form of eq. 1) starts at the task's
+    start configuration. The action is the coefficient vector ``c = (c11, c21, ..., c2q)`` of the
+    input profile of eqs. 15-17: ``v1`` is ``c11`` on the first piece and fixed on the others,
+    ``v2(t) = sum_j c2j (t - t_{i-1})**(j-1)`` on piece ``i``. For the car, the controller turns
+    ``v`` into wheel speed and steering rate with the *nominal* eqs. 4-5, while the simulated car
+    has the *true*, perturbed geometry. One ``step`` runs the whole trial and the episode ends:
+    each episode is one iteration of iterative learning control (Oriolo, Panzieri, Ulivi 1998).
+
+    ## Action Space
+
+    ``Box(-action_bound, action_bound, (1 + q,), float32)`` in physical units: ``c11`` [m/s for the
+    car], ``c2j`` [1/(m s^j) for the car]. The bound is ``task.action_bound`` from the config, or
+    10 times the magnitude of the nominal open-loop solution. Out-of-bound values are *clipped*
+    (``info["clipped"]`` says so); a wrong shape or a non-finite value raises ``ValueError``.
+    For RL, wrap the env in ``gymnasium.wrappers.RescaleAction(env, -1, 1)``.
+
+    ## Observation Space
+
+    The task, constant within a scenario: ``Box(-inf, inf, (2n,), float32)``.
+
+    | Index | Observation | Unit | Min | Max |
+    |-------|-------------|------|-----|-----|
+    | 0..n-1 | start ``z(0)`` in chained coordinates (nominal map, task frame) | mixed | -inf | inf |
+    | n..2n-1 | goal ``z^d`` in chained coordinates | mixed | -inf | inf |
+
+    For the car (n = 4): ``z = (x [m], tan(phi)/(ell cos^3 theta) [1/m], tan(theta), y [m])``.
+
+    ## Rewards
+
+    Minus the weighted final error. Car: ``-(cartesian_error / 1 m + orientation_error / 1 rad)``.
+    Chained plant: ``-||z^d - z(T)||``.
+
+    ## Starting State
+
+    The task's start configuration, exactly (the paper's exact reinitialization).
+
+    ## Episode End
+
+    Every episode ends after its one step: ``terminated=True``, ``truncated=False``.
+    A trial that drives the car within ``1e-3`` rad of ``|theta|`` or ``|phi| = pi/2`` (where
+    eqs. 4-5 break down) stops there; ``info["left_chart"]`` is then ``True``.
+
+    ## Info
+
+    ``step`` returns ``q_final`` (world frame), ``z_final``, ``error`` (``z^d - z(T)``, the
+    learning error of eqs. 33-34), ``error_norm``, ``left_chart``, ``action`` (as applied, after
+    clipping), ``clipped`` and, for the car, ``cartesian_error`` [m] and ``orientation_error``
+    [rad]. ``reset`` returns ``q_start`` and ``q_goal``.
+
+    ## Arguments
+
+    ``config``: a YAML path, a packaged config name (``"forward_parking"``,
+    ``"forward_parking_saturated"``, ``"parallel_parking"``, ...), or a :class:`SteeringConfig`.
+
+    The learner's view of the system is ``env.unwrapped.nominal_model``
+    (:class:`~ilc_steering.envs.scenario.NominalModel`); the true plant stays inside the env.
+
+    ## Version History
+
+    * v0: Initial version.
+
+    ## Example
+
+    >>> import gymnasium as gym
+    >>> import ilc_steering
+    >>> env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
+    >>> obs, info = env.reset(seed=0)
+    >>> c = env.unwrapped.nominal_model.solve()
+    >>> obs, reward, terminated, truncated, info = env.step(c)
+    >>> terminated, truncated, bool(info["cartesian_error"] < 0.1)
+    (True, False, True)
+    """
+
+    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 4}
+
+    def __init__(self, config: str | Path | SteeringConfig = "forward_parking", render_mode: str | None = None) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.config = load_config(config)
+        self._scenario = Scenario(self.config)
+        model = self._scenario.nominal
+        bound = self.config.task.action_bound
+        high = np.asarray(bound) if bound is not None else 10.0 * np.maximum(np.abs(model.solve()), 1e-3)
+        high = high.astype(np.float32)
+        self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        n = model.dimension
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(2 * n,), dtype=np.float32)
+        self._observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
+        q = model.profile.v2_terms
+        self._action_names = f"(c11, c21..c2{q})" if q > 1 else "(c11, c21)"
+
+    @property
+    def nominal_model(self) -> NominalModel:
+        """The nominal model, the only view of the system a learner should use."""
+        return self._scenario.nominal
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed)
+        info = {"q_start": self._scenario.start.copy(), "q_goal": self._scenario.goal.copy()}
+        return self._observation.copy(), info
+
+    def step(self, action: Any) -> tuple[npt.NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+        c = check_action(action, self.action_space.shape, self._action_names)
+        applied = np.clip(c, self.action_space.low, self.action_space.high)
+        trials = self._scenario.run(applied[None])
+        outcome = {k: v[0] for k, v in self._scenario.measure(trials.final, trials.status).items()}
+        info = {**outcome, "left_chart": bool(outcome["left_chart"]), "action": applied, "clipped": bool(np.any(applied != c))}
+        for key in ("error_norm", "cartesian_error", "orientation_error"):
+            if key in info:
+                info[key] = float(info[key])
+        return self._observation.copy(), reward(info), True, False, info
+
+
+def reward(info: dict[str, Any]) -> float:
+    """Minus the weighted final error: see the ``## Rewards`` section of :class:`ChainedSteeringEnv`."""
+    if "cartesian_error" in info:
+        return -float(info["cartesian_error"] + info["orientation_error"])
+    return -float(info["error_norm"])
