@@ -18,9 +18,9 @@ kink of the vector field where ``|phi_c|`` crosses the limit is located inside t
 bisection, so such a step keeps the method's accuracy.
 
 Chart guard: the controller's transform (eqs. 4-5) breaks down as ``|theta|`` or ``|phi|``
-approaches ``pi/2`` in the task frame. A trial that gets within ``acos(CHART_MARGIN)`` of it, or
-produces a non-finite state, stops there with status ``LEFT_CHART``: the robot halts at its last
-valid configuration.
+approaches ``pi/2`` in the task frame. A step that ends within ``CHART_MARGIN`` rad of it (or
+beyond: a stiff step can throw ``theta`` far past it), or with a non-finite state, is discarded
+and the trial stops with status ``LEFT_CHART``: the robot halts at its last valid configuration.
 """
 
 from __future__ import annotations
@@ -40,7 +40,8 @@ CAR = 0
 CHAINED = 1
 OK = 0
 LEFT_CHART = 1
-CHART_MARGIN = 1e-3  # smallest cos(theta), cos(phi) the car may reach before the trial stops
+CHART_MARGIN = 1e-3  # [rad] closest |theta|, |phi| may come to pi/2 before the trial stops
+_CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 DEFAULT_MAX_STEP = 1.0 / 32.0  # [s]
 _BISECTIONS = 52  # halves a step down to double-precision resolution
 
@@ -128,8 +129,7 @@ def _in_chart(model, params, x):  # type: ignore[no-untyped-def]
         if not np.isfinite(value):
             return False
     if model == CAR:
-        phi = min(abs(x[3]), params[4])
-        return np.cos(x[2]) > CHART_MARGIN and np.cos(phi) > CHART_MARGIN
+        return abs(x[2]) < _CHART_LIMIT and min(abs(x[3]), params[4]) < _CHART_LIMIT
     return True
 
 

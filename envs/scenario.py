@@ -58,6 +58,18 @@ class NominalModel:
         c2 = np.linalg.lstsq(W, self.z_goal[1:] - V @ self.z_start[1:], rcond=None)[0]
         return np.concatenate([[c11], c2])
 
+    def action_scale(self) -> Array:
+        """A natural magnitude for each coefficient, never zero: for ``c11`` the largest of the
+        nominal solution, the mean speed ``|z1^d - z1^0| / Delta_1`` and the fixed ``v1`` values;
+        for ``c2j`` the largest term ``|c2i| Delta**(i-1)`` of the nominal ``v2``, over ``Delta**(j-1)``
+        (``Delta`` the longest piece), so every term may reach the peak of the nominal ``v2``."""
+        c = self.solve()
+        p = self.profile
+        c11 = max(abs(c[0]), abs(self.z_goal[0] - self.z_start[0]) / p.durations[0], *np.abs(p.v1_fixed))
+        powers = max(p.durations) ** np.arange(p.v2_terms)
+        peak = max(float(np.max(np.abs(c[1:]) * powers)), 1e-9)
+        return np.concatenate([[c11], np.maximum(np.abs(c[1:]), peak / powers)])
+
 
 class Scenario:
     """The true plant, the nominal model and the task of a config, and what a trial measures."""

@@ -47,18 +47,21 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     ``Box(-action_bound, action_bound, (1 + q,), float32)`` in physical units: ``c11`` [m/s for the
     car], ``c2j`` [1/(m s^j) for the car]. The bound is ``task.action_bound`` from the config, or
-    10 times the magnitude of the nominal open-loop solution. Out-of-bound values are *clipped*
+    10 times ``nominal_model.action_scale()``, the magnitudes of the nominal open-loop solution. Out-of-bound values are *clipped*
     (``info["clipped"]`` says so); a wrong shape or a non-finite value raises ``ValueError``.
-    For RL, wrap the env in ``gymnasium.wrappers.RescaleAction(env, -1, 1)``.
+    For RL, wrap the env in ``RescaleAction(env, np.float32(-1), np.float32(1))`` (float32
+    limits keep the rescaled box free of precision warnings); Gymnasium's checker otherwise warns
+    that the physical box is not normalized, which is intended.
 
     ## Observation Space
 
-    The task, constant within a scenario: ``Box(-inf, inf, (2n,), float32)``.
+    The task, constant within a scenario: ``Box(-b, b, (2n,), float32)`` with
+    ``b = 10 (max |z| + 1)`` over the start and goal below.
 
     | Index | Observation | Unit | Min | Max |
     |-------|-------------|------|-----|-----|
-    | 0..n-1 | start ``z(0)`` in chained coordinates (nominal map, task frame) | mixed | -inf | inf |
-    | n..2n-1 | goal ``z^d`` in chained coordinates | mixed | -inf | inf |
+    | 0..n-1 | start ``z(0)`` in chained coordinates (nominal map, task frame) | mixed | -b | b |
+    | n..2n-1 | goal ``z^d`` in chained coordinates | mixed | -b | b |
 
     For the car (n = 4): ``z = (x [m], tan(phi)/(ell cos^3 theta) [1/m], tan(theta), y [m])``.
 
@@ -118,12 +121,12 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self._scenario = Scenario(self.config)
         model = self._scenario.nominal
         bound = self.config.task.action_bound
-        high = np.asarray(bound) if bound is not None else 10.0 * np.maximum(np.abs(model.solve()), 1e-3)
+        high = np.asarray(bound) if bound is not None else 10.0 * model.action_scale()
         high = high.astype(np.float32)
         self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
-        n = model.dimension
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(2 * n,), dtype=np.float32)
         self._observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
+        bound = np.float32(10.0 * (np.abs(self._observation).max() + 1.0))
+        self.observation_space = gym.spaces.Box(-bound, bound, shape=self._observation.shape, dtype=np.float32)
         q = model.profile.v2_terms
         self._action_names = f"(c11, c21..c2{q})" if q > 1 else "(c11, c21)"
 

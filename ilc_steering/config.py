@@ -86,7 +86,7 @@ class TaskConfig:
     pieces: tuple[float, ...]  # Delta_i [s]; T is their sum
     v1_fixed: tuple[float, ...]  # c12..c1p: v1 on pieces 2..p [m/s for the car]
     v2_terms: int  # q, the number of basis functions of v2
-    action_bound: tuple[float, ...] | None = None  # |c_i| bounds of the action box; None: 10x the nominal solution
+    action_bound: tuple[float, ...] | None = None  # |c_i| bounds of the action box; None: 10x NominalModel.action_scale()
 
     def __post_init__(self) -> None:
         for key in ("start", "goal"):

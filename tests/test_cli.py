@@ -1,0 +1,58 @@
+"""The ilc-steering command: exit codes users gate CI on, the JSON it writes, reproduce."""
+
+import json
+import subprocess
+import sys
+
+from ilc_steering.cli import main
+
+
+def test_run_writes_json_and_exits_0_when_converged(tmp_path, capsys):
+    out = tmp_path / "run.json"
+    assert main(["run", "forward_parking", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["name"] == "forward_parking" and data["converged_at"] == 4
+    assert [t["trial"] for t in data["trials"]] == list(range(1, 11))
+    first = data["trials"][0]
+    assert set(first) >= {"trial", "cartesian_error", "orientation_error", "final_state", "error", "action"}
+    assert len(first["final_state"]) == 4 and len(first["error"]) == 4 and len(first["action"]) == 4
+    assert first["cartesian_error"] > data["trials"][-1]["cartesian_error"]
+    assert "converged at trial 4" in capsys.readouterr().out
+
+
+def test_run_exits_1_when_the_tolerance_is_not_met(capsys):
+    assert main(["run", "forward_parking", "--trials", "2"]) == 1
+    assert "not converged within 2 trials" in capsys.readouterr().out
+
+
+def test_run_exits_2_with_the_key_on_a_bad_config(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nplant: {model: car}\n")
+    assert main(["run", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.yaml" in err and "plant.wheelbase: missing required key" in err
+
+
+def test_chained_run_prints_the_error_norm(capsys):
+    assert main(["run", "chained_perturbed"]) == 0
+    assert "error norm" in capsys.readouterr().out
+
+
+def test_reproduce_prints_the_comparison_table(tmp_path, capsys):
+    assert main(["reproduce", "--json-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "| forward_parking | Figs. 3-6 | 4 | 4 |" in out
+    assert "| parallel_parking | Figs. 11-14 | 5 | 5 |" in out
+    assert "forward_parking_saturated:" in out  # where it differs, it says why
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "forward_parking.json", "forward_parking_saturated.json", "parallel_parking.json"]
+
+
+def test_python_dash_m_entry_point(tmp_path):
+    # Outside the checkout: from its root, `python -m` would find the bare ilc_steering/ folder first.
+    done = subprocess.run(
+        [sys.executable, "-m", "ilc_steering", "run", "forward_parking", "--trials", "5"],
+        capture_output=True, text=True, timeout=300, cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "converged at trial 4" in done.stdout

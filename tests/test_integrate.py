@@ -1,0 +1,142 @@
+"""The compiled integrator against tight scipy references and the chained form's closed form."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from ilc_steering.agents import ILCAgent
+from ilc_steering.config import load_config
+from ilc_steering.envs import integrate as kernel
+from ilc_steering.envs.integrate import LEFT_CHART, OK
+from ilc_steering.envs.plants import ChainedPlant, simulate
+from ilc_steering.envs.profiles import PiecewiseProfile
+from ilc_steering.envs.scenario import Scenario
+
+
+def paper_car(q, v1, v2, nominal, true, limit):
+    """Eq. 3 driven through eqs. 4-5, typed from the paper; the wheel angle is the clipped command."""
+    theta, phi = q[2], np.clip(q[3], -limit, limit)
+    ell, rho = nominal
+    u1 = v1 / (rho * np.cos(theta))
+    u2 = -3 / ell * np.sin(theta) / np.cos(theta) ** 2 * np.sin(phi) ** 2 * v1 + ell * np.cos(theta) ** 3 * np.cos(phi) ** 2 * v2
+    ell_t, rho_t = true
+    return np.array([np.cos(theta) * rho_t * u1, np.sin(theta) * rho_t * u1, np.tan(phi) / ell_t * rho_t * u1, u2])
+
+
+def reference(scenario, c, rtol=1e-12):
+    """DOP853 piece by piece; with a limit, restarted at every crossing of |phi_c| = limit."""
+    cfg = scenario.config.plant
+    limit = np.inf if cfg.steering_limit is None else cfg.steering_limit
+    nominal, true = (cfg.wheelbase, cfg.wheel_radius), (cfg.true_wheelbase, cfg.true_wheel_radius)
+    profile = scenario.profile
+
+    def rhs(t, q):
+        v1, v2 = profile.evaluate(c, np.array(t))
+        return paper_car(q, float(v1), float(v2), nominal, true, limit)
+
+    def crossing(t, q):
+        return abs(q[3]) - limit
+
+    crossing.terminal = True
+    q = scenario.x_start.copy()
+    for t0, t1 in zip(profile.breakpoints[:-1], profile.breakpoints[1:]):
+        t = t0
+        while t < t1:
+            # Step off an event by a hair so the restarted solver does not stop on it again.
+            events = crossing if np.isfinite(limit) and abs(abs(q[3]) - limit) > 1e-13 else None
+            sol = solve_ivp(rhs, (t, t1), q, method="DOP853", rtol=rtol, atol=rtol, events=events)
+            q, t = sol.y[:, -1], sol.t[-1]
+            if sol.status == 1 and t < t1:
+                nudge = min(1e-12, t1 - t)
+                q = q + nudge * rhs(t, q)
+                t = t + nudge
+    return q
+
+
+def ilc_actions(name, count):
+    scenario = Scenario(load_config(name))
+    agent = ILCAgent(scenario.nominal)
+    actions = []
+    for _ in range(count):
+        c = agent.act()
+        actions.append(c)
+        trial = scenario.run(c[None])
+        info = {k: v[0] for k, v in scenario.measure(trial.final, trial.status).items()}
+        agent.learn({**info, "action": c})
+    return scenario, actions
+
+
+def test_tableau_is_consistent():
+    assert kernel._A.shape == (kernel._STAGES, kernel._STAGES)
+    np.testing.assert_allclose(kernel._A.sum(axis=1), kernel._C, atol=1e-14)
+    assert kernel._B.sum() == pytest.approx(1.0, abs=1e-14)
+    assert np.all(np.triu(kernel._A) == 0)  # explicit
+
+
+@pytest.mark.parametrize("name", ["forward_parking", "parallel_parking"])
+def test_car_final_state_within_1e9_of_dop853(name):
+    scenario, actions = ilc_actions(name, 3)
+    for c in [*actions, scenario.nominal.solve()]:
+        final = scenario.run(c[None]).final[0]
+        np.testing.assert_allclose(final, reference(scenario, c), rtol=0, atol=1e-9)
+
+
+def test_car_with_the_steering_limit_engaged_within_1e6_of_an_event_reference():
+    scenario, actions = ilc_actions("forward_parking_saturated", 4)
+    limit = scenario.config.plant.steering_limit
+    for c in actions:
+        trial = scenario.run(c[None], record=True)
+        assert np.any(np.abs(trial.states[0, :, 3]) > limit), "the limit must be engaged in this test"
+        np.testing.assert_allclose(trial.final[0], reference(scenario, c), rtol=0, atol=1e-6)
+
+
+def test_steering_limit_clips_the_wheel_angle():
+    scenario, actions = ilc_actions("forward_parking_saturated", 1)
+    trial = scenario.run(actions[0][None], record=True)
+    q = scenario.plant.configuration(trial.states[0])
+    assert np.max(np.abs(q[:, 3])) == pytest.approx(scenario.config.plant.steering_limit, abs=1e-15)
+
+
+def test_chained_plant_with_gains_matches_the_closed_form():
+    """z(T) = V(g1 v1) z0 + W(g1 v1) g2 c2 for the chained plant with true gains g1, g2."""
+    rng = np.random.default_rng(5)
+    n, g1, g2 = 5, 1.1, 0.9
+    profile = PiecewiseProfile((1.0, 2.0, 1.5), (0.7, -0.4), n - 1)
+    c = rng.normal(size=(3, n))
+    z0 = rng.normal(size=(3, n))
+    trials = simulate(ChainedPlant(n, g1, g2), profile, z0, c)
+    assert np.all(trials.status == OK)
+    scaled = PiecewiseProfile(profile.durations, tuple(g1 * v for v in profile.v1_fixed), n - 1)
+    for b in range(3):
+        V, W = scaled.transition(g1 * c[b, 0], n)
+        np.testing.assert_allclose(trials.final[b, 1:], V @ z0[b, 1:] + W @ (g2 * c[b, 1:]), atol=1e-10)
+        assert trials.final[b, 0] == pytest.approx(z0[b, 0] + g1 * profile.v1_pieces(c[b, 0]) @ profile.durations, abs=1e-12)
+
+
+def test_nominal_car_is_exactly_the_chained_form():
+    config = load_config("parallel_parking")
+    plant = {**config.plant.__dict__, "true_wheelbase": 0.2, "true_wheel_radius": 0.02}
+    scenario = Scenario(type(config)(config.name, type(config.plant)(**plant), config.task, config.learning))
+    c = scenario.nominal.solve() * np.array([1.0, 0.9, 1.1, 1.05])
+    z_final = scenario.to_chained(scenario.run(c[None]).final[0])
+    np.testing.assert_allclose(z_final, scenario.nominal.final_state(c), atol=1e-9)
+
+
+def test_batch_equals_single_trials_and_parallel_equals_serial():
+    scenario, actions = ilc_actions("forward_parking_saturated", 3)
+    c = np.array(actions)
+    batch = scenario.run(c).final
+    for b in range(3):
+        np.testing.assert_array_equal(batch[b], scenario.run(c[b][None]).final[0])
+    np.testing.assert_array_equal(scenario.run(c, parallel=True).final, batch)
+
+
+def test_a_trial_that_leaves_the_chart_stops_with_a_finite_state():
+    scenario = Scenario(load_config("forward_parking"))
+    c = scenario.nominal.solve() * np.array([1.0, 300.0, 300.0, 300.0])
+    trial = scenario.run(c[None], record=True)
+    assert trial.status[0] == LEFT_CHART
+    assert np.all(np.isfinite(trial.final))
+    assert abs(trial.final[0, 2]) < np.pi / 2 - kernel.CHART_MARGIN
+    np.testing.assert_array_equal(trial.states[0, -1], trial.final[0])
+    assert trial.times.shape == (trial.states.shape[1],) and trial.times[-1] == pytest.approx(5.0)
