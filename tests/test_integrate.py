@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
 from ilc_steering.agents import ILCAgent
 from ilc_steering.config import load_config
@@ -10,6 +9,7 @@ from ilc_steering.envs import integrate as kernel
 from ilc_steering.envs.integrate import LEFT_CHART, OK
 from ilc_steering.envs.plants import ChainedPlant, simulate
 from ilc_steering.envs.profiles import PiecewiseProfile
+from ilc_steering.envs.reference import reference_trial
 from ilc_steering.envs.scenario import Scenario
 
 
@@ -23,34 +23,17 @@ def paper_car(q, v1, v2, nominal, true, limit):
     return np.array([np.cos(theta) * rho_t * u1, np.sin(theta) * rho_t * u1, np.tan(phi) / ell_t * rho_t * u1, u2])
 
 
-def reference(scenario, c, rtol=1e-12):
-    """DOP853 piece by piece; with a limit, restarted at every crossing of |phi_c| = limit."""
+def reference(scenario, c):
+    """DOP853 at rtol = atol = 1e-12 on the paper-typed field, restarted at every limit crossing."""
     cfg = scenario.config.plant
     limit = np.inf if cfg.steering_limit is None else cfg.steering_limit
     nominal, true = (cfg.wheelbase, cfg.wheel_radius), (cfg.true_wheelbase, cfg.true_wheel_radius)
-    profile = scenario.profile
 
-    def rhs(t, q):
-        v1, v2 = profile.evaluate(c, np.array(t))
+    def field(t, q):
+        v1, v2 = scenario.profile.evaluate(c, np.array(t))
         return paper_car(q, float(v1), float(v2), nominal, true, limit)
 
-    def crossing(t, q):
-        return abs(q[3]) - limit
-
-    crossing.terminal = True
-    q = scenario.x_start.copy()
-    for t0, t1 in zip(profile.breakpoints[:-1], profile.breakpoints[1:]):
-        t = t0
-        while t < t1:
-            # Step off an event by a hair so the restarted solver does not stop on it again.
-            events = crossing if np.isfinite(limit) and abs(abs(q[3]) - limit) > 1e-13 else None
-            sol = solve_ivp(rhs, (t, t1), q, method="DOP853", rtol=rtol, atol=rtol, events=events)
-            q, t = sol.y[:, -1], sol.t[-1]
-            if sol.status == 1 and t < t1:
-                nudge = min(1e-12, t1 - t)
-                q = q + nudge * rhs(t, q)
-                t = t + nudge
-    return q
+    return reference_trial(field, scenario.x_start, scenario.profile.breakpoints, limit)
 
 
 def ilc_actions(name, count):

@@ -1,0 +1,120 @@
+"""Accuracy and speed of the compiled integrator against scipy's solve_ivp, in one run.
+
+For each paper task, the first ILC trials are simulated with the compiled fixed-step integrator
+at several step sizes and with ``solve_ivp(method="DOP853", rtol=1e-8)`` per trial, the
+reference speed; both are compared with ``solve_ivp`` at rtol = atol = 1e-12 (restarted at every
+steering-limit crossing). Times are medians over repeats; speed is reported as a ratio to the
+reference measured in the same run.
+
+    python benchmarks/integrator.py [--quick] [--out DIR]
+
+writes ``integrator.json``, ``integrator.csv`` and ``integrator.md`` to ``DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from statistics import median
+
+import numpy as np
+
+from ilc_steering.agents import ILCAgent
+from ilc_steering.config import load_config
+from ilc_steering.envs.reference import car_field, reference_trial
+from ilc_steering.envs.scenario import Scenario
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """Fewer step sizes, trials and repeats: checks that the script runs (CI)."""
+    repeats: int = 5
+    """Timing repeats; the median is reported."""
+    out: Path = Path("results/benchmarks")
+    """Folder for the JSON, CSV and Markdown results."""
+
+
+def solve_ivp_trial(scenario: Scenario, c: np.ndarray, rtol: float) -> np.ndarray:
+    limit = scenario.config.plant.steering_limit
+    return reference_trial(car_field(scenario, c), scenario.x_start, scenario.profile.breakpoints,
+                           np.inf if limit is None else limit, rtol)
+
+
+def ilc_actions(scenario: Scenario, count: int) -> list[np.ndarray]:
+    agent, actions = ILCAgent(scenario.nominal), []
+    for _ in range(count):
+        c = agent.act()
+        trial = scenario.run(c[None])
+        agent.learn({**{k: v[0] for k, v in scenario.measure(trial.final, trial.status).items()}, "action": c})
+        actions.append(c)
+    return actions
+
+
+def timed(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - start)
+    return median(samples)
+
+
+def main(args: Args) -> list[dict[str, object]]:
+    tasks = ["forward_parking", "parallel_parking"] if args.quick else ["forward_parking", "forward_parking_saturated", "parallel_parking"]
+    steps = [1 / 32] if args.quick else [1 / 8, 1 / 16, 1 / 32, 1 / 64]
+    trials = 2 if args.quick else 4
+    repeats = 1 if args.quick else args.repeats
+    rows: list[dict[str, object]] = []
+    for name in tasks:
+        base = load_config(name)
+        actions = ilc_actions(Scenario(base), trials)
+        scenario = Scenario(base)
+        truth = [solve_ivp_trial(scenario, c, 1e-12) for c in actions]
+        ref_time = timed(lambda: [solve_ivp_trial(scenario, c, 1e-8) for c in actions], repeats) / trials
+        ref_error = max(np.abs(solve_ivp_trial(scenario, c, 1e-8) - x).max() for c, x in zip(actions, truth))
+        rows.append({"task": name, "method": "solve_ivp DOP853 rtol=1e-8", "max_step": None,
+                     "ms_per_trial": 1e3 * ref_time, "speedup": 1.0, "max_error": ref_error})
+        for h in steps:
+            config = type(base)(base.name, base.plant, base.task, base.learning, type(base.simulation)(h))
+            sim = Scenario(config)
+            sim.run(actions[0][None])  # compile outside the timing
+            t = timed(lambda: [sim.run(c[None]) for c in actions], repeats) / trials
+            error = max(np.abs(sim.run(c[None]).final[0] - x).max() for c, x in zip(actions, truth))
+            rows.append({"task": name, "method": "compiled RK8 fixed step", "max_step": h,
+                         "ms_per_trial": 1e3 * t, "speedup": ref_time / t, "max_error": error})
+    write(rows, args.out)
+    return rows
+
+
+def write(rows: list[dict[str, object]], out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "integrator.json").write_text(json.dumps(rows, indent=1))
+    with open(out / "integrator.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    lines = ["| task | method | max step [s] | ms / trial | speed-up vs solve_ivp | max final-state error |",
+             "| --- | --- | ---: | ---: | ---: | ---: |"]
+    for r in rows:
+        step = "adaptive" if r["max_step"] is None else f"1/{round(1 / float(r['max_step']))}"
+        lines.append(f"| {r['task']} | {r['method']} | {step} | {r['ms_per_trial']:.3f} | {r['speedup']:.1f}x | {r['max_error']:.1e} |")
+    (out / "integrator.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def parse(argv: list[str] | None = None) -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=Args.__dataclass_fields__["quick"].__doc__)
+    parser.add_argument("--repeats", type=int, default=Args.repeats)
+    parser.add_argument("--out", type=Path, default=Args.out)
+    ns = parser.parse_args(argv)
+    return Args(quick=ns.quick, repeats=ns.repeats, out=ns.out)
+
+
+if __name__ == "__main__":
+    main(parse())
