@@ -102,25 +102,24 @@ def check_chart(q: Array) -> None:
         raise ValueError(f"phi = {np.asarray(phi).tolist()} rad: the chained form needs |phi| < pi/2")
 
 
-def frame_angle(theta_start: float, theta_goal: float) -> float:
-    """The rotation [rad] of the x-y frame that puts both orientations in ``(-pi/2, pi/2)``.
+def frame_angle(*thetas: float) -> float:
+    """The rotation [rad] of the x-y frame that puts all orientations ``thetas`` in ``(-pi/2, pi/2)``.
 
-    Zero when they already are (so the paper's tasks keep their coordinates); otherwise their
-    mean, which works whenever ``|theta_goal - theta_start| < pi`` (end of section 4). Raises
+    Zero when they already are (so the paper's tasks keep their coordinates); otherwise the middle
+    of their range, which works whenever the range is below ``pi`` (end of section 4). Raises
     ``ValueError`` otherwise, suggesting the intermediate configuration the paper prescribes.
     """
-    turn = theta_goal - theta_start
-    if abs(turn) >= pi:
-        middle = 0.5 * (theta_start + theta_goal)
+    low, high = min(thetas), max(thetas)
+    if high - low >= pi:
+        middle = 0.5 * (low + high)
         raise ValueError(
-            f"|theta_goal - theta_start| = {abs(turn):.6g} rad >= pi: no frame puts both orientations "
-            f"in the chained-form chart. Split the task at an intermediate configuration with "
-            f"theta = {middle:.6g} rad (section 4), or write theta_goal as {theta_goal - np.sign(turn) * 2 * pi:.6g} "
-            "if the same heading reached by the shorter turn is meant."
+            f"orientations {low:.6g} and {high:.6g} rad are pi or more apart: no frame puts both in the "
+            f"chained-form chart. Split the task at an intermediate configuration with theta = {middle:.6g} rad "
+            "(section 4), or write one orientation 2*pi apart if the same heading by the shorter turn is meant."
         )
-    if abs(theta_start) < pi / 2 and abs(theta_goal) < pi / 2:
+    if all(abs(t) < pi / 2 for t in thetas):
         return 0.0
-    return 0.5 * (theta_start + theta_goal)
+    return 0.5 * (low + high)
 
 
 def rotate(q: Array, angle: float) -> Array:

@@ -1,6 +1,6 @@
-"""A steering scenario: the true plant, the nominal model a learner may see, and measurements.
+"""A steering scenario: the true plant, the nominal models a learner may see, and measurements.
 
-The environments own a :class:`Scenario`; learners get only its :class:`NominalModel`. Car tasks
+The environments own a :class:`Scenario`; learners get only its :class:`NominalModel` (one per leg). Car tasks
 are simulated in a *task frame*, the world frame rotated by :func:`~ilc_steering.envs.car.frame_angle`
 so that both orientations sit in the chained-form chart; everything reported is in the world frame.
 """
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.config import SteeringConfig
+from ilc_steering.config import CyclicTaskConfig, SteeringConfig
 from ilc_steering.envs.car import CarModel, frame_angle, rotate
 from ilc_steering.envs.integrate import OK
 from ilc_steering.envs.plants import CarPlant, ChainedPlant, Plant, Trials, simulate
@@ -72,63 +72,99 @@ class NominalModel:
 
 
 class Scenario:
-    """The true plant, the nominal model and the task of a config, and what a trial measures."""
+    """The true plant, the nominal models and the legs of a config, and what a trial measures.
+
+    A one-trial task has one leg, start -> goal. A cyclic task has one leg per segment, waypoint
+    ``l`` -> waypoint ``l + 1`` (the last leg returns home). ``waypoints`` are world configurations
+    (chained coordinates for a chained plant); leg ``l`` ends at ``waypoints[(l + 1) % m]``.
+    """
 
     def __init__(self, config: SteeringConfig) -> None:
         self.config = config
         plant_cfg, task = config.plant, config.task
-        self.profile = PiecewiseProfile(task.pieces, task.v1_fixed, task.v2_terms)
-        self.start = np.array(task.start, dtype=np.float64)
-        self.goal = np.array(task.goal, dtype=np.float64)
+        if isinstance(task, CyclicTaskConfig):
+            self.waypoints = np.array(task.waypoints, dtype=np.float64)
+            segments = [task.segment(i) for i in range(len(task.waypoints))]
+        else:
+            self.waypoints = np.array([task.start, task.goal], dtype=np.float64)
+            segments = [task]
+        profiles = [PiecewiseProfile(s.pieces, s.v1_fixed, s.v2_terms) for s in segments]
         self.plant: Plant
         if plant_cfg.model == "car":
-            nominal_car = CarModel(plant_cfg.wheelbase, plant_cfg.wheel_radius)
+            nominal_car: CarModel | None = CarModel(plant_cfg.wheelbase, plant_cfg.wheel_radius)
             self.plant = CarPlant(
                 CarModel(plant_cfg.true_wheelbase, plant_cfg.true_wheel_radius), nominal_car, plant_cfg.steering_limit
             )
-            self.frame = frame_angle(self.start[2], self.goal[2])
-            self.x_start = rotate(self.start, self.frame)
-            z_start = nominal_car.to_chained(self.x_start)
-            z_goal = nominal_car.to_chained(rotate(self.goal, self.frame))
-            self.nominal = NominalModel(4, self.profile, z_start, z_goal, nominal_car)
+            self.frame = frame_angle(*self.waypoints[:, 2])
         else:
+            nominal_car = None
             self.plant = ChainedPlant(plant_cfg.dimension, plant_cfg.v1_gain, plant_cfg.v2_gain)
             self.frame = 0.0
-            self.x_start = self.start
-            self.nominal = NominalModel(plant_cfg.dimension, self.profile, self.start.copy(), self.goal.copy())
+        self.x_start = self.to_task(self.waypoints[0]).copy()
+        self.z_waypoints = nominal_car.to_chained(self.to_task(self.waypoints)) if nominal_car else self.waypoints.copy()
+        m, n = self.waypoints.shape
+        self.nominals = [
+            NominalModel(n, profile, self.z_waypoints[leg], self.z_waypoints[(leg + 1) % m], nominal_car)
+            for leg, profile in enumerate(profiles)
+        ]
 
     @property
     def is_car(self) -> bool:
         return isinstance(self.plant, CarPlant)
 
+    @property
+    def nominal(self) -> NominalModel:
+        """The nominal model of the first (for a one-trial task, the only) leg."""
+        return self.nominals[0]
+
+    @property
+    def profile(self) -> PiecewiseProfile:
+        return self.nominals[0].profile
+
+    @property
+    def start(self) -> Array:
+        return self.waypoints[0]
+
+    @property
+    def goal(self) -> Array:
+        return self.waypoints[1]
+
     def to_chained(self, x: Array) -> Array:
-        """Plant states ``(..., nx)`` in the task frame to chained coordinates (nominal map)."""
+        """Configurations ``(..., nx)`` in the task frame to chained coordinates (nominal map)."""
         return self.nominal.car.to_chained(x) if self.nominal.car is not None else np.asarray(x)
 
     def to_world(self, x: Array) -> Array:
-        """Plant states in the task frame to world configurations."""
+        """Configurations in the task frame to the world frame."""
         return rotate(x, -self.frame) if self.is_car else np.asarray(x)
 
-    def run(self, c: Array, x0: Array | None = None, record: bool = False, parallel: bool = False) -> Trials:
-        """Simulate trials with coefficients ``c`` ``(B, 1 + q)`` from ``x0`` (default: the start)."""
+    def to_task(self, q: Array) -> Array:
+        """World configurations to the task frame."""
+        return rotate(q, self.frame) if self.is_car else np.asarray(q)
+
+    def run(
+        self, c: Array, x0: Array | None = None, record: bool = False, parallel: bool = False, leg: int = 0
+    ) -> Trials:
+        """Simulate leg ``leg`` with coefficients ``c`` ``(B, 1 + q)`` from plant states ``x0``
+        (task frame; default: the start)."""
         if x0 is None:
             x0 = np.broadcast_to(self.x_start, (c.shape[0], self.x_start.shape[0]))
+        profile = self.nominals[leg].profile
         return simulate(
-            self.plant, self.profile, np.ascontiguousarray(x0), c, self.config.simulation.max_step, record, parallel
+            self.plant, profile, np.ascontiguousarray(x0), c, self.config.simulation.max_step, record, parallel
         )
 
-    def measure(self, final: Array, status: npt.NDArray[np.int64], goal: Array | None = None) -> dict[str, Array]:
-        """Errors of a batch of final plant states ``(B, nx)`` against ``goal`` (world; default: the task's goal).
+    def measure(self, final: Array, status: npt.NDArray[np.int64], leg: int = 0) -> dict[str, Array]:
+        """Errors of a batch of final plant states ``(B, nx)`` against the end of leg ``leg``.
 
         Returns arrays with a leading batch axis: ``q_final`` (world), ``z_final``, ``error``
-        (``z_goal - z(T)``, eq. 33-34's epsilon), ``error_norm``, ``left_chart`` and, for a car,
-        ``cartesian_error`` [m] and ``orientation_error`` [rad].
+        (``z^d - z(T)``, the epsilon of eqs. 33-34 and 40), ``error_norm``, ``left_chart`` and,
+        for a car, ``cartesian_error`` [m] and ``orientation_error`` [rad].
         """
-        goal_world = self.goal if goal is None else goal
-        z_goal = self.to_chained(rotate(goal_world, self.frame)) if self.is_car else goal_world
+        target = (leg + 1) % len(self.waypoints)
+        goal_world = self.waypoints[target]
         q_final = self.plant.configuration(final)
         z_final = self.to_chained(q_final)
-        error = z_goal - z_final
+        error = self.z_waypoints[target] - z_final
         out = {
             "q_final": self.to_world(q_final),
             "z_final": z_final,

@@ -22,7 +22,9 @@ __all__ = [
     "CarPlantConfig",
     "ChainedPlantConfig",
     "ConfigError",
+    "CyclicTaskConfig",
     "LearningConfig",
+    "SegmentConfig",
     "SimulationConfig",
     "SteeringConfig",
     "TaskConfig",
@@ -100,6 +102,33 @@ class TaskConfig:
 
 
 @dataclass(frozen=True)
+class SegmentConfig:
+    pieces: tuple[float, ...]  # Delta_i [s] of the segment
+    v1_fixed: tuple[float, ...]  # v1 on pieces 2..p [m/s for the car]
+    v2_terms: int  # q
+
+    def __post_init__(self) -> None:
+        _require(len(self.pieces) >= 1 and all(map(_positive, self.pieces)), "pieces", f"durations must be > 0 s, got {list(self.pieces)}")
+        _require(len(self.v1_fixed) == len(self.pieces) - 1, "v1_fixed", f"needs one value per piece after the first ({len(self.pieces) - 1}), got {len(self.v1_fixed)}")
+        _require(all(isfinite(v) for v in self.v1_fixed), "v1_fixed", "values must be finite")
+
+
+@dataclass(frozen=True)
+class CyclicTaskConfig:
+    waypoints: tuple[tuple[float, ...], ...]  # q_0^d (home), q_1^d, ...; the cycle ends back at home
+    segments: tuple[SegmentConfig, ...]  # one per segment (waypoint l-1 -> l), or one for all
+
+    def __post_init__(self) -> None:
+        _require(len(self.waypoints) >= 2, "waypoints", f"a cycle needs at least 2 waypoints, got {len(self.waypoints)}")
+        _require(all(isfinite(v) for w in self.waypoints for v in w), "waypoints", "values must be finite")
+        _require(len(self.segments) in (1, len(self.waypoints)), "segments", f"needs 1 entry or one per segment ({len(self.waypoints)}), got {len(self.segments)}")
+
+    def segment(self, index: int) -> SegmentConfig:
+        """The segment from waypoint ``index`` to waypoint ``index + 1`` (mod the cycle)."""
+        return self.segments[0] if len(self.segments) == 1 else self.segments[index]
+
+
+@dataclass(frozen=True)
 class ToleranceConfig:
     cartesian: float | None = None  # [m], car
     orientation: float | None = None  # [rad], car
@@ -115,7 +144,7 @@ class ToleranceConfig:
 class LearningConfig:
     nu_a: float  # gain of eq. 33, in (0, 2)
     nu_b: float  # gain of eq. 34, in (0, 2)
-    trials: int  # how many trials (cycles, for a cyclic task) a run makes
+    trials: int  # how many trials (for a cyclic task: cycles) a run makes
     tolerance: ToleranceConfig
 
     def __post_init__(self) -> None:
@@ -137,36 +166,47 @@ class SimulationConfig:
 class SteeringConfig:
     name: str
     plant: CarPlantConfig | ChainedPlantConfig
-    task: TaskConfig
+    task: TaskConfig | CyclicTaskConfig
     learning: LearningConfig
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
 
+    @property
+    def is_cyclic(self) -> bool:
+        return isinstance(self.task, CyclicTaskConfig)
+
     def __post_init__(self) -> None:
         n = self.plant.dimension
-        for key in ("start", "goal"):
-            _require(len(getattr(self.task, key)) == n, f"task.{key}", f"needs {n} values for plant.model {self.plant.model}, got {len(getattr(self.task, key))}")
-        _require(self.task.v2_terms >= n - 1, "task.v2_terms", f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {self.task.v2_terms}")
-        moves_z1 = self.task.goal[0] != self.task.start[0]
-        _require(
-            moves_z1 or any(v != 0 for v in self.task.v1_fixed),
-            "task.v1_fixed",
-            "the start and goal share z1, so v1 on the learned piece goes to zero and W is singular (eq. 11): "
-            "add a piece with a nonzero fixed v1, as in the paper's parallel parking",
-        )
+        if isinstance(self.task, CyclicTaskConfig):
+            points = [(f"task.waypoints[{i}]", w) for i, w in enumerate(self.task.waypoints)]
+            r = len(points)
+            legs = [(f"task.segments[{i if len(self.task.segments) > 1 else 0}]", self.task.segment(i), points[i][1], points[(i + 1) % r][1]) for i in range(r)]
+        else:
+            points = [("task.start", self.task.start), ("task.goal", self.task.goal)]
+            legs = [("task", self.task, self.task.start, self.task.goal)]
+        for key, point in points:
+            _require(len(point) == n, key, f"needs {n} values for plant.model {self.plant.model}, got {len(point)}")
+        for key, leg, start, goal in legs:
+            _require(leg.v2_terms >= n - 1, f"{key}.v2_terms", f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {leg.v2_terms}")
+            _require(
+                goal[0] != start[0] or any(v != 0 for v in leg.v1_fixed),
+                f"{key}.v1_fixed",
+                "the start and goal share z1, so v1 on the learned piece goes to zero and W is singular (eq. 11): "
+                "add a piece with a nonzero fixed v1, as in the paper's parallel parking",
+            )
         tolerance = self.learning.tolerance
         if self.plant.model == "car":
             _require(tolerance.cartesian is not None and tolerance.orientation is not None, "learning.tolerance", "a car needs {cartesian: [m], orientation: [rad]}")
             limit = self.plant.steering_limit
-            for key in ("start", "goal"):
-                phi = getattr(self.task, key)[3]
-                _require(abs(phi) < pi / 2, f"task.{key}", f"phi = {phi} rad: the chained form needs |phi| < pi/2")
-                _require(limit is None or abs(phi) <= limit, f"task.{key}", f"phi = {phi} rad exceeds plant.steering_limit = {limit} rad")
+            for key, point in points:
+                phi = point[3]
+                _require(abs(phi) < pi / 2, key, f"phi = {phi} rad: the chained form needs |phi| < pi/2")
+                _require(limit is None or abs(phi) <= limit, key, f"phi = {phi} rad exceeds plant.steering_limit = {limit} rad")
             from ilc_steering.envs.car import frame_angle  # here: envs imports this module
 
             try:
-                frame_angle(self.task.start[2], self.task.goal[2])
+                frame_angle(*(point[2] for _, point in points))
             except ValueError as error:
-                raise ConfigError(f"task.goal: {error}") from None
+                raise ConfigError(f"{points[-1][0]}: {error}") from None
         else:
             _require(tolerance.error is not None, "learning.tolerance", "a chained plant needs {error: ...}")
 
@@ -208,8 +248,14 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
 
 
 def _build_tagged(options: list[Any], value: Any, key: str) -> Any:
-    """Pick the dataclass whose ``model`` literal matches ``value['model']``."""
+    """Pick the dataclass whose ``model`` literal matches ``value['model']`` or, without a
+    ``model`` field, the one whose first field is a key of ``value`` (``start`` or ``waypoints``)."""
     _require(isinstance(value, dict), key, f"must be a mapping, got {value!r}")
+    if not all("model" in typing.get_type_hints(o) for o in options):
+        markers = {dataclasses.fields(o)[0].name: o for o in options}
+        found = [m for m in markers if m in value]
+        _require(len(found) == 1, key, f"needs exactly one of the keys {list(markers)}, got {sorted(value)}")
+        return _build(markers[found[0]], value, key)
     tags = {typing.get_args(typing.get_type_hints(o)["model"])[0]: o for o in options}
     _require(value.get("model") in tags, f"{key}.model", f"must be one of {list(tags)}, got {value.get('model')!r}")
     return _build(tags[value["model"]], value, key)
