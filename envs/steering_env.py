@@ -12,22 +12,40 @@ import numpy.typing as npt
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.scenario import NominalModel, Scenario
 
-__all__ = ["ChainedSteeringEnv", "check_action"]
+__all__ = ["ChainedSteeringEnv", "check_action", "check_render_mode", "trial_info"]
 
 Array = npt.NDArray[np.float64]
 
 
-def check_action(action: Any, shape: tuple[int, ...], names: str) -> Array:
+def check_action(action: Any, shape: tuple[int, ...], names: str, what: str = "action") -> Array:
     """``action`` as float64 of exactly ``shape``, or ``ValueError`` saying what is wrong."""
     try:
         c = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"action must be numeric {names}, got {action!r}") from error
+        raise ValueError(f"{what} must be numeric {names}, got {action!r}") from error
     if c.shape != shape:
-        raise ValueError(f"action must have shape {shape} = {names}, got shape {c.shape}")
+        raise ValueError(f"{what} must have shape {shape} = {names}, got shape {c.shape}")
     if not np.all(np.isfinite(c)):
-        raise ValueError(f"action must be finite, got {c.tolist()}")
+        raise ValueError(f"{what} must be finite, got {c.tolist()}")
     return c
+
+
+def check_render_mode(render_mode: str | None, metadata: dict[str, Any]) -> str | None:
+    if render_mode is not None and render_mode not in metadata["render_modes"]:
+        raise ValueError(f"render_mode must be one of {metadata['render_modes']} or None, got {render_mode!r}")
+    return render_mode
+
+
+def trial_info(measured: dict[str, Array], applied: Array, requested: Array) -> dict[str, Any]:
+    """The ``info`` of one trial from a batch-of-one measurement (``Scenario.measure``)."""
+    info: dict[str, Any] = {k: v[0] for k, v in measured.items()}
+    for key in ("error_norm", "cartesian_error", "orientation_error"):
+        if key in info:
+            info[key] = float(info[key])
+    info["left_chart"] = bool(info["left_chart"])
+    info["action"] = applied
+    info["clipped"] = bool(np.any(applied != requested))
+    return info
 
 
 class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
@@ -114,9 +132,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     metadata: dict[str, Any] = {"render_modes": [], "render_fps": 4}
 
     def __init__(self, config: str | Path | SteeringConfig = "forward_parking", render_mode: str | None = None) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
+        self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
         self._scenario = Scenario(self.config)
         model = self._scenario.nominal
@@ -146,11 +162,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         c = check_action(action, self.action_space.shape, self._action_names)
         applied = np.clip(c, self.action_space.low, self.action_space.high)
         trials = self._scenario.run(applied[None])
-        outcome = {k: v[0] for k, v in self._scenario.measure(trials.final, trials.status).items()}
-        info = {**outcome, "left_chart": bool(outcome["left_chart"]), "action": applied, "clipped": bool(np.any(applied != c))}
-        for key in ("error_norm", "cartesian_error", "orientation_error"):
-            if key in info:
-                info[key] = float(info[key])
+        info = trial_info(self._scenario.measure(trials.final, trials.status), applied, c)
         return self._observation.copy(), reward(info), True, False, info
 
 

@@ -13,15 +13,16 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ilc_steering.config import ConfigError, SteeringConfig, load_config
-from ilc_steering.runner import RunResult, TrialRecord, run_ilc
+from ilc_steering.runner import CycleRecord, CyclicRunResult, RunResult, TrialRecord, run_cyclic_ilc, run_ilc
 
 __all__ = ["main"]
 
-# Iterations the paper reports for "exact steering" (section 4), and why ours may differ.
-PAPER = {
+# Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
+PAPER: dict[str, tuple[int | None, str]] = {
     "forward_parking": (4, "Figs. 3-6"),
     "forward_parking_saturated": (7, "Figs. 7-10"),
     "parallel_parking": (5, "Figs. 11-14"),
+    "cyclic_home_goal": (None, "Figs. 23-25"),  # no count stated; the figures show five cycles
 }
 WHY_DIFFERENT = {
     "forward_parking_saturated": (
@@ -32,36 +33,50 @@ WHY_DIFFERENT = {
 }
 
 
-def _print_header(config: SteeringConfig, trials: int) -> None:
+def _columns(config: SteeringConfig) -> list[str]:
+    names = ["cartesian [m]", "orientation [rad]"] if config.plant.model == "car" else ["error norm"]
+    if not config.is_cyclic:
+        return names
+    return [f"wp{l} {name}" for l in range(1, len(config.task.waypoints) + 1) for name in names]  # type: ignore[union-attr]
+
+
+def _print_header(config: SteeringConfig, count: int) -> None:
     tol = config.learning.tolerance
-    if config.plant.model == "car":
-        print(f"{config.name}: {trials} trials, tolerance {tol.cartesian} m / {tol.orientation} rad")
-        print(f"{'trial':>5}  {'cartesian [m]':>13}  {'orientation [rad]':>17}")
+    unit = "cycles" if config.is_cyclic else "trials"
+    bound = f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.model == "car" else f"{tol.error} on ||z^d - z||"
+    print(f"{config.name}: {count} {unit}, tolerance {bound}{' at every waypoint' if config.is_cyclic else ''}")
+    print(f"{unit[:-1]:>5}  " + "  ".join(f"{c:>17}" for c in _columns(config)))
+
+
+def _values(record: TrialRecord) -> list[float]:
+    if record.cartesian_error is not None and record.orientation_error is not None:
+        return [record.cartesian_error, record.orientation_error]
+    return [record.error_norm]
+
+
+def _print_row(record: TrialRecord | CycleRecord) -> None:
+    if isinstance(record, CycleRecord):
+        index, values = record.cycle, [v for w in record.waypoints for v in _values(w)]
     else:
-        print(f"{config.name}: {trials} trials, tolerance {tol.error} on ||z^d - z(T)||")
-        print(f"{'trial':>5}  {'error norm':>13}")
+        index, values = record.trial, _values(record)
+    print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values), flush=True)
 
 
-def _print_trial(record: TrialRecord) -> None:
-    if record.cartesian_error is not None:
-        print(f"{record.trial:>5}  {record.cartesian_error:>13.3e}  {record.orientation_error:>17.3e}", flush=True)
-    else:
-        print(f"{record.trial:>5}  {record.error_norm:>13.3e}", flush=True)
-
-
-def _report(result: RunResult) -> None:
+def _learn(config: SteeringConfig, count: int | None) -> RunResult | CyclicRunResult:
+    """Run the config's learner with a table row per trial (or cycle) as it finishes."""
+    _print_header(config, config.learning.trials if count is None else count)
+    result = run_cyclic_ilc(config, count, on_cycle=_print_row) if config.is_cyclic else run_ilc(config, count, on_trial=_print_row)
+    unit = "cycles" if config.is_cyclic else "trials"
+    done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
     if result.converged_at is None:
-        print(f"not converged within {len(result.trials)} trials")
+        print(f"not converged within {done} {unit}")
     else:
-        print(f"converged at trial {result.converged_at}")
+        print(f"converged at {unit[:-1]} {result.converged_at}")
+    return result
 
 
 def _run(args: argparse.Namespace) -> int:
-    config = load_config(args.config)
-    trials = config.learning.trials if args.trials is None else args.trials
-    _print_header(config, trials)
-    result = run_ilc(config, trials, on_trial=_print_trial)
-    _report(result)
+    result = _learn(load_config(args.config), args.trials)
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(result.to_json(), indent=1))
@@ -71,37 +86,38 @@ def _run(args: argparse.Namespace) -> int:
 def _reproduce(args: argparse.Namespace) -> int:
     rows = []
     for name, (paper, figures) in PAPER.items():
-        config = load_config(name)
-        _print_header(config, config.learning.trials)
-        result = run_ilc(config, on_trial=_print_trial)
-        _report(result)
+        result = _learn(load_config(name), None)
         print()
         if args.json_dir is not None:
             args.json_dir.mkdir(parents=True, exist_ok=True)
             (args.json_dir / f"{name}.json").write_text(json.dumps(result.to_json(), indent=1))
-        rows.append((name, figures, paper, result.converged_at, result))
-    print("| scenario | paper figures | paper iterations | trials to 0.5 mm / 0.5 mrad |")
+        rows.append((name, figures, paper, result))
+    print("| scenario | paper figures | paper iterations | trials (cycles) to 0.5 mm / 0.5 mrad |")
     print("| --- | --- | ---: | ---: |")
-    for name, figures, paper, ours, _ in rows:
-        print(f"| {name} | {figures} | {paper} | {ours if ours is not None else 'not converged'} |")
-    for name, _, paper, ours, result in rows:
-        if ours != paper:
-            errors = [t.cartesian_error for t in result.trials]
+    for name, figures, paper, result in rows:
+        ours = result.converged_at if result.converged_at is not None else "not converged"
+        print(f"| {name} | {figures} | {paper if paper is not None else 'not stated'} | {ours} |")
+    for name, _, paper, result in rows:
+        if paper is None:
+            print(f"\n{name}: the paper states no count; its figures show errors shrinking over five cycles.")
+        elif result.converged_at != paper and isinstance(result, RunResult):
+            errors = [t.cartesian_error or t.error_norm for t in result.trials]
             ratio = errors[-1] / errors[-2] if len(errors) > 1 else float("nan")
             at_paper = f"{errors[paper - 1]:.2e} m at trial {paper}, " if paper <= len(errors) else ""
             print(
-                f"\n{name}: {ours} trials against the paper's {paper}: {WHY_DIFFERENT.get(name, 'no known cause')}. "
+                f"\n{name}: {result.converged_at} trials against the paper's {paper}: "
+                f"{WHY_DIFFERENT.get(name, 'no known cause')}. "
                 f"Measured: {at_paper}error ratio {ratio:.2f} per trial at the end."
             )
-    return 0 if all(ours is not None for *_, ours in rows) else 1
+    return 0 if all(result.converged_at is not None for *_, result in rows) else 1
 
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ilc-steering", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="learn on one scenario; exit 0 if it converged")
+    run = sub.add_parser("run", help="learn on one scenario (one-trial or cyclic); exit 0 if it converged")
     run.add_argument("config", help="a YAML file or a packaged config name, e.g. forward_parking")
-    run.add_argument("--trials", type=int, default=None, help="number of trials (default: the config's)")
+    run.add_argument("--trials", type=int, default=None, help="number of trials, or cycles for a cyclic config (default: the config's)")
     run.add_argument("--json", type=Path, default=None, help="write the per-trial results here")
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")

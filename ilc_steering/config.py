@@ -117,8 +117,11 @@ class SegmentConfig:
 class CyclicTaskConfig:
     waypoints: tuple[tuple[float, ...], ...]  # q_0^d (home), q_1^d, ...; the cycle ends back at home
     segments: tuple[SegmentConfig, ...]  # one per segment (waypoint l-1 -> l), or one for all
+    action_bound: tuple[float, ...] | None = None  # |c_i| bounds of the action box; None: 10x the largest action_scale()
 
     def __post_init__(self) -> None:
+        if self.action_bound is not None:
+            _require(all(map(_positive, self.action_bound)), "action_bound", "values must be finite and > 0")
         _require(len(self.waypoints) >= 2, "waypoints", f"a cycle needs at least 2 waypoints, got {len(self.waypoints)}")
         _require(all(isfinite(v) for w in self.waypoints for v in w), "waypoints", "values must be finite")
         _require(len(self.segments) in (1, len(self.waypoints)), "segments", f"needs 1 entry or one per segment ({len(self.waypoints)}), got {len(self.segments)}")

@@ -9,19 +9,21 @@ from typing import Any
 
 import gymnasium as gym
 
+from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.config import SteeringConfig, ToleranceConfig, load_config
 
-__all__ = ["RunResult", "TrialRecord", "run_ilc", "within_tolerance"]
+__all__ = ["CycleRecord", "CyclicRunResult", "RunResult", "TrialRecord", "run_cyclic_ilc", "run_ilc", "within_tolerance"]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
+CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
 
 
 @dataclass(frozen=True)
 class TrialRecord:
     """One trial: its errors, final configuration (world frame), chained error and action."""
 
-    trial: int
+    trial: int  # for a cyclic run: the index l of the waypoint reached (r is home)
     error_norm: float
     cartesian_error: float | None
     orientation_error: float | None
@@ -56,6 +58,18 @@ def within_tolerance(tolerance: ToleranceConfig, info: dict[str, Any]) -> bool:
     return True
 
 
+def _record(index: int, info: dict[str, Any]) -> TrialRecord:
+    return TrialRecord(
+        trial=index,
+        error_norm=info["error_norm"],
+        cartesian_error=info.get("cartesian_error"),
+        orientation_error=info.get("orientation_error"),
+        final_state=info["q_final"].tolist(),
+        error=info["error"].tolist(),
+        action=info["action"].tolist(),
+    )
+
+
 def run_ilc(
     config: str | Path | SteeringConfig,
     trials: int | None = None,
@@ -77,15 +91,7 @@ def run_ilc(
         observation, _ = env.reset(seed=k)
         _, _, _, _, info = env.step(agent.act(observation))
         agent.learn(info)
-        record = TrialRecord(
-            trial=k,
-            error_norm=info["error_norm"],
-            cartesian_error=info.get("cartesian_error"),
-            orientation_error=info.get("orientation_error"),
-            final_state=info["q_final"].tolist(),
-            error=info["error"].tolist(),
-            action=info["action"].tolist(),
-        )
+        record = _record(k, info)
         records.append(record)
         if on_trial is not None:
             on_trial(record)
@@ -93,3 +99,66 @@ def run_ilc(
             converged_at = k
     env.close()
     return RunResult(config.name, records, converged_at)
+
+
+@dataclass(frozen=True)
+class CycleRecord:
+    """One cycle: a record per waypoint reached, in order (``trial`` holds the waypoint index)."""
+
+    cycle: int
+    waypoints: list[TrialRecord]
+
+    def to_json(self) -> dict[str, Any]:
+        rows = []
+        for w in self.waypoints:
+            row = {"index": w.trial, **{k: v for k, v in w.to_json().items() if k != "trial"}}
+            rows.append(row)
+        return {"cycle": self.cycle, "waypoints": rows}
+
+
+@dataclass(frozen=True)
+class CyclicRunResult:
+    name: str
+    cycles: list[CycleRecord]
+    converged_at: int | None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "cycles": [c.to_json() for c in self.cycles], "converged_at": self.converged_at}
+
+
+def run_cyclic_ilc(
+    config: str | Path | SteeringConfig,
+    cycles: int | None = None,
+    on_cycle: Callable[[CycleRecord], None] | None = None,
+    start: list[float] | None = None,
+) -> CyclicRunResult:
+    """Run the cyclic ILC agent (eqs. 39-40) for ``cycles`` cycles (default: ``learning.trials``),
+    never resetting the robot; ``start`` puts it off home at the beginning.
+
+    A cycle has converged when every waypoint met the tolerance in it.
+    """
+    config = load_config(config)
+    env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles)
+    models = env.unwrapped.nominal_models  # type: ignore[attr-defined]
+    agent = CyclicILCAgent(models, config.learning.nu_a, config.learning.nu_b)
+    observation, _ = env.reset(seed=0, options=None if start is None else {"start": start})
+    records: list[CycleRecord] = []
+    converged_at = None
+    waypoints: list[TrialRecord] = []
+    met = True
+    truncated = False
+    while not truncated:
+        observation, _, _, truncated, info = env.step(agent.act(observation))
+        agent.learn(info)
+        waypoints.append(_record(info["waypoint"], info))
+        met = met and within_tolerance(config.learning.tolerance, info)
+        if info["waypoint"] == len(models):
+            record = CycleRecord(info["cycle"], waypoints)
+            records.append(record)
+            if on_cycle is not None:
+                on_cycle(record)
+            if converged_at is None and met:
+                converged_at = info["cycle"]
+            waypoints, met = [], True
+    env.close()
+    return CyclicRunResult(config.name, records, converged_at)

@@ -43,9 +43,10 @@ def test_reproduce_prints_the_comparison_table(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| forward_parking | Figs. 3-6 | 4 | 4 |" in out
     assert "| parallel_parking | Figs. 11-14 | 5 | 5 |" in out
+    assert "| cyclic_home_goal | Figs. 23-25 | not stated | 6 |" in out
     assert "forward_parking_saturated:" in out  # where it differs, it says why
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "forward_parking.json", "forward_parking_saturated.json", "parallel_parking.json"]
+        "cyclic_home_goal.json", "forward_parking.json", "forward_parking_saturated.json", "parallel_parking.json"]
 
 
 def test_python_dash_m_entry_point(tmp_path):

@@ -1,0 +1,173 @@
+"""``CyclicSteeringEnv``: steer around a cycle of waypoints without ever resetting the robot (section 6)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+from gymnasium.wrappers import TimeLimit
+
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.envs.car import check_chart
+from ilc_steering.envs.scenario import NominalModel, Scenario
+from ilc_steering.envs.steering_env import check_action, check_render_mode, reward, trial_info
+
+__all__ = ["CyclicSteeringEnv", "make_cyclic_env"]
+
+Array = npt.NDArray[np.float64]
+
+
+class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
+    r"""Drive a robot around a repeating cycle of waypoints, one segment per step, never resetting it.
+
+    ## Description
+
+    The cycle is ``q_0^d (home) -> q_1^d -> ... -> q_{r-1}^d -> q_0^d``, each segment of fixed
+    duration (section 6 of Oriolo, Panzieri, Ulivi 1998). Each step drives one segment from
+    wherever the robot really is to the next waypoint, with the input profile of eqs. 15-17 for
+    that segment. The robot is never put back: the next segment starts from the true final
+    state of this one, including a steering servo command wound past the stop.
+
+    ## Action Space
+
+    The coefficients ``c = (c11, c21..c2q)`` of the current segment, in physical units, in
+    ``Box(-b, b, (1 + q,), float32)`` with ``b`` from ``task.action_bound`` or 10 times the
+    largest ``nominal_models[l].action_scale()`` over the segments. With ``nu < 1`` or a start
+    far off home, ``c11`` is smaller than nominal and ``c2`` grows as ``1 / c11**(n-2)``: widen the box. Out-of-bound values are clipped; a
+    wrong shape or a non-finite value raises ``ValueError``. All segments need the same ``q``.
+
+    ## Observation Space
+
+    ``Box(-inf, inf, (n + r,), float64)``: the *measured* configuration at the start of the next
+    segment in chained coordinates (nominal map, task frame; float64 because the learner's
+    feedforward uses it), then a one-hot vector of that segment's index. Gymnasium's checker
+    warns about the infinite bounds: the measured state has no finite bound.
+
+    ## Rewards
+
+    Minus the weighted error at the waypoint reached, as for ``ChainedSteeringEnv``.
+
+    ## Starting State
+
+    Home, ``q_0^d``, or ``options={"start": q}`` (world configuration; ``z`` for a chained plant),
+    the off-home start the cyclic scheme exists for.
+
+    ## Episode End
+
+    Never terminated. Truncated after the configured number of cycles by ``TimeLimit``: the
+    registered ``ilc_steering/CyclicSteering-v0`` sets ``max_episode_steps = cycles * r`` with
+    ``cycles`` from ``learning.trials`` or the ``cycles`` argument.
+
+    ## Info
+
+    ``step`` returns ``segment`` (the index ``l - 1`` of the segment driven), ``waypoint`` (the
+    index ``l`` of the waypoint reached, ``r`` being home again, as in the paper), ``cycle``
+    (from 1), ``waypoint_error`` and ``error`` (``z_l^d - z_l``, eq. 40's epsilon), ``error_norm``,
+    ``q_final``, ``z_final``, ``left_chart``, ``action``, ``clipped`` and, for the car,
+    ``cartesian_error`` [m] and ``orientation_error`` [rad].
+
+    ## Arguments
+
+    ``config``: a cyclic config (``task.waypoints``), as a YAML path, a packaged name
+    (``"cyclic_home_goal"``, ``"cyclic_pickup_dropoff"``) or a :class:`SteeringConfig`.
+    ``env.unwrapped.nominal_models`` is the learner's view, one model per segment.
+
+    ## Version History
+
+    * v0: Initial version.
+
+    ## Example
+
+    >>> import gymnasium as gym
+    >>> import ilc_steering
+    >>> env = gym.make("ilc_steering/CyclicSteering-v0", config="cyclic_home_goal", cycles=2)
+    >>> obs, info = env.reset(seed=0)
+    >>> steps = 0
+    >>> truncated = False
+    >>> while not truncated:
+    ...     model = env.unwrapped.nominal_models[info["segment"]]
+    ...     obs, reward, terminated, truncated, info = env.step(model.solve())
+    ...     steps += 1
+    >>> steps, info["cycle"], info["waypoint"]
+    (4, 2, 2)
+    """
+
+    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 4}
+
+    def __init__(self, config: str | Path | SteeringConfig = "cyclic_home_goal", render_mode: str | None = None) -> None:
+        self.render_mode = check_render_mode(render_mode, self.metadata)
+        self.config = load_config(config)
+        if not self.config.is_cyclic:
+            raise ValueError(f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal")
+        self._scenario = Scenario(self.config)
+        models = self._scenario.nominals
+        sizes = {m.profile.num_coefficients for m in models}
+        if len(sizes) != 1:
+            raise ValueError(f"{self.config.name}: every segment needs the same v2_terms for one action space, got {sorted(sizes)}")
+        (size,) = sizes
+        bound = self.config.task.action_bound  # type: ignore[union-attr]
+        if bound is not None and len(bound) != size:
+            raise ValueError(f"{self.config.name}: task.action_bound needs {size} values, got {len(bound)}")
+        high = np.asarray(bound) if bound is not None else 10.0 * np.max([m.action_scale() for m in models], axis=0)
+        high = high.astype(np.float32)
+        self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        self.num_segments = len(models)
+        n = models[0].dimension
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(n + self.num_segments,), dtype=np.float64)
+        self._action_names = f"(c11, c21..c2{size - 1})"
+        self._x = self._scenario.x_start.copy()
+        self._segment = 0
+        self._cycle = 1
+
+    @property
+    def nominal_models(self) -> list[NominalModel]:
+        """One nominal model per segment: the only view of the system a learner should use."""
+        return self._scenario.nominals
+
+    def _observation(self) -> Array:
+        z = self._scenario.to_chained(self._scenario.plant.configuration(self._x))
+        return np.concatenate([z, np.eye(self.num_segments)[self._segment]])
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Array, dict[str, Any]]:
+        super().reset(seed=seed)
+        start = self._scenario.waypoints[0] if not options or "start" not in options else self._check_start(options["start"])
+        self._x = self._scenario.to_task(np.asarray(start, dtype=np.float64)).copy()
+        self._segment, self._cycle = 0, 1
+        return self._observation(), {"q": np.asarray(start, dtype=np.float64).copy(), "segment": 0, "cycle": 1}
+
+    def _check_start(self, start: Any) -> Array:
+        names = "(x, y, theta, phi)" if self._scenario.is_car else "z"
+        q = check_action(start, self._scenario.waypoints[0].shape, names, what="options['start']")
+        if self._scenario.is_car:
+            check_chart(self._scenario.to_task(q))
+            limit = self.config.plant.steering_limit
+            if limit is not None and abs(q[3]) > limit:
+                raise ValueError(f"start phi = {q[3]} rad exceeds plant.steering_limit = {limit} rad")
+        return q
+
+    def step(self, action: Any) -> tuple[Array, float, bool, bool, dict[str, Any]]:
+        c = check_action(action, self.action_space.shape, self._action_names)
+        applied = np.clip(c, self.action_space.low, self.action_space.high)
+        leg = self._segment
+        trial = self._scenario.run(applied[None], x0=self._x[None], leg=leg)
+        self._x = trial.final[0]
+        info = trial_info(self._scenario.measure(trial.final, trial.status, leg=leg), applied, c)
+        info.update(waypoint_error=info["error"], segment=leg, waypoint=leg + 1, cycle=self._cycle)
+        self._segment = (leg + 1) % self.num_segments
+        self._cycle += self._segment == 0
+        return self._observation(), reward(info), False, False, info
+
+
+def make_cyclic_env(
+    config: str | Path | SteeringConfig = "cyclic_home_goal", cycles: int | None = None, render_mode: str | None = None
+) -> gym.Env[Array, npt.NDArray[np.float32]]:
+    """The registered entry point: a :class:`CyclicSteeringEnv` truncated after ``cycles`` cycles
+    (default: the config's ``learning.trials``) through ``TimeLimit``."""
+    env = CyclicSteeringEnv(config, render_mode)
+    count = env.config.learning.trials if cycles is None else cycles
+    if count < 1:
+        raise ValueError(f"cycles must be >= 1, got {count}")
+    return TimeLimit(env, max_episode_steps=count * env.num_segments)
