@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.agents.ilc import check_gains
 from ilc_steering.envs.scenario import NominalModel
 
 __all__ = ["CyclicILCAgent"]
@@ -69,9 +70,7 @@ class CyclicILCAgent:
     """
 
     def __init__(self, models: Sequence[NominalModel], nu_a: float = 1.0, nu_b: float = 1.0) -> None:
-        for name, value in (("nu_a", nu_a), ("nu_b", nu_b)):
-            if not 0 < value < 2:
-                raise ValueError(f"{name} must be in (0, 2), got {value}")
+        check_gains(nu_a, nu_b)
         if len(models) < 2:
             raise ValueError(f"a cycle needs at least 2 segments, got {len(models)}")
         self.models = list(models)
@@ -88,14 +87,9 @@ class CyclicILCAgent:
         observation = np.asarray(observation, dtype=np.float64)
         if observation.shape != (n + len(self.models),):
             raise ValueError(f"observation must have shape {(n + len(self.models),)}, got {observation.shape}")
-        z, segment = observation[:n], int(np.argmax(observation[n:]))
-        model, target = self.models[segment], self._targets[segment]
-        profile = model.profile
-        fixed = float(np.dot(profile.v1_fixed, profile.durations[1:]))
-        c11 = (target[0] - z[0] - fixed) / profile.durations[0]
-        V, W = model.transition(c11)
-        c2 = np.linalg.lstsq(W, target[1:] - V @ z[1:], rcond=None)[0]
-        return np.concatenate([[c11], c2])
+        segment = int(np.argmax(observation[n:]))
+        # Eq. 39 is the nominal open-loop solution from the measured start to the learned target.
+        return self.models[segment].solve(z_start=observation[:n], z_goal=self._targets[segment])
 
     def learn(self, info: dict[str, Any]) -> None:
         """Eq. (40) in state space: move the segment's target by ``nu`` times its waypoint error."""

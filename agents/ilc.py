@@ -34,9 +34,16 @@ import numpy.typing as npt
 
 from ilc_steering.envs.scenario import NominalModel
 
-__all__ = ["ILCAgent"]
+__all__ = ["ILCAgent", "check_gains"]
 
 Array = npt.NDArray[np.float64]
+
+
+def check_gains(nu_a: float, nu_b: float) -> None:
+    """``ValueError`` unless both learning gains lie in ``(0, 2)`` (eqs. 33-34, 40)."""
+    for name, value in (("nu_a", nu_a), ("nu_b", nu_b)):
+        if not 0 < value < 2:
+            raise ValueError(f"{name} must be in (0, 2), got {value}")
 
 
 class ILCAgent:
@@ -57,9 +64,7 @@ class ILCAgent:
     """
 
     def __init__(self, model: NominalModel, nu_a: float = 1.0, nu_b: float = 1.0) -> None:
-        for name, value in (("nu_a", nu_a), ("nu_b", nu_b)):
-            if not 0 < value < 2:
-                raise ValueError(f"{name} must be in (0, 2), got {value}")
+        check_gains(nu_a, nu_b)
         self.model = model
         self.nu_a = float(nu_a)
         self.nu_b = float(nu_b)

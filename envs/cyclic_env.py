@@ -36,8 +36,9 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     The coefficients ``c = (c11, c21..c2q)`` of the current segment, in physical units, in
     ``Box(-b, b, (1 + q,), float32)`` with ``b`` from ``task.action_bound`` or 10 times the
     largest ``nominal_models[l].action_scale()`` over the segments. With ``nu < 1`` or a start
-    far off home, ``c11`` is smaller than nominal and ``c2`` grows as ``1 / c11**(n-2)``: widen the box. Out-of-bound values are clipped; a
-    wrong shape or a non-finite value raises ``ValueError``. All segments need the same ``q``.
+    far off home, ``c11`` is smaller than nominal and ``c2`` grows as ``1 / c11**(n-2)``: widen
+    the box. Out-of-bound values are clipped; a wrong shape or a non-finite value raises
+    ``ValueError``. All segments need the same ``q``.
 
     ## Observation Space
 

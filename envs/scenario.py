@@ -1,8 +1,9 @@
 """A steering scenario: the true plant, the nominal models a learner may see, and measurements.
 
-The environments own a :class:`Scenario`; learners get only its :class:`NominalModel` (one per leg). Car tasks
-are simulated in a *task frame*, the world frame rotated by :func:`~ilc_steering.envs.car.frame_angle`
-so that both orientations sit in the chained-form chart; everything reported is in the world frame.
+The environments own a :class:`Scenario`; learners get only its :class:`NominalModel`, one per
+leg. Car tasks are simulated in a *task frame*, the world frame rotated by
+:func:`~ilc_steering.envs.car.frame_angle` so that every waypoint's orientation sits in the
+chained-form chart; everything reported is in the world frame.
 """
 
 from __future__ import annotations
@@ -49,13 +50,16 @@ class NominalModel:
         V, W = self.transition(c[0])
         return np.concatenate([[z1], V @ z0[1:] + W @ c[1:]])
 
-    def solve(self) -> Array:
-        """The open-loop coefficients that steer the *nominal* system exactly (section 2.2)."""
+    def solve(self, z_start: Array | None = None, z_goal: Array | None = None) -> Array:
+        """The open-loop coefficients that steer the *nominal* system exactly from ``z_start`` to
+        ``z_goal`` (default: the task's), by eq. 12 for ``c11`` and eq. 23 for ``c2`` (section 2.2)."""
+        z0 = self.z_start if z_start is None else z_start
+        zd = self.z_goal if z_goal is None else z_goal
         p = self.profile
         fixed = float(np.dot(p.v1_fixed, p.durations[1:]))
-        c11 = (self.z_goal[0] - self.z_start[0] - fixed) / p.durations[0]
+        c11 = (zd[0] - z0[0] - fixed) / p.durations[0]
         V, W = self.transition(c11)
-        c2 = np.linalg.lstsq(W, self.z_goal[1:] - V @ self.z_start[1:], rcond=None)[0]
+        c2 = np.linalg.lstsq(W, zd[1:] - V @ z0[1:], rcond=None)[0]
         return np.concatenate([[c11], c2])
 
     def action_scale(self) -> Array:

@@ -65,8 +65,9 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     ``Box(-action_bound, action_bound, (1 + q,), float32)`` in physical units: ``c11`` [m/s for the
     car], ``c2j`` [1/(m s^j) for the car]. The bound is ``task.action_bound`` from the config, or
-    10 times ``nominal_model.action_scale()``, the magnitudes of the nominal open-loop solution. Out-of-bound values are *clipped*
-    (``info["clipped"]`` says so); a wrong shape or a non-finite value raises ``ValueError``.
+    10 times ``nominal_model.action_scale()``, a per-coefficient scale of the nominal open-loop
+    solution that is never zero. Out-of-bound values are *clipped* (``info["clipped"]`` says
+    so); a wrong shape or a non-finite value raises ``ValueError``.
     For RL, wrap the env in ``RescaleAction(env, np.float32(-1), np.float32(1))`` (float32
     limits keep the rescaled box free of precision warnings); Gymnasium's checker otherwise warns
     that the physical box is not normalized, which is intended.

@@ -101,7 +101,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         if paper is None:
             print(f"\n{name}: the paper states no count; its figures show errors shrinking over five cycles.")
         elif result.converged_at != paper and isinstance(result, RunResult):
-            errors = [t.cartesian_error or t.error_norm for t in result.trials]
+            errors = [t.error_norm if t.cartesian_error is None else t.cartesian_error for t in result.trials]
             ratio = errors[-1] / errors[-2] if len(errors) > 1 else float("nan")
             at_paper = f"{errors[paper - 1]:.2e} m at trial {paper}, " if paper <= len(errors) else ""
             print(

@@ -47,6 +47,13 @@ def _positive(value: float) -> bool:
     return isfinite(value) and value > 0
 
 
+def _check_pieces(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> None:
+    """The input profile's keys (eqs. 15-17): positive durations, a fixed v1 for each later piece."""
+    _require(len(pieces) >= 1 and all(map(_positive, pieces)), "pieces", f"durations must be > 0 s, got {list(pieces)}")
+    _require(len(v1_fixed) == len(pieces) - 1, "v1_fixed", f"needs one value per piece after the first ({len(pieces) - 1}), got {len(v1_fixed)}")
+    _require(all(isfinite(v) for v in v1_fixed), "v1_fixed", "values must be finite")
+
+
 @dataclass(frozen=True)
 class CarPlantConfig:
     model: Literal["car"]
@@ -93,9 +100,7 @@ class TaskConfig:
     def __post_init__(self) -> None:
         for key in ("start", "goal"):
             _require(all(isfinite(v) for v in getattr(self, key)), key, "values must be finite")
-        _require(len(self.pieces) >= 1 and all(map(_positive, self.pieces)), "pieces", f"durations must be > 0 s, got {list(self.pieces)}")
-        _require(len(self.v1_fixed) == len(self.pieces) - 1, "v1_fixed", f"needs one value per piece after the first ({len(self.pieces) - 1}), got {len(self.v1_fixed)}")
-        _require(all(isfinite(v) for v in self.v1_fixed), "v1_fixed", "values must be finite")
+        _check_pieces(self.pieces, self.v1_fixed)
         if self.action_bound is not None:
             _require(len(self.action_bound) == 1 + self.v2_terms, "action_bound", f"needs 1 + v2_terms = {1 + self.v2_terms} values, got {len(self.action_bound)}")
             _require(all(map(_positive, self.action_bound)), "action_bound", "values must be finite and > 0")
@@ -108,9 +113,7 @@ class SegmentConfig:
     v2_terms: int  # q
 
     def __post_init__(self) -> None:
-        _require(len(self.pieces) >= 1 and all(map(_positive, self.pieces)), "pieces", f"durations must be > 0 s, got {list(self.pieces)}")
-        _require(len(self.v1_fixed) == len(self.pieces) - 1, "v1_fixed", f"needs one value per piece after the first ({len(self.pieces) - 1}), got {len(self.v1_fixed)}")
-        _require(all(isfinite(v) for v in self.v1_fixed), "v1_fixed", "values must be finite")
+        _check_pieces(self.pieces, self.v1_fixed)
 
 
 @dataclass(frozen=True)

@@ -109,10 +109,7 @@ class CycleRecord:
     waypoints: list[TrialRecord]
 
     def to_json(self) -> dict[str, Any]:
-        rows = []
-        for w in self.waypoints:
-            row = {"index": w.trial, **{k: v for k, v in w.to_json().items() if k != "trial"}}
-            rows.append(row)
+        rows = [{"index": w.trial, **{k: v for k, v in w.to_json().items() if k != "trial"}} for w in self.waypoints]
         return {"cycle": self.cycle, "waypoints": rows}
 
 
