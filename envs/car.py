@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-__all__ = ["CarModel", "car_velocity", "chained_inputs", "frame_angle", "rotate"]
+__all__ = ["CarModel", "car_velocity", "chained_inputs", "closed_loop_velocity", "frame_angle", "rotate"]
 
 Array = npt.NDArray[np.float64]
 
@@ -47,6 +47,21 @@ def chained_inputs(theta, phi, v1, v2, wheelbase, wheel_radius):  # type: ignore
     u1 = v1 / (wheel_radius * c)
     u2 = -3.0 / wheelbase * np.sin(theta) / c**2 * s_phi**2 * v1 + wheelbase * c**3 * c_phi**2 * v2
     return u1, u2
+
+
+@njit(cache=True, inline="always")
+def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheelbase, true_wheel_radius):  # type: ignore[no-untyped-def]
+    """Eq. (3) of a car with the true geometry, driven by eqs. (4)-(5) with the nominal one [m].
+
+    Equals ``car_velocity(theta, phi, *chained_inputs(theta, phi, v1, v2, wheelbase,
+    wheel_radius), true_wheelbase, true_wheel_radius)`` with each sine and cosine evaluated
+    once: this is the integrator's inner loop.
+    """
+    s, c = np.sin(theta), np.cos(theta)
+    s_phi, c_phi = np.sin(phi), np.cos(phi)
+    speed = true_wheel_radius / wheel_radius * v1 / c  # true rho times the commanded u1
+    dphi = -3.0 / wheelbase * s / (c * c) * s_phi * s_phi * v1 + wheelbase * c * c * c * c_phi * c_phi * v2
+    return c * speed, s * speed, s_phi / c_phi * speed / true_wheelbase, dphi
 
 
 @dataclass(frozen=True)

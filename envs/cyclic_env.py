@@ -128,8 +128,10 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         """One nominal model per segment: the only view of the system a learner should use."""
         return self._scenario.nominals
 
-    def _observation(self) -> Array:
-        z = self._scenario.to_chained(self._scenario.plant.configuration(self._x))
+    def _observation(self, z: Array | None = None) -> Array:
+        """The measured chained state (``z``, when a trial just measured it) and the segment one-hot."""
+        if z is None:
+            z = self._scenario.to_chained(self._scenario.plant.configuration(self._x))
         return np.concatenate([z, np.eye(self.num_segments)[self._segment]])
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Array, dict[str, Any]]:
@@ -159,7 +161,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         info.update(waypoint_error=info["error"], segment=leg, waypoint=leg + 1, cycle=self._cycle)
         self._segment = (leg + 1) % self.num_segments
         self._cycle += self._segment == 0
-        return self._observation(), reward(info), False, False, info
+        return self._observation(info["z_final"]), reward(info), False, False, info
 
 
 def make_cyclic_env(

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ilc_steering.config import ConfigError, load_config
-from ilc_steering.envs.car import CarModel, car_velocity, frame_angle, rotate
+from ilc_steering.envs.car import CarModel, car_velocity, chained_inputs, closed_loop_velocity, frame_angle, rotate
 from ilc_steering.envs.chained_form import chained_rhs
 
 CAR = CarModel(wheelbase=0.2, wheel_radius=0.02)
@@ -33,6 +33,18 @@ def test_beta_makes_the_nominal_car_chained():
         np.testing.assert_allclose(CAR.to_chained(q), paper_alpha(q), rtol=1e-15)
         zdot = paper_alpha(q + 1e-30j * qdot).imag / 1e-30  # complex-step derivative along qdot
         np.testing.assert_allclose(zdot, chained_rhs(CAR.to_chained(q), v1, v2), rtol=1e-12, atol=1e-12)
+
+
+def test_closed_loop_velocity_is_eq3_after_eqs4_5():
+    """The integrator's fused field equals the composition of the two published maps."""
+    rng = np.random.default_rng(3)
+    nominal, true = (0.2, 0.02), (0.22, 0.022)
+    for _ in range(20):
+        theta, phi = rng.uniform(-1.4, 1.4, size=2)
+        v1, v2 = rng.normal(size=2)
+        u1, u2 = chained_inputs(theta, phi, v1, v2, *nominal)
+        expected = car_velocity(theta, phi, u1, u2, *true)
+        np.testing.assert_allclose(closed_loop_velocity(theta, phi, v1, v2, *nominal, *true), expected, rtol=1e-13)
 
 
 def test_map_is_undefined_at_theta_pi_over_2():
