@@ -161,7 +161,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         info.update(waypoint_error=info["error"], segment=leg, waypoint=leg + 1, cycle=self._cycle)
         self._segment = (leg + 1) % self.num_segments
         self._cycle += self._segment == 0
-        return self._observation(info["z_final"]), reward(info), False, False, info
+        return self._observation(info["z_final"]), float(reward(info)), False, False, info
 
 
 def make_cyclic_env(

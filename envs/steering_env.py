@@ -12,7 +12,7 @@ import numpy.typing as npt
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.scenario import NominalModel, Scenario
 
-__all__ = ["ChainedSteeringEnv", "check_action", "check_render_mode", "trial_info"]
+__all__ = ["ChainedSteeringEnv", "action_names", "check_action", "check_render_mode", "reward", "task_spaces", "trial_info", "trial_infos"]
 
 Array = npt.NDArray[np.float64]
 
@@ -25,8 +25,12 @@ def check_action(action: Any, shape: tuple[int, ...], names: str, what: str = "a
         raise ValueError(f"{what} must be numeric {names}, got {action!r}") from error
     if c.shape != shape:
         raise ValueError(f"{what} must have shape {shape} = {names}, got shape {c.shape}")
-    if not np.all(np.isfinite(c)):
-        raise ValueError(f"{what} must be finite, got {c.tolist()}")
+    finite = np.isfinite(c)
+    if not np.all(finite):
+        if c.ndim == 1:
+            raise ValueError(f"{what} must be finite, got {c.tolist()}")
+        rows = np.flatnonzero(~finite.all(axis=-1))
+        raise ValueError(f"{what} must be finite; rows {rows[:10].tolist()} are not ({rows.size} in all)")
     return c
 
 
@@ -36,16 +40,38 @@ def check_render_mode(render_mode: str | None, metadata: dict[str, Any]) -> str 
     return render_mode
 
 
+def trial_infos(measured: dict[str, Array], applied: Array, requested: Array) -> dict[str, Array]:
+    """The per-trial ``info`` of a batch (arrays with a leading batch axis), from
+    ``Scenario.measure`` and the actions as applied (clipped) and as requested."""
+    return {**measured, "action": applied, "clipped": np.any(applied != requested, axis=-1)}
+
+
 def trial_info(measured: dict[str, Array], applied: Array, requested: Array) -> dict[str, Any]:
-    """The ``info`` of one trial from a batch-of-one measurement (``Scenario.measure``)."""
-    info: dict[str, Any] = {k: v[0] for k, v in measured.items()}
+    """The ``info`` of one trial from a batch-of-one measurement, with Python scalars."""
+    info: dict[str, Any] = {k: v[0] for k, v in trial_infos(measured, applied[None], requested[None]).items()}
     for key in ("error_norm", "cartesian_error", "orientation_error"):
         if key in info:
             info[key] = float(info[key])
-    info["left_chart"] = bool(info["left_chart"])
-    info["action"] = applied
-    info["clipped"] = bool(np.any(applied != requested))
+    for key in ("left_chart", "clipped"):
+        info[key] = bool(info[key])
     return info
+
+
+def task_spaces(scenario: Scenario) -> tuple[gym.spaces.Box, gym.spaces.Box, npt.NDArray[np.float32]]:
+    """The action space, observation space and (constant) observation of a one-trial task."""
+    model = scenario.nominal
+    bound = scenario.config.task.action_bound
+    high = (np.asarray(bound) if bound is not None else 10.0 * model.action_scale()).astype(np.float32)
+    observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
+    limit = np.float32(10.0 * (np.abs(observation).max() + 1.0))
+    observation_space = gym.spaces.Box(-limit, limit, shape=observation.shape, dtype=np.float32)
+    return gym.spaces.Box(-high, high, dtype=np.float32), observation_space, observation
+
+
+def action_names(model: NominalModel) -> str:
+    """``"(c11, c21..c2q)"``, for error messages."""
+    q = model.profile.v2_terms
+    return f"(c11, c21..c2{q})" if q > 1 else "(c11, c21)"
 
 
 class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
@@ -136,16 +162,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
         self._scenario = Scenario(self.config)
-        model = self._scenario.nominal
-        bound = self.config.task.action_bound
-        high = np.asarray(bound) if bound is not None else 10.0 * model.action_scale()
-        high = high.astype(np.float32)
-        self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
-        self._observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
-        bound = np.float32(10.0 * (np.abs(self._observation).max() + 1.0))
-        self.observation_space = gym.spaces.Box(-bound, bound, shape=self._observation.shape, dtype=np.float32)
-        q = model.profile.v2_terms
-        self._action_names = f"(c11, c21..c2{q})" if q > 1 else "(c11, c21)"
+        self.action_space, self.observation_space, self._observation = task_spaces(self._scenario)
+        self._action_names = action_names(self._scenario.nominal)
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -164,11 +182,12 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         applied = np.clip(c, self.action_space.low, self.action_space.high)
         trials = self._scenario.run(applied[None])
         info = trial_info(self._scenario.measure(trials.final, trials.status), applied, c)
-        return self._observation.copy(), reward(info), True, False, info
+        return self._observation.copy(), float(reward(info)), True, False, info
 
 
-def reward(info: dict[str, Any]) -> float:
-    """Minus the weighted final error: see the ``## Rewards`` section of :class:`ChainedSteeringEnv`."""
+def reward(info: dict[str, Any]) -> Any:
+    """Minus the weighted final error, for one trial's ``info`` or a batch's (see the ``## Rewards``
+    section of :class:`ChainedSteeringEnv`)."""
     if "cartesian_error" in info:
-        return -float(info["cartesian_error"] + info["orientation_error"])
-    return -float(info["error_norm"])
+        return -(info["cartesian_error"] + info["orientation_error"])
+    return -info["error_norm"]

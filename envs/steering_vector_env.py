@@ -1,0 +1,118 @@
+"""``ChainedSteeringVectorEnv``: ``num_envs`` trials per ``step``, in one compiled batched call."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.envs.scenario import NominalModel, Scenario
+from ilc_steering.envs.steering_env import (
+    ChainedSteeringEnv,
+    action_names,
+    check_action,
+    check_render_mode,
+    reward,
+    task_spaces,
+    trial_infos,
+)
+
+__all__ = ["ChainedSteeringVectorEnv"]
+
+Array = npt.NDArray[np.float64]
+
+PARALLEL_FROM = 64
+"""Batches of at least this many trials run on all cores (numba ``prange``); the results are
+bitwise the same either way, since every trial runs the same compiled code."""
+
+
+class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np.float32], Array]):
+    """``num_envs`` copies of :class:`~ilc_steering.envs.steering_env.ChainedSteeringEnv`, stepped together.
+
+    Made by ``gym.make_vec("ilc_steering/ChainedSteering-v0", num_envs=N,
+    vectorization_mode="vector_entry_point", config=...)``. Each ``step`` takes actions of shape
+    ``(N, 1 + q)`` and runs ``N`` whole trials in one call of the compiled integrator, on all
+    cores from :data:`PARALLEL_FROM` trials up.
+
+    Every episode is one step long, so the env resets in the same step
+    (``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``) and every step is a trial: the
+    returned observation is the next episode's (the task, which never changes), and the trial's
+    own results are in ``info["final_info"]`` and ``info["final_obs"]``, exactly as
+    ``SyncVectorEnv`` in the same mode would give them (tested, bit for bit). ``rewards``,
+    ``terminations`` (all ``True``) and ``truncations`` (all ``False``) are the trials'.
+
+    >>> import gymnasium as gym
+    >>> import ilc_steering
+    >>> envs = gym.make_vec("ilc_steering/ChainedSteering-v0", num_envs=3,
+    ...                     vectorization_mode="vector_entry_point", config="forward_parking")
+    >>> obs, info = envs.reset(seed=0)
+    >>> c = envs.unwrapped.nominal_model.solve()
+    >>> obs, rewards, terminations, truncations, info = envs.step(np.tile(c, (3, 1)))
+    >>> obs.shape, terminations.tolist(), bool(info["final_info"]["cartesian_error"].max() < 0.1)
+    ((3, 8), [True, True, True], True)
+    """
+
+    metadata: dict[str, Any] = {**ChainedSteeringEnv.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(
+        self,
+        num_envs: int,
+        config: str | Path | SteeringConfig = "forward_parking",
+        render_mode: str | None = None,
+        parallel: bool | None = None,
+    ) -> None:
+        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        self.num_envs = int(num_envs)
+        self.render_mode = check_render_mode(render_mode, self.metadata)
+        self.config = load_config(config)
+        self._scenario = Scenario(self.config)
+        self.single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._observations = np.tile(observation, (self.num_envs, 1))
+        self._action_names = f"(num_envs = {self.num_envs}, {action_names(self._scenario.nominal)})"
+        self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
+
+    @property
+    def nominal_model(self) -> NominalModel:
+        """The nominal model, the only view of the system a learner should use."""
+        return self._scenario.nominal
+
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed if not isinstance(seed, list) else seed[0])
+        return self._observations.copy(), self._reset_info()
+
+    def step(
+        self, actions: Any
+    ) -> tuple[npt.NDArray[np.float32], Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
+        c = check_action(actions, self.action_space.shape, self._action_names, what="actions")
+        applied = np.clip(c, self.single_action_space.low, self.single_action_space.high)
+        trials = self._scenario.run(applied, parallel=self.parallel)
+        final_info = trial_infos(self._scenario.measure(trials.final, trials.status), applied, c)
+        rewards = np.asarray(reward(final_info), dtype=np.float64)
+        everyone = np.ones(self.num_envs, dtype=np.bool_)
+        final_obs = np.empty(self.num_envs, dtype=object)
+        final_obs[:] = list(self._observations.copy())
+        info = {
+            "final_obs": final_obs,
+            "_final_obs": everyone,
+            "final_info": {**final_info, **{f"_{key}": everyone for key in final_info}},
+            "_final_info": everyone,
+            **self._reset_info(),
+        }
+        return self._observations.copy(), rewards, everyone.copy(), np.zeros(self.num_envs, dtype=np.bool_), info
+
+    def _reset_info(self) -> dict[str, Any]:
+        everyone = np.ones(self.num_envs, dtype=np.bool_)
+        start = np.tile(self._scenario.start, (self.num_envs, 1))
+        goal = np.tile(self._scenario.goal, (self.num_envs, 1))
+        return {"q_start": start, "_q_start": everyone, "q_goal": goal, "_q_goal": everyone.copy()}
