@@ -14,12 +14,8 @@ writes ``integrator.json``, ``integrator.csv`` and ``integrator.md`` to ``DIR``.
 from __future__ import annotations
 
 import argparse
-import csv
-import json
-import time
 from dataclasses import dataclass
 from pathlib import Path
-from statistics import median
 
 import numpy as np
 
@@ -27,6 +23,7 @@ from ilc_steering.agents import ILCAgent
 from ilc_steering.config import load_config
 from ilc_steering.envs.reference import car_field, reference_trial
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.tables import markdown_table, median_seconds, write_results
 
 
 @dataclass(frozen=True)
@@ -55,15 +52,6 @@ def ilc_actions(scenario: Scenario, count: int) -> list[np.ndarray]:
     return actions
 
 
-def timed(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
-    samples = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - start)
-    return median(samples)
-
-
 def main(args: Args) -> list[dict[str, object]]:
     tasks = ["forward_parking", "parallel_parking"] if args.quick else ["forward_parking", "forward_parking_saturated", "parallel_parking"]
     steps = [1 / 32] if args.quick else [1 / 8, 1 / 16, 1 / 32, 1 / 64]
@@ -75,7 +63,7 @@ def main(args: Args) -> list[dict[str, object]]:
         actions = ilc_actions(Scenario(base), trials)
         scenario = Scenario(base)
         truth = [solve_ivp_trial(scenario, c, 1e-12) for c in actions]
-        ref_time = timed(lambda: [solve_ivp_trial(scenario, c, 1e-8) for c in actions], repeats) / trials
+        ref_time = median_seconds(lambda: [solve_ivp_trial(scenario, c, 1e-8) for c in actions], repeats) / trials
         ref_error = max(np.abs(solve_ivp_trial(scenario, c, 1e-8) - x).max() for c, x in zip(actions, truth))
         rows.append({"task": name, "method": "solve_ivp DOP853 rtol=1e-8", "max_step": None,
                      "ms_per_trial": 1e3 * ref_time, "speedup": 1.0, "max_error": ref_error})
@@ -83,7 +71,7 @@ def main(args: Args) -> list[dict[str, object]]:
             config = type(base)(base.name, base.plant, base.task, base.learning, type(base.simulation)(h))
             sim = Scenario(config)
             sim.run(actions[0][None])  # compile outside the timing
-            t = timed(lambda: [sim.run(c[None]) for c in actions], repeats) / trials
+            t = median_seconds(lambda: [sim.run(c[None]) for c in actions], repeats) / trials
             error = max(np.abs(sim.run(c[None]).final[0] - x).max() for c, x in zip(actions, truth))
             rows.append({"task": name, "method": "compiled RK8 fixed step", "max_step": h,
                          "ms_per_trial": 1e3 * t, "speedup": ref_time / t, "max_error": error})
@@ -92,24 +80,20 @@ def main(args: Args) -> list[dict[str, object]]:
 
 
 def write(rows: list[dict[str, object]], out: Path) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "integrator.json").write_text(json.dumps(rows, indent=1))
-    with open(out / "integrator.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    lines = ["| task | method | max step [s] | ms / trial | speed-up vs solve_ivp | max final-state error |",
-             "| --- | --- | ---: | ---: | ---: | ---: |"]
-    for r in rows:
-        step = "adaptive" if r["max_step"] is None else f"1/{round(1 / float(r['max_step']))}"
-        lines.append(f"| {r['task']} | {r['method']} | {step} | {r['ms_per_trial']:.3f} | {r['speedup']:.1f}x | {r['max_error']:.1e} |")
-    (out / "integrator.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    table = [
+        [str(r["task"]), str(r["method"]), "adaptive" if r["max_step"] is None else f"1/{round(1 / float(r['max_step']))}",
+         f"{r['ms_per_trial']:.3f}", f"{r['speedup']:.1f}x", f"{r['max_error']:.1e}"]
+        for r in rows
+    ]
+    header = ["task", "method", "max step [s]", "ms / trial", "speed-up vs solve_ivp", "max final-state error"]
+    markdown = markdown_table(header, table, [False, False, True, True, True, True])
+    write_results(rows, out, "integrator", markdown)
+    print(markdown)
 
 
 def parse(argv: list[str] | None = None) -> Args:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help=Args.__dataclass_fields__["quick"].__doc__)
+    parser.add_argument("--quick", action="store_true", help="fewer step sizes, trials and repeats (CI)")
     parser.add_argument("--repeats", type=int, default=Args.repeats)
     parser.add_argument("--out", type=Path, default=Args.out)
     ns = parser.parse_args(argv)

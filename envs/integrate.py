@@ -15,7 +15,7 @@ command winds on, and it leaves the stop when the command comes back inside. The
 measures the wheel angle ``phi``. This reading of the paper's 45-degree case comes close to its
 seven iterations (eight to 0.5 mm); a stop that discards the command learns far more slowly. The
 kink of the vector field where ``|phi_c|`` crosses the limit is located inside the step by
-bisection, so such a step keeps the method's accuracy.
+root finding (Illinois regula falsi), so such a step keeps the method's accuracy.
 
 Chart guard: the controller's transform (eqs. 4-5) breaks down as ``|theta|`` or ``|phi|``
 approaches ``pi/2`` in the task frame. A step that ends within ``CHART_MARGIN`` rad of it (or
@@ -43,7 +43,7 @@ LEFT_CHART = 1
 CHART_MARGIN = 1e-3  # [rad] closest |theta|, |phi| may come to pi/2 before the trial stops
 _CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 DEFAULT_MAX_STEP = 1.0 / 32.0  # [s]
-_BISECTIONS = 52  # halves a step down to double-precision resolution
+_MAX_ITERATIONS = 60  # of the root finder at a steering-limit crossing; it needs about 10
 
 # scipy keeps the tableau in a private module; tests/test_integrate.py checks its order conditions.
 _STAGES = _dop853.N_STAGES
@@ -112,14 +112,29 @@ def _step(model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ign
     beyond = abs(x[3]) > limit
     if (abs(out[3]) > limit) == beyond:
         return
+    # Illinois regula falsi on g(s) = |phi_c after a step of length s| - limit, which is smooth in
+    # s: the crossing is bracketed by [lo, hi] and found to double precision in a few steps.
     lo, hi = 0.0, h  # the side of the limit changes between lo and hi
-    for _ in range(_BISECTIONS):
-        mid = 0.5 * (lo + hi)
+    g_lo, g_hi = abs(x[3]) - limit, abs(out[3]) - limit
+    side = 0
+    for _ in range(_MAX_ITERATIONS):
+        if hi - lo <= 4e-16 * h:
+            break
+        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        if not (lo < mid < hi):
+            mid = 0.5 * (lo + hi)
         _rk(model, n, params, x, tau, mid, v1c, v2c, probe, work)
-        if (abs(probe[3]) > limit) == beyond:
-            lo = mid
+        g_mid = abs(probe[3]) - limit
+        if (g_mid > 0) == beyond:
+            lo, g_lo = mid, g_mid
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
         else:
-            hi = mid
+            hi, g_hi = mid, g_mid
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
     _rk(model, n, params, x, tau, hi, v1c, v2c, probe, work)
     _rk(model, n, params, probe, tau + hi, h - hi, v1c, v2c, out, work)
 

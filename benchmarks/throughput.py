@@ -1,0 +1,219 @@
+"""Car trials per second: scalar ``env.step``, the batched vector env, and a solve_ivp reference.
+
+In one run, for each paper task and on the same trials (the nominal open-loop solution with
+every coefficient perturbed by 10%, seeded: the kind of trial an optimizer runs):
+
+- ``solve_ivp(method="DOP853", rtol=atol=1e-8)``, one call per trial: the reference speed;
+- ``env.step`` of :class:`~ilc_steering.envs.steering_env.ChainedSteeringEnv`, one trial per call;
+- ``step`` of :class:`~ilc_steering.envs.steering_vector_env.ChainedSteeringVectorEnv` at
+  each batch size ``N``, ``N`` trials per call;
+- for every path, the largest final-state difference from ``solve_ivp`` at rtol = atol = 1e-12
+  (restarted at every steering-limit crossing) over the first trials, and how far that reference
+  is from itself at rtol = 1e-13;
+- the peak memory traced (``tracemalloc``) during one call, and the process's peak RSS;
+- numba's compile time: the first trial in a fresh process with an empty cache, and with the
+  cache that run wrote.
+
+Times are medians over ``repeats``; speed-ups are against the reference timed in the same run.
+
+    python benchmarks/throughput.py [--quick] [--out DIR]
+
+writes ``throughput.json``, ``throughput.csv`` and ``throughput.md`` to ``DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import tracemalloc
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ilc_steering.config import load_config
+from ilc_steering.envs.reference import car_field, reference_trial
+from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.steering_env import ChainedSteeringEnv
+from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.tables import markdown_table, median_seconds, write_results
+
+TARGETS = {"scalar_ms": 0.3, "scalar_speedup": 15.0, "batched_per_s": 20_000.0, "batched_size": 8192, "error": 1e-9}
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """Small batches, few trials and repeats: checks that the script runs (CI)."""
+    repeats: int = 5
+    """Timing repeats; medians are reported."""
+    sizes: tuple[int, ...] = (1, 64, 1024, 8192)
+    """Batch sizes N of the vector env."""
+    tasks: tuple[str, ...] = ("forward_parking", "forward_parking_saturated", "parallel_parking")
+    """Packaged car configs."""
+    scalar_steps: int = 500
+    """env.step calls per timing repeat."""
+    reference_trials: int = 5
+    """solve_ivp rtol=1e-8 trials per timing repeat."""
+    accuracy_trials: int = 8
+    """Trials compared with solve_ivp at rtol=1e-12, per task and path."""
+    compile_time: bool = True
+    """Also time numba's compilation in fresh processes (about 15 s)."""
+    seed: int = 0
+    """Seed of the perturbed trials."""
+    out: Path = Path("results/benchmarks")
+    """Folder for the JSON, CSV and Markdown results."""
+
+
+QUICK = {"repeats": 2, "sizes": (1, 64), "scalar_steps": 50, "reference_trials": 1, "accuracy_trials": 2}
+
+
+def trial_actions(scenario: Scenario, count: int, seed: int) -> np.ndarray:
+    """``count`` coefficient vectors: the nominal solution, each coefficient perturbed by 10%."""
+    c = scenario.nominal.solve()
+    return c * (1.0 + 0.1 * np.random.default_rng(seed).standard_normal((count, c.size)))
+
+
+def solve_ivp_final(scenario: Scenario, c: np.ndarray, rtol: float) -> np.ndarray:
+    """The final world configuration of one trial by ``solve_ivp`` DOP853 at ``rtol`` = atol."""
+    limit = scenario.config.plant.steering_limit
+    x = reference_trial(car_field(scenario, c), scenario.x_start, scenario.profile.breakpoints,
+                        np.inf if limit is None else limit, rtol)
+    return scenario.to_world(scenario.plant.configuration(x))
+
+
+def peak_traced_mb(fn: Any) -> float:
+    tracemalloc.start()
+    fn()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak / 2**20
+
+
+def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
+    scenario = Scenario(load_config(name))
+    trials = trial_actions(scenario, max(*args.sizes, args.scalar_steps, args.accuracy_trials), args.seed)
+    k = args.accuracy_trials
+    truth = np.array([solve_ivp_final(scenario, c, 1e-12) for c in trials[:k]])
+    # How far the tight reference itself is from the truth: it can graze the steering limit.
+    spread = float(np.abs(truth - np.array([solve_ivp_final(scenario, c, 1e-13) for c in trials[:k]])).max())
+
+    def error(final: np.ndarray) -> float:
+        return float(np.abs(final[:k] - truth[: len(final[:k])]).max())
+
+    rows = []
+
+    def row(path: str, n: int, seconds_per_call: float, err: float, memory_mb: float) -> None:
+        per_trial = seconds_per_call / n
+        rows.append({"task": name, "path": path, "N": n, "trials_per_s": 1.0 / per_trial, "ms_per_trial": 1e3 * per_trial,
+                     "speedup": reference / per_trial, "max_error": err, "peak_traced_mb": memory_mb,
+                     "reference_spread": spread})
+
+    ref = trials[: args.reference_trials]
+    reference = median_seconds(lambda: [solve_ivp_final(scenario, c, 1e-8) for c in ref], args.repeats) / len(ref)
+    ref_error = error(np.array([solve_ivp_final(scenario, c, 1e-8) for c in trials[:k]]))
+    ref_memory = peak_traced_mb(lambda: solve_ivp_final(scenario, trials[0], 1e-8))
+    row("solve_ivp DOP853 rtol=1e-8, per trial", 1, reference, ref_error, ref_memory)
+
+    env = ChainedSteeringEnv(name)
+    env.reset(seed=args.seed)
+    env.step(trials[0])  # compile (or load the cache) outside the timing
+    steps = trials[: args.scalar_steps]
+    per_step = median_seconds(lambda: [env.step(c) for c in steps], args.repeats) / len(steps)
+    scalar_final = np.array([env.step(c)[4]["q_final"] for c in trials[:k]])
+    row("env.step, scalar", 1, per_step, error(scalar_final), peak_traced_mb(lambda: env.step(trials[0])))
+
+    for n in args.sizes:
+        envs = ChainedSteeringVectorEnv(n, name)
+        envs.reset(seed=args.seed)
+        batch = trials[:n]
+        final = envs.step(batch)[4]["final_info"]["q_final"]  # also warms the parallel kernel
+        seconds = median_seconds(lambda: envs.step(batch), args.repeats)  # noqa: B023
+        row(f"vector env, N = {n}", n, seconds, error(final), peak_traced_mb(lambda: envs.step(batch)))  # noqa: B023
+    return rows
+
+
+COMPILE_SNIPPET = """
+import time
+from ilc_steering.config import load_config
+from ilc_steering.envs.scenario import Scenario
+scenario = Scenario(load_config("forward_parking"))
+c = scenario.nominal.solve()[None]
+start = time.perf_counter(); scenario.run(c); serial = time.perf_counter() - start
+start = time.perf_counter(); scenario.run(c, parallel=True); parallel = time.perf_counter() - start
+print(serial, parallel)
+"""
+
+
+def compile_times() -> dict[str, float]:
+    """Seconds of the first serial and first parallel call, cold (empty numba cache) and cached."""
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        for state in ("cold", "cached"):
+            done = subprocess.run([sys.executable, "-c", COMPILE_SNIPPET], env=env, capture_output=True, text=True, check=True)
+            serial, parallel = map(float, done.stdout.split())
+            out[f"{state}_serial_s"], out[f"{state}_parallel_s"] = serial, parallel
+    return out
+
+
+def machine() -> dict[str, Any]:
+    import numba
+
+    return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(), "numba_threads": numba.get_num_threads(), "python": platform.python_version(),
+            "numpy": np.__version__, "numba": numba.__version__}
+
+
+def report(rows: list[dict[str, Any]], extra: dict[str, Any]) -> str:
+    table = [[r["task"], r["path"], f"{r['trials_per_s']:,.0f}", f"{r['ms_per_trial']:.4f}", f"{r['speedup']:.1f}x",
+              f"{r['max_error']:.1e}", f"{r['peak_traced_mb']:.2f}"] for r in rows]
+    header = ["task", "path", "trials / s", "ms / trial", "speed-up vs solve_ivp", "max final-state error", "peak traced memory [MB]"]
+    text = markdown_table(header, table, [False, False, True, True, True, True, True])
+    spreads = {r["task"]: r["reference_spread"] for r in rows}
+    text += "\nThe reference itself, rtol = 1e-12 against 1e-13 (max final-state difference): "
+    text += ", ".join(f"{task} {value:.1e}" for task, value in spreads.items()) + ".\n"
+    m = extra["machine"]
+    text += (f"\n{m['cpus']} CPUs ({m['processor']}), {m['numba_threads']} numba threads, Python {m['python']}, "
+             f"numpy {m['numpy']}, numba {m['numba']}. Peak RSS of the run: {extra['peak_rss_mb']:.0f} MB.\n")
+    if "compile" in extra:
+        c = extra["compile"]
+        text += (f"Compile time of the first trial: {c['cold_serial_s']:.1f} s serial + {c['cold_parallel_s']:.1f} s "
+                 f"parallel with an empty numba cache; {c['cached_serial_s']:.2f} s + {c['cached_parallel_s']:.2f} s "
+                 "from the cache in a new process.\n")
+    return text
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    if args.quick:
+        args = Args(**{**asdict(args), **QUICK, "quick": True})
+    rows = [r for name in args.tasks for r in measure_task(name, args)]
+    extra: dict[str, Any] = {"args": asdict(args), "machine": machine(), "targets": TARGETS}
+    if args.compile_time:
+        extra["compile"] = compile_times()
+    extra["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    text = report(rows, extra)
+    write_results(rows, args.out, "throughput", text, extra)
+    print(text)
+    return rows
+
+
+def parse(argv: list[str] | None = None) -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small batches, few trials and repeats (CI)")
+    parser.add_argument("--repeats", type=int, default=Args.repeats, help="timing repeats; medians are reported")
+    parser.add_argument("--sizes", type=int, nargs="+", default=list(Args.sizes), help="batch sizes N")
+    parser.add_argument("--no-compile-time", action="store_true", help="skip timing numba's compilation")
+    parser.add_argument("--out", type=Path, default=Args.out, help="folder for the results")
+    ns = parser.parse_args(argv)
+    return Args(quick=ns.quick, repeats=ns.repeats, sizes=tuple(ns.sizes), compile_time=not ns.no_compile_time, out=ns.out)
+
+
+if __name__ == "__main__":
+    main(parse())

@@ -1,0 +1,42 @@
+"""Results of benchmarks and comparisons as JSON, CSV and Markdown, and the timing they share."""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from statistics import median
+from typing import Any
+
+__all__ = ["markdown_table", "median_seconds", "write_results"]
+
+
+def median_seconds(fn: Callable[[], Any], repeats: int) -> float:
+    """The median wall time [s] of ``repeats`` calls of ``fn``."""
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - start)
+    return median(samples)
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: Sequence[bool] | None = None) -> str:
+    """A GitHub Markdown table; ``numeric`` columns are right-aligned."""
+    numeric = numeric if numeric is not None else [False] * len(header)
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join("---:" if n else "---" for n in numeric) + " |"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def write_results(rows: list[dict[str, Any]], out: Path, stem: str, markdown: str, extra: dict[str, Any] | None = None) -> None:
+    """Write ``stem.json`` (``{"rows": rows, **extra}``), ``stem.csv`` (the rows) and ``stem.md`` to ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{stem}.json").write_text(json.dumps({"rows": rows, **(extra or {})}, indent=1, default=str))
+    with open(out / f"{stem}.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    (out / f"{stem}.md").write_text(markdown)
