@@ -157,7 +157,10 @@ def compile_times() -> dict[str, float]:
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         for state in ("cold", "cached"):
-            done = subprocess.run([sys.executable, "-c", COMPILE_SNIPPET], env=env, capture_output=True, text=True, check=True)
+            # Run outside the checkout: from its root, the bare ilc_steering/ folder would shadow the install.
+            done = subprocess.run([sys.executable, "-c", COMPILE_SNIPPET], env=env, cwd=cache, capture_output=True, text=True)
+            if done.returncode != 0:
+                raise RuntimeError(f"compile-time probe failed:\n{done.stderr}")
             serial, parallel = map(float, done.stdout.split())
             out[f"{state}_serial_s"], out[f"{state}_parallel_s"] = serial, parallel
     return out

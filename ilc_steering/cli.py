@@ -1,7 +1,8 @@
 """The ``ilc-steering`` command (also ``python -m ilc_steering``).
 
 ``run CONFIG`` learns on one scenario and exits 0 if the tolerance was met within the trials,
-1 otherwise, so it can gate a CI job. ``reproduce`` runs the paper's simulations.
+1 otherwise, so it can gate a CI job. ``reproduce`` runs the paper's simulations. ``compare``
+runs (or resumes) the benchmark of ILC against RL and black-box learners.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from ilc_steering.compare import add_arguments as add_compare_arguments
 from ilc_steering.config import ConfigError, SteeringConfig, load_config
 from ilc_steering.runner import CycleRecord, CyclicRunResult, RunResult, TrialRecord, run_cyclic_ilc, run_ilc
 
@@ -123,7 +125,18 @@ def _parser() -> argparse.ArgumentParser:
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")
     reproduce.add_argument("--json-dir", type=Path, default=None, help="write one JSON per scenario here")
     reproduce.set_defaults(handler=_reproduce)
+    compare = sub.add_parser("compare", help="trials to tolerance: ILC against RL and black-box optimizers, across seeds")
+    add_compare_arguments(compare)
+    compare.set_defaults(handler=_compare)
     return parser
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from ilc_steering.compare import from_namespace
+    from ilc_steering.compare import main as compare
+
+    compare(from_namespace(args))
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

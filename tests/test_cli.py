@@ -57,3 +57,11 @@ def test_python_dash_m_entry_point(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert "converged at trial 4" in done.stdout
+
+
+def test_compare_quick_runs_every_method(tmp_path, capsys):
+    assert main(["compare", "--quick", "--out", str(tmp_path)]) == 0
+    table = (tmp_path / "compare.md").read_text()
+    for method in ("ilc", "gauss_newton", "nelder_mead", "cma_es", "ppo", "sac", "td3"):
+        assert f"| forward_parking | {method} |" in table
+    assert len(list((tmp_path / "cells").glob("*.json"))) == 3 * 7 * 2

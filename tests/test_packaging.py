@@ -18,6 +18,6 @@ def test_wheel_ships_every_subpackage_and_config(tmp_path):
     for folder, package in (("envs", "ilc_steering/envs"), ("agents", "ilc_steering/agents"), ("ilc_steering", "ilc_steering")):
         for source in (ROOT / folder).glob("*.py"):
             assert f"{package}/{source.name}" in names
-    for config in (ROOT / "configs").glob("*.yaml"):
-        assert f"ilc_steering/configs/{config.name}" in names
+    for config in (ROOT / "configs").rglob("*.yaml"):
+        assert f"ilc_steering/configs/{config.relative_to(ROOT / 'configs').as_posix()}" in names
     assert not any(n.startswith(("envs/", "agents/", "tests/", "benchmarks/")) for n in names)

@@ -1,0 +1,335 @@
+"""Trials to tolerance: ILC against RL (SB3) and black-box optimizers, across seeds.
+
+Every method drives ``ilc_steering/ChainedSteering-v0`` through ``env.step`` inside a
+:class:`TrialLog`, which counts every trial (probes and random exploration included), records
+the errors, and refuses a step past the budget. ILC acts in physical units; the others act in
+the ``[-1, 1]`` box of ``RescaleAction``.
+
+A run folder holds ``run.json`` (the arguments), ``cells/<method>__<scenario>__<seed>.json`` (one
+per finished cell, written when it finishes) and, at the end, ``compare.{csv,json,md,png}``.
+Running again on the same folder skips the finished cells: an interrupted run resumes and never
+recomputes or loses a finished cell.
+
+    ilc-steering compare [--quick] [--out DIR]
+    python benchmarks/compare.py [--quick] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ilc_steering.tables import markdown_table, write_results
+
+__all__ = ["Args", "BudgetSpent", "TrialLog", "main", "parse", "run_cell"]
+
+ENV_ID = "ilc_steering/ChainedSteering-v0"
+LOOSE = (0.01, 0.01)  # [m], [rad]
+TIGHT = (5e-4, 5e-4)  # [m], [rad]
+METHODS = ("ilc", "gauss_newton", "nelder_mead", "cma_es", "ppo", "sac", "td3")
+SCENARIOS = ("forward_parking", "forward_parking_saturated", "parallel_parking")
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """Tiny budgets and two seeds: checks that everything runs and writes well-formed output (CI)."""
+    out: Path = Path("runs/compare")
+    """Run folder; an existing one is resumed."""
+    methods: tuple[str, ...] = METHODS
+    """Methods to compare."""
+    scenarios: tuple[str, ...] = SCENARIOS
+    """Packaged configs (simulations 1-3)."""
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    """Seeds; each (method, scenario, seed) is one cell."""
+    ilc_trials: int = 30
+    """Budget of the ILC agent [trials]."""
+    blackbox_trials: int = 3000
+    """Budget of each black-box optimizer [trials]."""
+    rl_trials: int | None = None
+    """Budget of each RL algorithm [trials]; None: ``n_timesteps`` of its hyperparameter file."""
+    progress_bar: bool = True
+    """SB3's progress bar on RL cells."""
+
+
+QUICK = {"seeds": (0, 1), "ilc_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "progress_bar": False}
+
+
+class BudgetSpent(Exception):
+    """Raised by :class:`TrialLog` on a step past the budget; ends a black-box method's run."""
+
+
+class TrialLog(gym.Wrapper[Any, Any, Any, Any]):
+    """Counts every trial, keeps its Cartesian [m] and orientation [rad] errors, and raises
+    :class:`BudgetSpent` instead of running trial ``budget + 1``."""
+
+    def __init__(self, env: gym.Env[Any, Any], budget: int) -> None:
+        super().__init__(env)
+        self.budget = budget
+        self.cartesian: list[float] = []
+        self.orientation: list[float] = []
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        if len(self.cartesian) >= self.budget:
+            raise BudgetSpent(f"budget of {self.budget} trials spent")
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.cartesian.append(float(info["cartesian_error"]))
+        self.orientation.append(float(info["orientation_error"]))
+        return obs, reward, terminated, truncated, info
+
+
+def first_within(log: TrialLog, tolerance: tuple[float, float]) -> int | None:
+    """The 1-based index of the first trial within ``tolerance`` (both errors), or None."""
+    ok = (np.asarray(log.cartesian) <= tolerance[0]) & (np.asarray(log.orientation) <= tolerance[1])
+    hits = np.flatnonzero(ok)
+    return int(hits[0]) + 1 if hits.size else None
+
+
+def best_so_far(log: TrialLog) -> list[list[float]]:
+    """``[trial, best error]`` at every trial that improved the best Cartesian + orientation error."""
+    error = np.asarray(log.cartesian) + np.asarray(log.orientation)
+    best = np.minimum.accumulate(error)
+    changed = np.flatnonzero(np.concatenate([[True], best[1:] < best[:-1]]))
+    return [[int(i) + 1, float(best[i])] for i in changed]
+
+
+def _run_ilc(env: TrialLog, seed: int) -> None:
+    from ilc_steering.agents import ILCAgent
+
+    config = env.unwrapped.config  # type: ignore[attr-defined]
+    agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)  # type: ignore[attr-defined]
+    obs, _ = env.reset(seed=seed)
+    while len(env.cartesian) < env.budget:
+        obs, _, _, _, info = env.step(agent.act(obs))
+        agent.learn(info)
+        obs, _ = env.reset()
+
+
+def budget(args: Args, method: str, scenario: str) -> int:
+    from ilc_steering.agents.rl import RL_ALGORITHMS, hyperparameters
+
+    if method == "ilc":
+        return args.ilc_trials
+    if method in RL_ALGORITHMS:
+        return args.rl_trials if args.rl_trials is not None else int(hyperparameters(method, scenario)["n_timesteps"])
+    return args.blackbox_trials
+
+
+def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any]:
+    """One (method, scenario, seed) cell: the method's run within its budget, and what it reached."""
+    from ilc_steering.agents.blackbox import BLACKBOX_METHODS
+    from ilc_steering.agents.rl import RL_ALGORITHMS, hyperparameters, train
+
+    trials = budget(args, method, scenario)
+    env = gym.make(ENV_ID, config=scenario)
+    if method != "ilc":
+        env = gym.wrappers.RescaleAction(env, np.float32(-1), np.float32(1))
+    log = TrialLog(env, trials)
+    start = time.perf_counter()
+    if method == "ilc":
+        _run_ilc(log, seed)
+    elif method in RL_ALGORITHMS:
+        log.reset(seed=seed)
+        train(method, log, hyperparameters(method, scenario), seed, trials, args.progress_bar)
+    elif method in BLACKBOX_METHODS:
+        log.reset(seed=seed)
+        try:
+            BLACKBOX_METHODS[method](log, seed)
+        except BudgetSpent:
+            pass
+    else:
+        raise ValueError(f"unknown method {method!r}; choose from {METHODS}")
+    wall = time.perf_counter() - start
+    curve = best_so_far(log)
+    return {"method": method, "scenario": scenario, "seed": seed, "budget": trials, "trials": len(log.cartesian),
+            "trials_to_loose": first_within(log, LOOSE), "trials_to_tight": first_within(log, TIGHT),
+            "best_error": curve[-1][1], "wall_s": wall, "curve": curve}
+
+
+def cell_path(out: Path, method: str, scenario: str, seed: int) -> Path:
+    return out / "cells" / f"{method}__{scenario}__{seed}.json"
+
+
+def _write_atomic(path: Path, data: Any) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data))
+    tmp.replace(path)  # a cell file is either whole or absent
+
+
+def _check_run_folder(args: Args) -> None:
+    """Record the arguments; refuse to resume a folder written with different budgets or seeds."""
+    settings = {k: v for k, v in asdict(args).items() if k not in ("out", "progress_bar", "methods", "scenarios")}
+    settings["seeds"] = list(settings["seeds"])
+    stored_path = args.out / "run.json"
+    if stored_path.exists():
+        stored = json.loads(stored_path.read_text())
+        if stored != settings:
+            raise ValueError(f"{stored_path} was written with {stored}, not {settings}: use another --out folder")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "cells").mkdir(exist_ok=True)
+    _write_atomic(stored_path, settings)
+
+
+def run_cells(args: Args, runner: Callable[[Args, str, str, int], dict[str, Any]] = run_cell) -> list[dict[str, Any]]:
+    """Every cell of the run, computing only those not yet in the run folder."""
+    _check_run_folder(args)
+    cells = []
+    for scenario in args.scenarios:
+        for method in args.methods:
+            for seed in args.seeds:
+                path = cell_path(args.out, method, scenario, seed)
+                if path.exists():
+                    cells.append(json.loads(path.read_text()))
+                    continue
+                cell = runner(args, method, scenario, seed)
+                _write_atomic(path, cell)
+                cells.append(cell)
+                reached = cell["trials_to_tight"] or "-"
+                print(f"{scenario:26s} {method:13s} seed {seed}: best {cell['best_error']:.2e} "
+                      f"(tight at {reached}) in {cell['wall_s']:.1f} s", flush=True)
+    return cells
+
+
+def _quartiles(values: list[float]) -> tuple[float, float, float]:
+    """Quartiles as order statistics (no interpolation), so a seed that never reached the
+    tolerance (``inf``) stays ``inf`` instead of turning the interpolation into NaN."""
+    q1, q2, q3 = np.percentile(np.asarray(values, dtype=np.float64), [25, 50, 75], method="inverted_cdf")
+    return float(q1), float(q2), float(q3)
+
+
+def _count(values: list[float], budget: int) -> str:
+    q1, q2, q3 = _quartiles(values)
+    if math.isinf(q2):
+        return f"> {budget}"
+    text = lambda v: f"> {budget}" if math.isinf(v) else f"{v:.0f}"  # noqa: E731
+    return f"{q2:.0f} [{text(q1)}, {text(q3)}]"
+
+
+@dataclass
+class Summary:
+    method: str
+    scenario: str
+    budget: int
+    seeds: int
+    loose: list[float] = field(default_factory=list)
+    tight: list[float] = field(default_factory=list)
+    best: list[float] = field(default_factory=list)
+    wall: list[float] = field(default_factory=list)
+
+    def row(self) -> dict[str, Any]:
+        return {"method": self.method, "scenario": self.scenario, "budget": self.budget, "seeds": self.seeds,
+                "reached_loose": int(np.isfinite(self.loose).sum()), "reached_tight": int(np.isfinite(self.tight).sum()),
+                "trials_to_loose_q1_median_q3": _quartiles(self.loose), "trials_to_tight_q1_median_q3": _quartiles(self.tight),
+                "best_error_q1_median_q3": _quartiles(self.best), "wall_s_median": float(np.median(self.wall))}
+
+
+def summarize(cells: list[dict[str, Any]]) -> list[Summary]:
+    groups: dict[tuple[str, str], Summary] = {}
+    for c in cells:
+        s = groups.setdefault((c["scenario"], c["method"]), Summary(c["method"], c["scenario"], c["budget"], 0))
+        s.seeds += 1
+        s.loose.append(c["trials_to_loose"] if c["trials_to_loose"] is not None else math.inf)
+        s.tight.append(c["trials_to_tight"] if c["trials_to_tight"] is not None else math.inf)
+        s.best.append(c["best_error"])
+        s.wall.append(c["wall_s"])
+    return list(groups.values())
+
+
+def report(summaries: list[Summary]) -> str:
+    header = ["scenario", "method", "budget", "trials to 1 cm / 0.01 rad", "trials to 0.5 mm / 0.5 mrad",
+              "best error [m + rad]", "wall [s]"]
+    rows = []
+    for s in summaries:
+        b1, b2, b3 = _quartiles(s.best)
+        rows.append([s.scenario, s.method, str(s.budget),
+                     f"{_count(s.loose, s.budget)} ({int(np.isfinite(s.loose).sum())}/{s.seeds})",
+                     f"{_count(s.tight, s.budget)} ({int(np.isfinite(s.tight).sum())}/{s.seeds})",
+                     f"{b2:.1e} [{b1:.1e}, {b3:.1e}]", f"{np.median(s.wall):.1f}"])
+    note = ("\nMedian [interquartile range] across seeds (order statistics); (k/n): seeds that reached the tolerance within the budget. "
+            "Every trial counts, probes and random exploration included. Best error: the lowest Cartesian error [m] "
+            "+ orientation error [rad] of any trial within the budget.\n")
+    return markdown_table(header, rows, [False, False, True, True, True, True, True]) + note
+
+
+def plot(cells: list[dict[str, Any]], scenarios: tuple[str, ...], path: Path) -> None:
+    """Best error so far against trials, log-log: the median across seeds, the interquartile band shaded."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(scenarios), figsize=(5.5 * len(scenarios), 4.4), squeeze=False)
+    methods = list(dict.fromkeys(c["method"] for c in cells))
+    colours = dict(zip(methods, plt.get_cmap("tab10").colors))
+    for ax, scenario in zip(axes[0], scenarios):
+        for method in methods:
+            runs = [c for c in cells if c["scenario"] == scenario and c["method"] == method]
+            if not runs:
+                continue
+            grid = np.unique(np.geomspace(1, max(r["trials"] for r in runs), 200).astype(int))
+            values = np.array([_step_curve(r["curve"], r["trials"], grid) for r in runs])
+            q1, q2, q3 = np.nanpercentile(values, [25, 50, 75], axis=0)
+            ax.plot(grid, q2, color=colours[method], label=method)
+            ax.fill_between(grid, q1, q3, color=colours[method], alpha=0.2, linewidth=0)
+        for tol, style in ((sum(LOOSE), ":"), (sum(TIGHT), "--")):
+            ax.axhline(tol, color="grey", linestyle=style, linewidth=0.8)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("trials")
+        ax.set_ylabel("best Cartesian [m] + orientation [rad] error so far")
+        ax.set_title(scenario)
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle("Best error against trials (median and interquartile range across seeds; dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _step_curve(curve: list[list[float]], trials: int, grid: np.ndarray) -> np.ndarray:
+    """The best-so-far step function on ``grid`` (NaN past the run's last trial)."""
+    at, best = np.array([p[0] for p in curve]), np.array([p[1] for p in curve])
+    values = best[np.searchsorted(at, grid, side="right") - 1]
+    return np.where(grid <= trials, values, np.nan)
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    if args.quick:
+        args = Args(**{**asdict(args), **QUICK, "quick": True})
+    cells = run_cells(args)
+    summaries = summarize(cells)
+    text = report(summaries)
+    rows = [{k: v for k, v in c.items() if k != "curve"} for c in cells]
+    write_results(rows, args.out, "compare", text, {"summary": [s.row() for s in summaries], "cells": cells})
+    plot(cells, args.scenarios, args.out / "compare.png")
+    print(text)
+    return cells
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="tiny budgets, two seeds: check that everything runs (CI)")
+    parser.add_argument("--out", type=Path, default=Args.out, help="run folder; an existing one is resumed")
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS))
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(Args.seeds))
+    parser.add_argument("--no-progress-bar", action="store_true", help="no SB3 progress bar")
+
+
+def from_namespace(ns: argparse.Namespace) -> Args:
+    return Args(quick=ns.quick, out=ns.out, methods=tuple(ns.methods), scenarios=tuple(ns.scenarios),
+                seeds=tuple(ns.seeds), progress_bar=not ns.no_progress_bar)
+
+
+def parse(argv: list[str] | None = None) -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_arguments(parser)
+    return from_namespace(parser.parse_args(argv))
