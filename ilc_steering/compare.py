@@ -253,7 +253,7 @@ def report(summaries: list[Summary]) -> str:
         rows.append([s.scenario, s.method, str(s.budget),
                      f"{_count(s.loose, s.budget)} ({int(np.isfinite(s.loose).sum())}/{s.seeds})",
                      f"{_count(s.tight, s.budget)} ({int(np.isfinite(s.tight).sum())}/{s.seeds})",
-                     f"{b2:.1e} [{b1:.1e}, {b3:.1e}]", f"{np.median(s.wall):.1f}"])
+                     f"{b2:.1e} [{b1:.1e}, {b3:.1e}]", f"{np.median(s.wall):.3g}"])
     note = ("\nMedian [interquartile range] across seeds (order statistics); (k/n): seeds that reached the tolerance within the budget. "
             "Every trial counts, probes and random exploration included. Best error: the lowest Cartesian error [m] "
             "+ orientation error [rad] of any trial within the budget.\n")
