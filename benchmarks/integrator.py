@@ -21,7 +21,7 @@ import numpy as np
 
 from ilc_steering.agents import ILCAgent
 from ilc_steering.config import load_config
-from ilc_steering.envs.reference import car_field, reference_trial
+from ilc_steering.envs.reference import car_trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.tables import markdown_table, median_seconds, write_results
 
@@ -34,12 +34,6 @@ class Args:
     """Timing repeats; the median is reported."""
     out: Path = Path("results/benchmarks")
     """Folder for the JSON, CSV and Markdown results."""
-
-
-def solve_ivp_trial(scenario: Scenario, c: np.ndarray, rtol: float) -> np.ndarray:
-    limit = scenario.config.plant.steering_limit
-    return reference_trial(car_field(scenario, c), scenario.x_start, scenario.profile.breakpoints,
-                           np.inf if limit is None else limit, rtol)
 
 
 def ilc_actions(scenario: Scenario, count: int) -> list[np.ndarray]:
@@ -62,9 +56,9 @@ def main(args: Args) -> list[dict[str, object]]:
         base = load_config(name)
         actions = ilc_actions(Scenario(base), trials)
         scenario = Scenario(base)
-        truth = [solve_ivp_trial(scenario, c, 1e-12) for c in actions]
-        ref_time = median_seconds(lambda: [solve_ivp_trial(scenario, c, 1e-8) for c in actions], repeats) / trials
-        ref_error = max(np.abs(solve_ivp_trial(scenario, c, 1e-8) - x).max() for c, x in zip(actions, truth))
+        truth = [car_trial(scenario, c, 1e-12) for c in actions]
+        ref_time = median_seconds(lambda: [car_trial(scenario, c, 1e-8) for c in actions], repeats) / trials
+        ref_error = max(np.abs(car_trial(scenario, c, 1e-8) - x).max() for c, x in zip(actions, truth))
         rows.append({"task": name, "method": "solve_ivp DOP853 rtol=1e-8", "max_step": None,
                      "ms_per_trial": 1e3 * ref_time, "speedup": 1.0, "max_error": ref_error})
         for h in steps:

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ilc_steering.config import load_config
-from ilc_steering.envs.reference import car_field, reference_trial
+from ilc_steering.envs.reference import car_trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
@@ -82,10 +82,7 @@ def trial_actions(scenario: Scenario, count: int, seed: int) -> np.ndarray:
 
 def solve_ivp_final(scenario: Scenario, c: np.ndarray, rtol: float) -> np.ndarray:
     """The final world configuration of one trial by ``solve_ivp`` DOP853 at ``rtol`` = atol."""
-    limit = scenario.config.plant.steering_limit
-    x = reference_trial(car_field(scenario, c), scenario.x_start, scenario.profile.breakpoints,
-                        np.inf if limit is None else limit, rtol)
-    return scenario.to_world(scenario.plant.configuration(x))
+    return scenario.to_world(scenario.plant.configuration(car_trial(scenario, c, rtol)))
 
 
 def peak_traced_mb(fn: Any) -> float:

@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 from ilc_steering.envs.car import car_velocity, chained_inputs
 from ilc_steering.envs.scenario import Scenario
 
-__all__ = ["car_field", "reference_trial"]
+__all__ = ["car_field", "car_trial", "reference_trial"]
 
 Array = npt.NDArray[np.float64]
 Field = Callable[[float, Array], Array]
@@ -58,3 +58,10 @@ def car_field(scenario: Scenario, c: Array) -> Field:
         return np.array([dx, dy, dtheta, u2])
 
     return field
+
+
+def car_trial(scenario: Scenario, c: Array, rtol: float = 1e-12) -> Array:
+    """The final plant state (task frame) of one trial of a car scenario by :func:`reference_trial`."""
+    limit = scenario.config.plant.steering_limit
+    return reference_trial(car_field(scenario, c), scenario.x_start, scenario.profile.breakpoints,
+                           np.inf if limit is None else limit, rtol)
