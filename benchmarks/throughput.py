@@ -4,7 +4,8 @@ In one run, for each paper task and on the same trials (the nominal open-loop so
 every coefficient perturbed by 10%, seeded: the kind of trial an optimizer runs):
 
 - ``solve_ivp(method="DOP853", rtol=atol=1e-8)``, one call per trial: the reference speed;
-- ``env.step`` of :class:`~ilc_steering.envs.steering_env.ChainedSteeringEnv`, one trial per call;
+- ``env.step`` of :class:`~ilc_steering.envs.steering_env.ChainedSteeringEnv`, one trial per call,
+  plain, with ``record_trajectory=True``, and followed by ``render()`` (``rgb_array``);
 - ``step`` of :class:`~ilc_steering.envs.steering_vector_env.ChainedSteeringVectorEnv` at
   each batch size ``N``, ``N`` trials per call;
 - for every path, the largest final-state difference from ``solve_ivp`` at rtol = atol = 1e-12
@@ -59,6 +60,8 @@ class Args:
     """Packaged car configs."""
     scalar_steps: int = 500
     """env.step calls per timing repeat."""
+    render_steps: int = 20
+    """env.step + render() calls per timing repeat."""
     reference_trials: int = 5
     """solve_ivp rtol=1e-8 trials per timing repeat."""
     accuracy_trials: int = 8
@@ -71,7 +74,7 @@ class Args:
     """Folder for the JSON, CSV and Markdown results."""
 
 
-QUICK = {"repeats": 2, "sizes": (1, 64), "scalar_steps": 50, "reference_trials": 1, "accuracy_trials": 2}
+QUICK = {"repeats": 2, "sizes": (1, 64), "scalar_steps": 50, "render_steps": 2, "reference_trials": 1, "accuracy_trials": 2}
 
 
 def trial_actions(scenario: Scenario, count: int, seed: int) -> np.ndarray:
@@ -125,6 +128,21 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
     per_step = median_seconds(lambda: [env.step(c) for c in steps], args.repeats) / len(steps)
     scalar_final = np.array([env.step(c)[4]["q_final"] for c in trials[:k]])
     row("env.step, scalar", 1, per_step, error(scalar_final), peak_traced_mb(lambda: env.step(trials[0])))
+
+    # What asking for pictures costs: a recorded trajectory, and a frame drawn after each trial.
+    recording = ChainedSteeringEnv(name, record_trajectory=True)
+    recording.reset(seed=args.seed)
+    per_step = median_seconds(lambda: [recording.step(c) for c in steps], args.repeats) / len(steps)
+    recorded = np.array([recording.step(c)[4]["trajectory"].q[-1] for c in trials[:k]])
+    row("env.step, record_trajectory", 1, per_step, error(scenario.to_task(recorded)),
+        peak_traced_mb(lambda: recording.step(trials[0])))
+    rendering = ChainedSteeringEnv(name, render_mode="rgb_array")
+    rendering.reset(seed=args.seed)
+    rendering.step(trials[0])
+    rendering.render()  # import matplotlib and build the canvas outside the timing
+    drawn = trials[: args.render_steps]
+    per_step = median_seconds(lambda: [(rendering.step(c), rendering.render()) for c in drawn], args.repeats) / len(drawn)
+    row("env.step + render(), rgb_array", 1, per_step, float("nan"), peak_traced_mb(lambda: (rendering.step(trials[0]), rendering.render())))
 
     for n in args.sizes:
         envs = ChainedSteeringVectorEnv(n, name)

@@ -13,7 +13,7 @@ from gymnasium.wrappers import TimeLimit
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.car import check_chart
 from ilc_steering.envs.scenario import NominalModel, Scenario
-from ilc_steering.envs.steering_env import check_action, check_render_mode, reward, trial_info
+from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, reward, trial_info
 
 __all__ = ["CyclicSteeringEnv", "make_cyclic_env"]
 
@@ -68,12 +68,22 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     index ``l`` of the waypoint reached, ``r`` being home again, as in the paper), ``cycle``
     (from 1), ``waypoint_error`` and ``error`` (``z_l^d - z_l``, eq. 40's epsilon), ``error_norm``,
     ``q_final``, ``z_final``, ``left_chart``, ``action``, ``clipped`` and, for the car,
-    ``cartesian_error`` [m] and ``orientation_error`` [rad].
+    ``cartesian_error`` [m] and ``orientation_error`` [rad]; with ``record_trajectory=True``,
+    ``trajectory``, the segment's :class:`~ilc_steering.envs.trajectory.Trajectory` (time from
+    the segment's start).
+
+    ## Rendering
+
+    ``render_mode="rgb_array"``: ``render()`` returns a ``(480, 480, 3)`` uint8 frame with the
+    waypoint cars (home, q1, ...), the paths of the last cycle's segments and the car at
+    eight instants along the last one, drawn off-screen (matplotlib Agg).
 
     ## Arguments
 
     ``config``: a cyclic config (``task.waypoints``), as a YAML path, a packaged name
     (``"cyclic_home_goal"``, ``"cyclic_pickup_dropoff"``) or a :class:`SteeringConfig`.
+    ``render_mode``: ``None`` or ``"rgb_array"``. ``record_trajectory``: put each segment's
+    trajectory in ``info`` (off by default).
     ``env.unwrapped.nominal_models`` is the learner's view, one model per segment.
 
     ## Version History
@@ -96,10 +106,16 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     (4, 2, 2)
     """
 
-    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 4}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
-    def __init__(self, config: str | Path | SteeringConfig = "cyclic_home_goal", render_mode: str | None = None) -> None:
+    def __init__(
+        self,
+        config: str | Path | SteeringConfig = "cyclic_home_goal",
+        render_mode: str | None = None,
+        record_trajectory: bool = False,
+    ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
+        self.record_trajectory = record_trajectory
         self.config = load_config(config)
         if not self.config.is_cyclic:
             raise ValueError(f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal")
@@ -122,6 +138,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._x = self._scenario.x_start.copy()
         self._segment = 0
         self._cycle = 1
+        self._view = TrialView(self._scenario, ["home", *(f"q{l}" for l in range(1, self.num_segments))])
 
     @property
     def nominal_models(self) -> list[NominalModel]:
@@ -139,6 +156,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         start = self._scenario.waypoints[0] if not options or "start" not in options else self._check_start(options["start"])
         self._x = self._scenario.to_task(np.asarray(start, dtype=np.float64)).copy()
         self._segment, self._cycle = 0, 1
+        self._view.clear()
         return self._observation(), {"q": np.asarray(start, dtype=np.float64).copy(), "segment": 0, "cycle": 1}
 
     def _check_start(self, start: Any) -> Array:
@@ -155,21 +173,44 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         c = check_action(action, self.action_space.shape, self._action_names)
         applied = np.clip(c, self.action_space.low, self.action_space.high)
         leg = self._segment
-        trial = self._scenario.run(applied[None], x0=self._x[None], leg=leg)
+        record = self.record_trajectory or self.render_mode is not None
+        trial = self._scenario.run(applied[None], x0=self._x[None], record=record, leg=leg)
         self._x = trial.final[0]
         info = trial_info(self._scenario.measure(trial.final, trial.status, leg=leg), applied, c)
         info.update(waypoint_error=info["error"], segment=leg, waypoint=leg + 1, cycle=self._cycle)
+        if record:
+            trajectory = self._scenario.trajectory(trial, applied[None], leg=leg)
+            self._view.add(trajectory, info, keep=self.num_segments)
+            if self.record_trajectory:
+                info["trajectory"] = trajectory
         self._segment = (leg + 1) % self.num_segments
         self._cycle += self._segment == 0
         return self._observation(info["z_final"]), float(reward(info)), False, False, info
 
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """An RGB frame ``(480, 480, 3)``: the waypoint cars (home, q1, ...), the paths of
+        the last ``r`` segments (one cycle) and the car along the last of them at eight instants."""
+        if self.render_mode is None:
+            gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
+            return None
+        if self._view.count == 0:
+            return self._view.frame(f"{self.config.name}: before the first segment")
+        cycle, waypoint = self._cycle - (self._segment == 0), self._segment or self.num_segments
+        return self._view.frame(f"{self.config.name}: cycle {cycle}, reached waypoint {waypoint}")
+
+    def close(self) -> None:
+        self._view.close()
+
 
 def make_cyclic_env(
-    config: str | Path | SteeringConfig = "cyclic_home_goal", cycles: int | None = None, render_mode: str | None = None
+    config: str | Path | SteeringConfig = "cyclic_home_goal",
+    cycles: int | None = None,
+    render_mode: str | None = None,
+    record_trajectory: bool = False,
 ) -> gym.Env[Array, npt.NDArray[np.float32]]:
     """The registered entry point: a :class:`CyclicSteeringEnv` truncated after ``cycles`` cycles
     (default: the config's ``learning.trials``) through ``TimeLimit``."""
-    env = CyclicSteeringEnv(config, render_mode)
+    env = CyclicSteeringEnv(config, render_mode, record_trajectory)
     count = env.config.learning.trials if cycles is None else cycles
     if count < 1:
         raise ValueError(f"cycles must be >= 1, got {count}")

@@ -14,10 +14,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import CyclicTaskConfig, SteeringConfig
-from ilc_steering.envs.car import CarModel, frame_angle, rotate
+from ilc_steering.envs.car import CarModel, chained_inputs, frame_angle, rotate
 from ilc_steering.envs.integrate import OK
 from ilc_steering.envs.plants import CarPlant, ChainedPlant, Plant, Trials, simulate
 from ilc_steering.envs.profiles import PiecewiseProfile
+from ilc_steering.envs.trajectory import Trajectory
 
 __all__ = ["NominalModel", "Scenario"]
 
@@ -156,6 +157,30 @@ class Scenario:
         return simulate(
             self.plant, profile, np.ascontiguousarray(x0), c, self.config.simulation.max_step, record, parallel
         )
+
+    def trajectory(self, trials: Trials, c: Array, index: int = 0, leg: int = 0) -> Trajectory:
+        """The recorded motion of trial ``index`` of ``trials`` (from ``run(..., record=True)``
+        with coefficients ``c`` ``(B, 1 + q)`` on leg ``leg``), in the world frame.
+
+        The car's inputs are what the controller commands: eqs. 4-5 with the nominal geometry
+        at the measured configuration (the wheel angle at the stop when saturated).
+        """
+        if trials.times is None or trials.states is None:
+            raise ValueError("the trials were run without record=True; nothing to build a trajectory from")
+        t, states = trials.times, trials.states[index]
+        left_chart = bool(trials.status[index] != OK)
+        if left_chart:  # the robot halted at its last valid state; drop the standstill after it
+            moved = np.flatnonzero(np.any(states[1:] != states[:-1], axis=1))
+            end = moved[-1] + 2 if moved.size else 1
+            t, states = t[:end], states[:end]
+        q = self.plant.configuration(states)
+        v1, v2 = self.nominals[leg].profile.evaluate(c[index], t)
+        car = self.nominal.car
+        if car is None:
+            u = np.stack([v1, v2], axis=-1)
+        else:
+            u = np.stack(chained_inputs.py_func(q[:, 2], q[:, 3], v1, v2, car.wheelbase, car.wheel_radius), axis=-1)
+        return Trajectory(t.copy(), self.to_world(q), u, left_chart)
 
     def measure(self, final: Array, status: npt.NDArray[np.int64], leg: int = 0) -> dict[str, Array]:
         """Errors of a batch of final plant states ``(B, nx)`` against the end of leg ``leg``.

@@ -11,8 +11,9 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.scenario import NominalModel, Scenario
+from ilc_steering.envs.trajectory import Trajectory
 
-__all__ = ["ChainedSteeringEnv", "action_names", "check_action", "check_render_mode", "reward", "task_spaces", "trial_info", "trial_infos"]
+__all__ = ["ChainedSteeringEnv", "TrialView", "action_names", "check_action", "check_render_mode", "reward", "task_spaces", "trial_info", "trial_infos"]
 
 Array = npt.NDArray[np.float64]
 
@@ -130,12 +131,22 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     ``step`` returns ``q_final`` (world frame), ``z_final``, ``error`` (``z^d - z(T)``, the
     learning error of eqs. 33-34), ``error_norm``, ``left_chart``, ``action`` (as applied, after
     clipping), ``clipped`` and, for the car, ``cartesian_error`` [m] and ``orientation_error``
-    [rad]. ``reset`` returns ``q_start`` and ``q_goal``.
+    [rad]. With ``record_trajectory=True`` it also holds ``trajectory``, the trial's
+    :class:`~ilc_steering.envs.trajectory.Trajectory` (``t``, ``q(t)``, ``u1(t)``, ``u2(t)`` at
+    every integrator step). ``reset`` returns ``q_start`` and ``q_goal``.
+
+    ## Rendering
+
+    ``render_mode="rgb_array"``: ``render()`` returns a ``(480, 480, 3)`` uint8 frame of the
+    workspace with the start (grey) and goal (green, dashed) cars, the last trial's path and the
+    car with its steered front wheel at eight instants along it, drawn off-screen (matplotlib Agg).
 
     ## Arguments
 
     ``config``: a YAML path, a packaged config name (``"forward_parking"``,
     ``"forward_parking_saturated"``, ``"parallel_parking"``, ...), or a :class:`SteeringConfig`.
+    ``render_mode``: ``None`` or ``"rgb_array"``. ``record_trajectory``: put each trial's
+    trajectory in ``info`` (off by default: recording costs memory and time on the fast path).
 
     The learner's view of the system is ``env.unwrapped.nominal_model``
     (:class:`~ilc_steering.envs.scenario.NominalModel`); the true plant stays inside the env.
@@ -156,14 +167,21 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     (True, False, True)
     """
 
-    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 4}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
-    def __init__(self, config: str | Path | SteeringConfig = "forward_parking", render_mode: str | None = None) -> None:
+    def __init__(
+        self,
+        config: str | Path | SteeringConfig = "forward_parking",
+        render_mode: str | None = None,
+        record_trajectory: bool = False,
+    ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
+        self.record_trajectory = record_trajectory
         self.config = load_config(config)
         self._scenario = Scenario(self.config)
         self.action_space, self.observation_space, self._observation = task_spaces(self._scenario)
         self._action_names = action_names(self._scenario.nominal)
+        self._view = TrialView(self._scenario, ["start", "goal"])
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -180,9 +198,69 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     def step(self, action: Any) -> tuple[npt.NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         c = check_action(action, self.action_space.shape, self._action_names)
         applied = np.clip(c, self.action_space.low, self.action_space.high)
-        trials = self._scenario.run(applied[None])
+        record = self.record_trajectory or self.render_mode is not None
+        trials = self._scenario.run(applied[None], record=record)
         info = trial_info(self._scenario.measure(trials.final, trials.status), applied, c)
+        if record:
+            trajectory = self._scenario.trajectory(trials, applied[None])
+            self._view.add(trajectory, info, keep=1)
+            if self.record_trajectory:
+                info["trajectory"] = trajectory
         return self._observation.copy(), float(reward(info)), True, False, info
+
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """An RGB frame ``(480, 480, 3)``: start and goal cars, the last trial's path and the car
+        along it at eight instants, and the trial's final errors in the title."""
+        if self.render_mode is None:
+            gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
+            return None
+        count = self._view.count
+        return self._view.frame(f"{self.config.name}: " + (f"trial {count}" if count else "before the first trial"))
+
+    def close(self) -> None:
+        self._view.close()
+
+
+class TrialView:
+    """What the envs draw: the scenario's waypoints and the paths of the last trials, with a
+    title line of the last trial's errors. Matplotlib is imported at the first frame."""
+
+    def __init__(self, scenario: Scenario, names: list[str]) -> None:
+        self._scenario = scenario
+        self.names = names
+        self._paths: list[Array] = []
+        self._errors = ""
+        self.count = 0
+        self._canvas: Any = None
+
+    def clear(self) -> None:
+        """Forget the trials (the canvas stays)."""
+        self._paths, self._errors, self.count = [], "", 0
+
+    def add(self, trajectory: Trajectory, info: dict[str, Any], keep: int) -> None:
+        """Remember a trial's path (the last ``keep`` of them are drawn) and its errors."""
+        self._paths = [*self._paths, trajectory.q][-keep:]
+        self.count += 1
+        if "cartesian_error" in info:
+            self._errors = f"error {info['cartesian_error']:.2e} m, {info['orientation_error']:.2e} rad"
+        else:
+            self._errors = f"error {info['error_norm']:.2e}"
+        if info["left_chart"]:
+            self._errors += ", left the chart"
+
+    def frame(self, label: str) -> npt.NDArray[np.uint8]:
+        from ilc_steering.envs.rendering import Canvas, render_scene
+
+        if self._canvas is None:
+            self._canvas = Canvas()
+        car = self._scenario.nominal.car
+        title = label + (f"\n{self._errors}" if self.count else "")
+        return render_scene(
+            self._canvas, self._scenario.waypoints, None if car is None else car.wheelbase, self.names, self._paths, title
+        )
+
+    def close(self) -> None:
+        self._canvas = None
 
 
 def reward(info: dict[str, Any]) -> Any:

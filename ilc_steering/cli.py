@@ -1,8 +1,9 @@
 """The ``ilc-steering`` command (also ``python -m ilc_steering``).
 
 ``run CONFIG`` learns on one scenario and exits 0 if the tolerance was met within the trials,
-1 otherwise, so it can gate a CI job. ``reproduce`` runs the paper's simulations. ``compare``
-runs (or resumes) the benchmark of ILC against RL and black-box learners.
+1 otherwise, so it can gate a CI job. ``reproduce`` runs the paper's simulations. ``plot RUN.json``
+draws the paper's figures of a run. ``compare`` runs (or resumes) the benchmark of ILC against
+RL and black-box learners.
 """
 
 from __future__ import annotations
@@ -64,10 +65,13 @@ def _print_row(record: TrialRecord | CycleRecord) -> None:
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values), flush=True)
 
 
-def _learn(config: SteeringConfig, count: int | None) -> RunResult | CyclicRunResult:
+def _learn(config: SteeringConfig, count: int | None, trajectories: bool) -> RunResult | CyclicRunResult:
     """Run the config's learner with a table row per trial (or cycle) as it finishes."""
     _print_header(config, config.learning.trials if count is None else count)
-    result = run_cyclic_ilc(config, count, on_cycle=_print_row) if config.is_cyclic else run_ilc(config, count, on_trial=_print_row)
+    if config.is_cyclic:
+        result: RunResult | CyclicRunResult = run_cyclic_ilc(config, count, on_cycle=_print_row, trajectories=trajectories)
+    else:
+        result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories)
     unit = "cycles" if config.is_cyclic else "trials"
     done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
     if result.converged_at is None:
@@ -77,22 +81,39 @@ def _learn(config: SteeringConfig, count: int | None) -> RunResult | CyclicRunRe
     return result
 
 
+def _save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Path | None) -> None:
+    """Write the run's JSON and its figures, where asked."""
+    data = result.to_json()
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(data))
+    if plots is not None:
+        from ilc_steering.plots import write_plots
+
+        for path in write_plots(data, plots):
+            print(f"wrote {path}")
+
+
 def _run(args: argparse.Namespace) -> int:
-    result = _learn(load_config(args.config), args.trials)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result.to_json(), indent=1))
+    result = _learn(load_config(args.config), args.trials, trajectories=args.json is not None or args.plots is not None)
+    _save(result, args.json, args.plots)
     return 0 if result.converged_at is not None else 1
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from ilc_steering.plots import write_plots
+
+    for path in write_plots(args.run, args.out):
+        print(f"wrote {path}")
+    return 0
 
 
 def _reproduce(args: argparse.Namespace) -> int:
     rows = []
     for name, (paper, figures) in PAPER.items():
-        result = _learn(load_config(name), None)
+        result = _learn(load_config(name), None, trajectories=args.json_dir is not None or args.plots is not None)
+        _save(result, None if args.json_dir is None else args.json_dir / f"{name}.json", args.plots)
         print()
-        if args.json_dir is not None:
-            args.json_dir.mkdir(parents=True, exist_ok=True)
-            (args.json_dir / f"{name}.json").write_text(json.dumps(result.to_json(), indent=1))
         rows.append((name, figures, paper, result))
     print("| scenario | paper figures | paper iterations | trials (cycles) to 0.5 mm / 0.5 mrad |")
     print("| --- | --- | ---: | ---: |")
@@ -120,11 +141,17 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="learn on one scenario (one-trial or cyclic); exit 0 if it converged")
     run.add_argument("config", help="a YAML file or a packaged config name, e.g. forward_parking")
     run.add_argument("--trials", type=int, default=None, help="number of trials, or cycles for a cyclic config (default: the config's)")
-    run.add_argument("--json", type=Path, default=None, help="write the per-trial results here")
+    run.add_argument("--json", type=Path, default=None, help="write the per-trial results and trajectories here (input of `plot`)")
+    run.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures of this run here as PNGs")
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")
     reproduce.add_argument("--json-dir", type=Path, default=None, help="write one JSON per scenario here")
+    reproduce.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures (Figs. 3-14, 23-25) here as PNGs")
     reproduce.set_defaults(handler=_reproduce)
+    plot = sub.add_parser("plot", help="draw the paper's figures of a run written by `run --json`")
+    plot.add_argument("run", type=Path, help="the run's JSON file")
+    plot.add_argument("--out", type=Path, required=True, metavar="DIR", help="write the PNGs here")
+    plot.set_defaults(handler=_plot)
     compare = sub.add_parser("compare", help="trials to tolerance: ILC against RL and black-box optimizers, across seeds")
     add_compare_arguments(compare)
     compare.set_defaults(handler=_compare)

@@ -235,7 +235,7 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
     if dataclasses.is_dataclass(hint):
         return _build(hint, value, key)
     if origin is tuple:
-        _require(isinstance(value, list), key, f"must be a list, got {value!r}")
+        _require(isinstance(value, (list, tuple)), key, f"must be a list, got {value!r}")
         return tuple(_coerce(typing.get_args(hint)[0], v, f"{key}[{i}]") for i, v in enumerate(value))
     if origin is Literal:
         allowed = typing.get_args(hint)

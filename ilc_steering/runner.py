@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,7 @@ import gymnasium as gym
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.config import SteeringConfig, ToleranceConfig, load_config
+from ilc_steering.envs.trajectory import Trajectory
 
 __all__ = ["CycleRecord", "CyclicRunResult", "RunResult", "TrialRecord", "run_cyclic_ilc", "run_ilc", "within_tolerance"]
 
@@ -21,7 +23,8 @@ CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
 
 @dataclass(frozen=True)
 class TrialRecord:
-    """One trial: its errors, final configuration (world frame), chained error and action."""
+    """One trial: its errors, final configuration (world frame), chained error, action and,
+    when recorded, its trajectory."""
 
     trial: int  # for a cyclic run: the index l of the waypoint reached (r is home)
     error_norm: float
@@ -30,20 +33,41 @@ class TrialRecord:
     final_state: list[float]
     error: list[float]
     action: list[float]
+    trajectory: Trajectory | None = None
 
     def to_json(self) -> dict[str, Any]:
-        record = asdict(self)
+        record = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        if self.trajectory is not None:
+            record["trajectory"] = self.trajectory.to_json()
         return {k: v for k, v in record.items() if v is not None}
+
+
+def _run_json(config: SteeringConfig, kind: str, records: list[Any], converged_at: int | None) -> dict[str, Any]:
+    """A run as plain data: ``kind`` (``"trials"`` or ``"cycles"``) names the list of records,
+    and the config comes along whole (``load_config`` builds it back; tested)."""
+    return {
+        "name": config.name,
+        "kind": kind,
+        kind: [r.to_json() for r in records],
+        "converged_at": converged_at,
+        "config": dataclasses.asdict(config),
+    }
 
 
 @dataclass(frozen=True)
 class RunResult:
-    name: str
+    """A run of one-trial ILC: the JSON that ``ilc-steering run --json`` writes and ``plot`` reads."""
+
+    config: SteeringConfig
     trials: list[TrialRecord]
     converged_at: int | None
 
+    @property
+    def name(self) -> str:
+        return self.config.name
+
     def to_json(self) -> dict[str, Any]:
-        return {"name": self.name, "trials": [t.to_json() for t in self.trials], "converged_at": self.converged_at}
+        return _run_json(self.config, "trials", self.trials, self.converged_at)
 
 
 def within_tolerance(tolerance: ToleranceConfig, info: dict[str, Any]) -> bool:
@@ -60,6 +84,7 @@ def within_tolerance(tolerance: ToleranceConfig, info: dict[str, Any]) -> bool:
 
 def _record(index: int, info: dict[str, Any]) -> TrialRecord:
     return TrialRecord(
+        trajectory=info.get("trajectory"),
         trial=index,
         error_norm=info["error_norm"],
         cartesian_error=info.get("cartesian_error"),
@@ -74,16 +99,18 @@ def run_ilc(
     config: str | Path | SteeringConfig,
     trials: int | None = None,
     on_trial: Callable[[TrialRecord], None] | None = None,
+    trajectories: bool = False,
 ) -> RunResult:
     """Run the ILC agent of eqs. 33-34 for ``trials`` trials (default: the config's).
 
-    ``on_trial`` is called with each record as soon as the trial ends.
+    ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
+    every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
     """
     config = load_config(config)
     count = config.learning.trials if trials is None else trials
     if count < 1:
         raise ValueError(f"trials must be >= 1, got {count}")
-    env = gym.make(ENV_ID, config=config)
+    env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
     agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)  # type: ignore[attr-defined]
     records: list[TrialRecord] = []
     converged_at = None
@@ -98,7 +125,7 @@ def run_ilc(
         if converged_at is None and within_tolerance(config.learning.tolerance, info):
             converged_at = k
     env.close()
-    return RunResult(config.name, records, converged_at)
+    return RunResult(config, records, converged_at)
 
 
 @dataclass(frozen=True)
@@ -115,12 +142,18 @@ class CycleRecord:
 
 @dataclass(frozen=True)
 class CyclicRunResult:
-    name: str
+    """A run of cyclic ILC, with the same JSON conventions as :class:`RunResult`."""
+
+    config: SteeringConfig
     cycles: list[CycleRecord]
     converged_at: int | None
 
+    @property
+    def name(self) -> str:
+        return self.config.name
+
     def to_json(self) -> dict[str, Any]:
-        return {"name": self.name, "cycles": [c.to_json() for c in self.cycles], "converged_at": self.converged_at}
+        return _run_json(self.config, "cycles", self.cycles, self.converged_at)
 
 
 def run_cyclic_ilc(
@@ -128,14 +161,16 @@ def run_cyclic_ilc(
     cycles: int | None = None,
     on_cycle: Callable[[CycleRecord], None] | None = None,
     start: list[float] | None = None,
+    trajectories: bool = False,
 ) -> CyclicRunResult:
     """Run the cyclic ILC agent (eqs. 39-40) for ``cycles`` cycles (default: ``learning.trials``),
-    never resetting the robot; ``start`` puts it off home at the beginning.
+    never resetting the robot; ``start`` puts it off home at the beginning. ``trajectories``
+    keeps every segment's trajectory in its record.
 
     A cycle has converged when every waypoint met the tolerance in it.
     """
     config = load_config(config)
-    env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles)
+    env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles, record_trajectory=trajectories)
     models = env.unwrapped.nominal_models  # type: ignore[attr-defined]
     agent = CyclicILCAgent(models, config.learning.nu_a, config.learning.nu_b)
     observation, _ = env.reset(seed=0, options=None if start is None else {"start": start})
@@ -158,4 +193,4 @@ def run_cyclic_ilc(
                 converged_at = info["cycle"]
             waypoints, met = [], True
     env.close()
-    return CyclicRunResult(config.name, records, converged_at)
+    return CyclicRunResult(config, records, converged_at)

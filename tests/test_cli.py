@@ -38,8 +38,9 @@ def test_chained_run_prints_the_error_norm(capsys):
     assert "error norm" in capsys.readouterr().out
 
 
-def test_reproduce_prints_the_comparison_table(tmp_path, capsys):
-    assert main(["reproduce", "--json-dir", str(tmp_path)]) == 0
+def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, capsys):
+    figures = tmp_path.parent / f"{tmp_path.name}-figures"
+    assert main(["reproduce", "--json-dir", str(tmp_path), "--plots", str(figures)]) == 0
     out = capsys.readouterr().out
     assert "| forward_parking | Figs. 3-6 | 4 | 4 |" in out
     assert "| parallel_parking | Figs. 11-14 | 5 | 5 |" in out
@@ -47,6 +48,10 @@ def test_reproduce_prints_the_comparison_table(tmp_path, capsys):
     assert "forward_parking_saturated:" in out  # where it differs, it says why
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "cyclic_home_goal.json", "forward_parking.json", "forward_parking_saturated.json", "parallel_parking.json"]
+    one_trial = [f"{name}_{kind}.png" for name in ("forward_parking", "forward_parking_saturated", "parallel_parking")
+                 for kind in ("trajectory", "coordinates", "inputs", "errors")]
+    cyclic = ["cyclic_home_goal_path.png", "cyclic_home_goal_waypoint_errors.png"]
+    assert sorted(p.name for p in figures.iterdir()) == sorted(one_trial + cyclic)
 
 
 def test_python_dash_m_entry_point(tmp_path):

@@ -1,0 +1,124 @@
+"""Pictures of a steering task: the car's outline, the workspace scene and an off-screen canvas.
+
+The envs' ``render`` and the paper's figures (:mod:`ilc_steering.plots`) draw with these, on
+matplotlib's Agg canvas, which needs no display. The car is the bicycle model of Fig. 1: a body,
+the rear wheel at ``(x, y)`` and the front wheel one wheelbase ahead, turned by ``phi``. A chained
+plant has no body; it is drawn in the plane ``(z1, zn)`` as a point.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+__all__ = ["Canvas", "car_outline", "draw_pose", "draw_trial", "draw_waypoints", "plane", "render_scene", "setup_workspace"]
+
+Array = npt.NDArray[np.float64]
+
+# Proportions of the drawn car, in wheelbases (the paper's car: 0.2 m between the axles).
+BODY_REAR, BODY_FRONT, BODY_HALF_WIDTH, WHEEL_HALF_LENGTH = -0.3, 1.3, 0.35, 0.2
+START, GOAL, PATH, STROBE = "0.45", "tab:green", "tab:blue", "tab:blue"
+
+
+def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
+    """The body polygon ``(5, 2)``, rear wheel ``(2, 2)`` and front wheel ``(2, 2)`` [m] of a car
+    at ``q = (x, y, theta, phi)`` with the given ``wheelbase`` [m]."""
+    x, y, theta, phi = (float(v) for v in q[:4])
+    heading = np.array([np.cos(theta), np.sin(theta)])
+    normal = np.array([-heading[1], heading[0]])
+    rear = np.array([x, y])
+    corners = [(BODY_REAR, -1), (BODY_FRONT, -1), (BODY_FRONT, 1), (BODY_REAR, 1), (BODY_REAR, -1)]
+    body = np.array([rear + wheelbase * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
+    half = WHEEL_HALF_LENGTH * wheelbase
+    front = rear + wheelbase * heading
+    steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
+    return body, np.array([rear - half * heading, rear + half * heading]), np.array([front - half * steered, front + half * steered])
+
+
+def plane(q: Array, is_car: bool) -> Array:
+    """The drawn coordinates of configurations ``(..., nx)``: ``(x, y)`` for a car, ``(z1, zn)`` otherwise."""
+    q = np.asarray(q)
+    return q[..., :2] if is_car else q[..., [0, -1]]
+
+
+def draw_pose(ax: Axes, q: Array, wheelbase: float | None, color: str, linestyle: str = "-", alpha: float = 1.0, label: str | None = None) -> None:
+    """One configuration: the car's outline and wheels, or a marker for a chained plant."""
+    if wheelbase is None:
+        point = plane(q, False)
+        ax.plot(*point, "o", color=color, alpha=alpha, label=label, fillstyle="none" if linestyle != "-" else "full")
+        return
+    body, rear, front = car_outline(q, wheelbase)
+    ax.plot(*body.T, color=color, linestyle=linestyle, alpha=alpha, linewidth=1.0, label=label)
+    for wheel in (rear, front):
+        ax.plot(*wheel.T, color=color, alpha=alpha, linewidth=3.0, solid_capstyle="butt")
+
+
+def draw_waypoints(ax: Axes, waypoints: Array, wheelbase: float | None, names: Sequence[str]) -> None:
+    """Start (grey) and goal or waypoint (green, dashed) configurations, each named beside it."""
+    is_car = wheelbase is not None
+    for i, (q, name) in enumerate(zip(waypoints, names)):
+        color = START if i == 0 else GOAL
+        draw_pose(ax, q, wheelbase, color, linestyle="-" if i == 0 else "--", label=name)
+        x, y = plane(q, is_car)
+        ax.annotate(name, (x, y), xytext=(-8, -24), textcoords="offset points", color=color, fontsize=8)
+
+
+def draw_trial(ax: Axes, q: Array, wheelbase: float | None, snapshots: int = 8, color: str = PATH, label: str | None = None) -> None:
+    """A trial's path (the rear-axle midpoint) with the car drawn at ``snapshots`` evenly spaced
+    instants, the stroboscopic view of the paper's Figs. 3, 7 and 11."""
+    path = plane(q, wheelbase is not None)
+    ax.plot(*path.T, color=color, linewidth=1.5, label=label)
+    if snapshots > 0 and len(q) > 1:
+        for i in np.unique(np.linspace(0, len(q) - 1, snapshots).round().astype(int)):
+            draw_pose(ax, q[i], wheelbase, STROBE, alpha=0.35)
+
+
+def setup_workspace(ax: Axes, dimension: int | None, title: str) -> None:
+    """Equal axes with units (``dimension``: ``None`` for a car, else the chained form's ``n``),
+    a grid and the title."""
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]" if dimension is None else "z1")
+    ax.set_ylabel("y [m]" if dimension is None else f"z{dimension}")
+    ax.grid(True, linewidth=0.4, alpha=0.5)
+    ax.set_title(title, fontsize=9)
+
+
+class Canvas:
+    """An off-screen figure of ``width`` x ``height`` pixels whose ``frame`` is an RGB array."""
+
+    def __init__(self, width: int = 480, height: int = 480, dpi: int = 80) -> None:
+        self.figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
+        FigureCanvasAgg(self.figure)
+        self.ax = self.figure.add_subplot()
+        # Fixed margins (room for the tick labels and a two-line title): tight_layout would
+        # double the time per frame.
+        self.figure.subplots_adjust(left=0.15, right=0.96, bottom=0.11, top=0.9)
+
+    def clear(self) -> Axes:
+        self.ax.clear()
+        return self.ax
+
+    def frame(self) -> npt.NDArray[np.uint8]:
+        """The figure as a ``(height, width, 3)`` uint8 array."""
+        canvas: Any = self.figure.canvas
+        canvas.draw()
+        return np.array(canvas.buffer_rgba())[..., :3]
+
+
+def render_scene(
+    canvas: Canvas, waypoints: Array, wheelbase: float | None, names: Sequence[str], paths: Sequence[Array], title: str
+) -> npt.NDArray[np.uint8]:
+    """An env's frame: the waypoints, the ``paths`` ``(S, nx)`` of the last trials, the last of
+    them stroboscopic."""
+    ax = canvas.clear()
+    draw_waypoints(ax, waypoints, wheelbase, names)
+    for i, q in enumerate(paths):
+        draw_trial(ax, q, wheelbase, snapshots=8 if i == len(paths) - 1 else 0)
+    setup_workspace(ax, None if wheelbase is not None else waypoints.shape[1], title)
+    return canvas.frame()

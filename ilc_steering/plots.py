@@ -1,0 +1,256 @@
+"""The paper's figures from a run's JSON (``ilc-steering run --json``, ``plot``, ``reproduce --plots``).
+
+One-trial runs (simulations 1-3, experiments 1-2):
+
+- ``trajectory``: the last trial's path, stroboscopic, with the configuration at the end of the
+  first trial dotted (Figs. 3, 7, 11, 16, 19);
+- ``coordinates``: ``x``, ``y``, ``theta``, ``phi`` over the last trial (Figs. 4, 8, 12);
+- ``inputs``: ``u1`` and ``u2`` over the last trial (Figs. 5, 9, 13, 17, 20);
+- ``errors``: the Cartesian and orientation errors over the trials, log scale (Figs. 6, 10, 14, 18, 21).
+
+Cyclic runs (simulation 4): ``path``, the path over the first cycles with the arrivals numbered
+in order (Fig. 23), and ``waypoint_errors``, each waypoint's errors over the cycles (Figs. 24-25).
+Figures are drawn on matplotlib's Agg canvas; no display is needed.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from ilc_steering.config import ConfigError, SteeringConfig, load_config
+from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
+from ilc_steering.envs.trajectory import Trajectory
+
+__all__ = ["Run", "load_run", "write_plots"]
+
+TRIAL_FIGURES = ("trajectory", "coordinates", "inputs", "errors")
+CYCLIC_FIGURES = ("path", "waypoint_errors")
+FIRST = "tab:red"
+
+
+@dataclass(frozen=True)
+class Run:
+    """A run's JSON, checked: its config and its records in order (for a cyclic run, one per
+    waypoint reached, each with its ``cycle`` and waypoint ``index``)."""
+
+    config: SteeringConfig
+    records: list[dict[str, Any]]
+    cyclic: bool
+
+    @property
+    def name(self) -> str:
+        return self.config.name
+
+    @property
+    def is_car(self) -> bool:
+        return self.config.plant.model == "car"
+
+    @property
+    def wheelbase(self) -> float | None:
+        """The drawn car's wheelbase [m] (the nominal one), ``None`` for a chained plant."""
+        return getattr(self.config.plant, "wheelbase", None)
+
+    @property
+    def dimension(self) -> int | None:
+        """``None`` for a car, else the chained form's ``n`` (for axis labels)."""
+        return None if self.is_car else self.config.plant.dimension
+
+    def trajectory(self, record: dict[str, Any]) -> Trajectory:
+        if "trajectory" not in record:
+            raise ValueError(
+                f"{self.name}: the run has no trajectories; write it with `ilc-steering run CONFIG --json RUN.json`, "
+                "which records them"
+            )
+        return Trajectory.from_json(record["trajectory"])
+
+
+def load_run(source: Path | dict[str, Any]) -> Run:
+    """A :class:`Run` from a JSON file or its parsed content; ``ValueError`` names what is missing."""
+    origin = str(source) if isinstance(source, Path) else "<run>"
+    try:
+        data = json.loads(source.read_text()) if isinstance(source, Path) else source
+    except (OSError, json.JSONDecodeError) as error:
+        raise ValueError(f"{origin}: cannot read a run's JSON: {error}") from None
+    if not isinstance(data, dict) or "config" not in data or data.get("kind") not in ("trials", "cycles"):
+        raise ValueError(f"{origin}: not a run's JSON (needs 'kind': 'trials' or 'cycles' and 'config'; written by `ilc-steering run --json`)")
+    try:
+        config = load_config(data["config"])
+    except ConfigError as error:
+        raise ValueError(f"{origin}: its config: {error}") from None
+    if data["kind"] == "trials":
+        records = list(data.get("trials", []))
+    else:
+        records = [{**w, "cycle": c["cycle"]} for c in data.get("cycles", []) for w in c["waypoints"]]
+    if not records:
+        raise ValueError(f"{origin}: the run has no {data['kind']}")
+    return Run(config, records, data["kind"] == "cycles")
+
+
+def _figure(width: float = 6.4, height: float = 4.8) -> Figure:
+    return Figure(figsize=(width, height), dpi=100)
+
+
+def _time_panels(figure: Figure, t: np.ndarray, series: np.ndarray, labels: list[str]) -> list[Axes]:
+    axes = figure.subplots(len(labels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, values, label in zip(axes, series.T, labels):
+        ax.plot(t, values, linewidth=1.5)
+        ax.set_ylabel(label)
+        ax.grid(True, linewidth=0.4, alpha=0.5)
+    axes[-1].set_xlabel("t [s]")
+    return list(axes)
+
+
+def trajectory_figure(run: Run) -> Figure:
+    """Figs. 3, 7, 11, 16, 19: the last trial, stroboscopic, and the end of the first trial dotted."""
+    first, last = run.records[0], run.records[-1]
+    figure = _figure(6.4, 5.6)
+    ax = figure.add_subplot()
+    task = run.config.task
+    draw_waypoints(ax, np.array([task.start, task.goal]), run.wheelbase, ["start", "goal"])  # type: ignore[union-attr]
+    draw_trial(ax, run.trajectory(last).q, run.wheelbase, snapshots=10, label=f"trial {last['trial']}")
+    draw_pose(ax, np.asarray(first["final_state"]), run.wheelbase, FIRST, linestyle=":", label=f"end of trial {first['trial']}")
+    setup_workspace(ax, run.dimension, f"{run.name}: trajectory during trial {last['trial']} (end of trial {first['trial']} dotted)")
+    ax.legend(fontsize=8, loc="best")
+    return figure
+
+
+def coordinates_figure(run: Run) -> Figure:
+    """Figs. 4, 8, 12: the generalized coordinates over the last trial (the steering limit dashed)."""
+    last = run.records[-1]
+    trajectory = run.trajectory(last)
+    labels = ["x [m]", "y [m]", "θ [rad]", "φ [rad]"] if run.is_car else [f"z{i + 1}" for i in range(trajectory.q.shape[1])]
+    figure = _figure(6.4, 1.6 * len(labels) + 0.8)
+    axes = _time_panels(figure, trajectory.t, trajectory.q, labels)
+    limit = getattr(run.config.plant, "steering_limit", None)
+    if limit is not None:
+        for sign in (-1, 1):
+            axes[3].axhline(sign * limit, color="0.4", linestyle="--", linewidth=0.8)
+    figure.suptitle(f"{run.name}: generalized coordinates during trial {last['trial']}", fontsize=10)
+    figure.tight_layout()
+    return figure
+
+
+def inputs_figure(run: Run) -> Figure:
+    """Figs. 5, 9, 13, 17, 20: the inputs the controller commanded in the last trial."""
+    last = run.records[-1]
+    trajectory = run.trajectory(last)
+    labels = ["u1 [rad/s]", "u2 [rad/s]"] if run.is_car else ["v1", "v2"]
+    figure = _figure(6.4, 4.0)
+    _time_panels(figure, trajectory.t, trajectory.u, labels)
+    figure.suptitle(f"{run.name}: control inputs during trial {last['trial']}", fontsize=10)
+    figure.tight_layout()
+    return figure
+
+
+def _error_series(run: Run, records: list[dict[str, Any]]) -> list[tuple[str, str, list[float], float | None]]:
+    """(label, marker, values, tolerance) of each error the run's plant is judged by."""
+    tolerance = run.config.learning.tolerance
+    if run.is_car:
+        return [
+            ("Cartesian [m]", "*", [r["cartesian_error"] for r in records], tolerance.cartesian),
+            ("orientation [rad]", "o", [r["orientation_error"] for r in records], tolerance.orientation),
+        ]
+    return [("||z^d - z(T)||", "o", [r["error_norm"] for r in records], tolerance.error)]
+
+
+def _log_axis(ax: Axes, xlabel: str, ylabel: str) -> None:
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", linewidth=0.4, alpha=0.5)
+
+
+def errors_figure(run: Run) -> Figure:
+    """Figs. 6, 10, 14, 18, 21: the final errors over the trials, the tolerances dashed."""
+    figure = _figure()
+    ax = figure.add_subplot()
+    trials = [r["trial"] for r in run.records]
+    for (label, marker, values, tolerance), color in zip(_error_series(run, run.records), ("tab:blue", "tab:orange")):
+        ax.plot(trials, values, marker=marker, color=color, label=label)
+        if tolerance is not None:
+            ax.axhline(tolerance, color=color, linestyle="--", linewidth=0.8)
+    _log_axis(ax, "trial", "final error [m], [rad]" if run.is_car else "final error")
+    ax.set_xticks(trials)
+    ax.set_title(f"{run.name}: final errors over the trials (tolerances dashed)", fontsize=10)
+    ax.legend(fontsize=8)
+    return figure
+
+
+def _waypoint_name(index: int, count: int) -> str:
+    return "home" if index == count else f"waypoint {index}"
+
+
+def path_figure(run: Run, cycles: int = 5) -> Figure:
+    """Fig. 23: the path over the first ``cycles`` cycles, each arrival numbered in order."""
+    task = run.config.task
+    waypoints = np.asarray(task.waypoints)  # type: ignore[union-attr]
+    shown = [r for r in run.records if r["cycle"] <= cycles]
+    figure = _figure(6.4, 5.6)
+    ax = figure.add_subplot()
+    draw_waypoints(ax, waypoints, run.wheelbase, ["home", *(f"q{i}" for i in range(1, len(waypoints)))])
+    colors = matplotlib.colormaps["viridis"]
+    last_cycle = shown[-1]["cycle"]
+    for number, record in enumerate(shown, start=1):
+        shade = (record["cycle"] - 1) / max(last_cycle - 1, 1)
+        color = colors(0.85 * shade)
+        path = plane(run.trajectory(record).q, run.is_car)
+        ax.plot(*path.T, color=color, linewidth=1.0, label=f"cycle {record['cycle']}" if record["index"] == 1 else None)
+        end = plane(np.asarray(record["final_state"]), run.is_car)
+        ax.plot(*end, "k.", markersize=4)
+        ax.annotate(str(number), end, xytext=(4, 4), textcoords="offset points", fontsize=8)
+    setup_workspace(ax, run.dimension, f"{run.name}: path over cycles 1-{last_cycle}, arrivals numbered in order")
+    ax.legend(fontsize=8, loc="best")
+    return figure
+
+
+def waypoint_errors_figure(run: Run) -> Figure:
+    """Figs. 24-25: each waypoint's error over the cycles, one panel per error, log scale."""
+    count = len(run.config.task.waypoints)  # type: ignore[union-attr]
+    series_names = [name for name, *_ in _error_series(run, run.records[:1])]
+    figure = _figure(6.4 * len(series_names) / 1.4, 4.4)
+    axes = figure.subplots(1, len(series_names), squeeze=False)[0]
+    for index in range(1, count + 1):
+        records = [r for r in run.records if r["index"] == index]
+        cycles = [r["cycle"] for r in records]
+        for ax, (label, marker, values, tolerance) in zip(axes, _error_series(run, records)):
+            ax.plot(cycles, values, marker=marker, label=_waypoint_name(index, count))
+            ax.set_title(label.split(" [")[0] + " error", fontsize=9)
+            _log_axis(ax, "cycle", label)
+            if tolerance is not None:
+                ax.axhline(tolerance, color="0.4", linestyle="--", linewidth=0.8)
+            ax.set_xticks(cycles)
+    axes[0].legend(fontsize=8)
+    figure.suptitle(f"{run.name}: errors at each waypoint over the cycles (tolerance dashed)", fontsize=10)
+    figure.tight_layout()
+    return figure
+
+
+FIGURES = {
+    "trajectory": trajectory_figure,
+    "coordinates": coordinates_figure,
+    "inputs": inputs_figure,
+    "errors": errors_figure,
+    "path": path_figure,
+    "waypoint_errors": waypoint_errors_figure,
+}
+
+
+def write_plots(source: Run | Path | dict[str, Any], out: Path) -> list[Path]:
+    """Write the run's figures as ``out/<scenario>_<figure>.png`` and return their paths."""
+    run = source if isinstance(source, Run) else load_run(source)
+    figures = [(kind, FIGURES[kind](run)) for kind in (CYCLIC_FIGURES if run.cyclic else TRIAL_FIGURES)]
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for kind, figure in figures:
+        path = out / f"{run.name}_{kind}.png"
+        figure.savefig(path)
+        paths.append(path)
+    return paths
