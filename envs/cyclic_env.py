@@ -13,7 +13,7 @@ from gymnasium.wrappers import TimeLimit
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.car import check_chart
 from ilc_steering.envs.scenario import NominalModel, Scenario
-from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, reward, trial_info
+from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, drawn_wheelbase, reward, trial_info
 
 __all__ = ["CyclicSteeringEnv", "make_cyclic_env"]
 
@@ -138,7 +138,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._x = self._scenario.x_start.copy()
         self._segment = 0
         self._cycle = 1
-        self._view = TrialView(self._scenario, ["home", *(f"q{l}" for l in range(1, self.num_segments))])
+        names = ["home", *(f"q{l}" for l in range(1, self.num_segments))]
+        self._view = TrialView(self._scenario.waypoints, drawn_wheelbase(self.config), names)
 
     @property
     def nominal_models(self) -> list[NominalModel]:

@@ -13,7 +13,7 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.scenario import NominalModel, Scenario
 from ilc_steering.envs.trajectory import Trajectory
 
-__all__ = ["ChainedSteeringEnv", "TrialView", "action_names", "check_action", "check_render_mode", "reward", "task_spaces", "trial_info", "trial_infos"]
+__all__ = ["ChainedSteeringEnv", "TrialView", "action_names", "check_action", "check_render_mode", "drawn_wheelbase", "reward", "task_spaces", "trial_info", "trial_infos"]
 
 Array = npt.NDArray[np.float64]
 
@@ -67,6 +67,11 @@ def task_spaces(scenario: Scenario) -> tuple[gym.spaces.Box, gym.spaces.Box, npt
     limit = np.float32(10.0 * (np.abs(observation).max() + 1.0))
     observation_space = gym.spaces.Box(-limit, limit, shape=observation.shape, dtype=np.float32)
     return gym.spaces.Box(-high, high, dtype=np.float32), observation_space, observation
+
+
+def drawn_wheelbase(config: SteeringConfig) -> float | None:
+    """The wheelbase [m] the car is drawn with (the nominal one), ``None`` for a chained plant."""
+    return getattr(config.plant, "wheelbase", None)
 
 
 def action_names(model: NominalModel) -> str:
@@ -181,7 +186,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self._scenario = Scenario(self.config)
         self.action_space, self.observation_space, self._observation = task_spaces(self._scenario)
         self._action_names = action_names(self._scenario.nominal)
-        self._view = TrialView(self._scenario, ["start", "goal"])
+        self._view = TrialView(self._scenario.waypoints, drawn_wheelbase(self.config), ["start", "goal"])
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -222,12 +227,14 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
 
 class TrialView:
-    """What the envs draw: the scenario's waypoints and the paths of the last trials, with a
-    title line of the last trial's errors. Matplotlib is imported at the first frame."""
+    """What the envs draw: the waypoints (world frame; ``wheelbase`` [m] for a car's outline,
+    ``None`` for a chained plant) and the paths of the last trials, with a title line of the last
+    trial's errors. Matplotlib is imported at the first frame."""
 
-    def __init__(self, scenario: Scenario, names: list[str]) -> None:
-        self._scenario = scenario
-        self.names = names
+    def __init__(self, waypoints: Array, wheelbase: float | None, names: list[str]) -> None:
+        self._waypoints = waypoints
+        self._wheelbase = wheelbase
+        self._names = names
         self._paths: list[Array] = []
         self._errors = ""
         self.count = 0
@@ -253,11 +260,8 @@ class TrialView:
 
         if self._canvas is None:
             self._canvas = Canvas()
-        car = self._scenario.nominal.car
         title = label + (f"\n{self._errors}" if self.count else "")
-        return render_scene(
-            self._canvas, self._scenario.waypoints, None if car is None else car.wheelbase, self.names, self._paths, title
-        )
+        return render_scene(self._canvas, self._waypoints, self._wheelbase, self._names, self._paths, title)
 
     def close(self) -> None:
         self._canvas = None

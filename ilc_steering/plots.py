@@ -27,6 +27,7 @@ from matplotlib.figure import Figure
 
 from ilc_steering.config import ConfigError, SteeringConfig, load_config
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
+from ilc_steering.envs.steering_env import drawn_wheelbase
 from ilc_steering.envs.trajectory import Trajectory
 
 __all__ = ["Run", "load_run", "write_plots"]
@@ -56,7 +57,7 @@ class Run:
     @property
     def wheelbase(self) -> float | None:
         """The drawn car's wheelbase [m] (the nominal one), ``None`` for a chained plant."""
-        return getattr(self.config.plant, "wheelbase", None)
+        return drawn_wheelbase(self.config)
 
     @property
     def dimension(self) -> int | None:
