@@ -86,10 +86,13 @@ def load_run(source: Path | dict[str, Any]) -> Run:
         config = load_config(data["config"])
     except ConfigError as error:
         raise ValueError(f"{origin}: its config: {error}") from None
-    if data["kind"] == "trials":
-        records = list(data.get("trials", []))
-    else:
-        records = [{**w, "cycle": c["cycle"]} for c in data.get("cycles", []) for w in c["waypoints"]]
+    try:
+        if data["kind"] == "trials":
+            records = [dict(r) for r in data["trials"]]
+        else:
+            records = [{**w, "cycle": c["cycle"]} for c in data["cycles"] for w in c["waypoints"]]
+    except (KeyError, TypeError) as error:
+        raise ValueError(f"{origin}: malformed {data['kind']} list ({error!r})") from None
     if not records:
         raise ValueError(f"{origin}: the run has no {data['kind']}")
     return Run(config, records, data["kind"] == "cycles")

@@ -102,6 +102,8 @@ def test_bad_run_files_are_named(tmp_path, capsys):
     bare = run_ilc("forward_parking", trials=1).to_json()  # no trajectories recorded
     with pytest.raises(ValueError, match="no trajectories"):
         write_plots(bare, tmp_path)
+    with pytest.raises(ValueError, match="malformed cycles"):
+        load_run({**bare, "kind": "cycles"})
     bare["config"]["plant"]["wheelbase"] = -1.0
     with pytest.raises(ValueError, match="wheelbase"):
         load_run(bare)
