@@ -1,6 +1,6 @@
 """The paper's figures from a run's JSON (``ilc-steering run --json``, ``plot``, ``reproduce --plots``).
 
-One-trial runs (simulations 1-3, experiments 1-2):
+One-trial runs (simulations 1-3; the experiments' Figs. 16-21 are of the same kinds):
 
 - ``trajectory``: the last trial's path, stroboscopic, with the configuration at the end of the
   first trial dotted (Figs. 3, 7, 11, 16, 19);
@@ -218,19 +218,19 @@ def path_figure(run: Run, cycles: int = 5) -> Figure:
 def waypoint_errors_figure(run: Run) -> Figure:
     """Figs. 24-25: each waypoint's error over the cycles, one panel per error, log scale."""
     count = len(run.config.task.waypoints)  # type: ignore[union-attr]
-    series_names = [name for name, *_ in _error_series(run, run.records[:1])]
-    figure = _figure(6.4 * len(series_names) / 1.4, 4.4)
-    axes = figure.subplots(1, len(series_names), squeeze=False)[0]
+    panels = len(_error_series(run, run.records))
+    figure = _figure(6.4 * panels / 1.4, 4.4)
+    axes = figure.subplots(1, panels, squeeze=False)[0]
     for index in range(1, count + 1):
         records = [r for r in run.records if r["index"] == index]
-        cycles = [r["cycle"] for r in records]
-        for ax, (label, marker, values, tolerance) in zip(axes, _error_series(run, records)):
-            ax.plot(cycles, values, marker=marker, label=_waypoint_name(index, count))
-            ax.set_title(label.split(" [")[0] + " error", fontsize=9)
-            _log_axis(ax, "cycle", label)
-            if tolerance is not None:
-                ax.axhline(tolerance, color="0.4", linestyle="--", linewidth=0.8)
-            ax.set_xticks(cycles)
+        for ax, (_, marker, values, _) in zip(axes, _error_series(run, records)):
+            ax.plot([r["cycle"] for r in records], values, marker=marker, label=_waypoint_name(index, count))
+    for ax, (label, _, _, tolerance) in zip(axes, _error_series(run, run.records)):
+        ax.set_title(label.split(" [")[0] + " error", fontsize=9)
+        _log_axis(ax, "cycle", label)
+        if tolerance is not None:
+            ax.axhline(tolerance, color="0.4", linestyle="--", linewidth=0.8)
+        ax.set_xticks(sorted({r["cycle"] for r in run.records}))
     axes[0].legend(fontsize=8)
     figure.suptitle(f"{run.name}: errors at each waypoint over the cycles (tolerance dashed)", fontsize=10)
     figure.tight_layout()
