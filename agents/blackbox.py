@@ -1,9 +1,11 @@
 """Black-box baselines: optimizers that see only the result of each trial, never the model.
 
-Each one drives a one-trial env through ``env.step`` (so a trial counter wrapped around the env
-sees every trial, probes included) until the env refuses a step. They work in the env's action
-box, normally the rescaled ``[-1, 1]`` box of ``RescaleAction``, and minimise
-``-reward`` (for the car: Cartesian error [m] + orientation error [rad]):
+Each one drives a one-trial env through ``env.step`` until it is stopped; as learners
+(:func:`make_learner`) they drive the :class:`~ilc_steering.agents.adapters.TrialPort` of a
+:class:`~ilc_steering.agents.adapters.PullLearner`, so the trial loop runs and counts every
+trial they ask for, probes included. They work in the rescaled ``[-1, 1]`` box of
+``RescaleAction`` and minimise ``-reward`` (for the car: Cartesian error [m] + orientation
+error [rad]):
 
 - :func:`cma_es`: CMA-ES from the ``cma`` package (the ``rl`` extra);
 - :func:`nelder_mead`: scipy's Nelder-Mead;
@@ -14,19 +16,24 @@ box, normally the rescaled ``[-1, 1]`` box of ``RescaleAction``, and minimise
 Every method starts from a seeded point near the centre of the box (near ``c = 0``, the zero
 iteration ILC starts from) and restarts from a new seeded point when it stalls: a trial that
 leaves the chart leaves the car where it was, so the cost has flat plateaus. Each runs until the
-budget wrapper raises (see :class:`ilc_steering.compare.TrialLog`).
+trial loop stops it at its budget.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
+from gymnasium.wrappers import RescaleAction
 from scipy.optimize import minimize
 
-__all__ = ["BLACKBOX_METHODS", "cma_es", "gauss_newton", "nelder_mead", "start_point"]
+from ilc_steering.agents.adapters import PullLearner
+from ilc_steering.agents.base import LearnerContext
+
+__all__ = ["BLACKBOX_METHODS", "cma_es", "gauss_newton", "make_learner", "nelder_mead", "start_point"]
 
 Array = npt.NDArray[np.float64]
 
@@ -96,3 +103,14 @@ def gauss_newton(env: gym.Env[Any, Any], seed: int, probe: float = 1e-6) -> None
 
 
 BLACKBOX_METHODS = {"cma_es": cma_es, "nelder_mead": nelder_mead, "gauss_newton": gauss_newton}
+
+
+def make_learner(method: str, context: LearnerContext) -> PullLearner:
+    """Black-box ``method`` (a key of :data:`BLACKBOX_METHODS`) as a learner, seeded with
+    ``context.seed``, in the ``[-1, 1]`` rescaling of the context's action box."""
+    optimizer: Callable[[gym.Env[Any, Any], int], None] = BLACKBOX_METHODS[method]
+
+    def run(env: gym.Env[Any, Any]) -> None:
+        optimizer(RescaleAction(env, np.float32(-1), np.float32(1)), context.seed)
+
+    return PullLearner(run, context.action_space, context.observation_space)

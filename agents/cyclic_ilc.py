@@ -40,14 +40,14 @@ With :math:`\nu = 1`, the first cycle is the nominal open-loop solution from eac
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.agents.ilc import check_gains
-from ilc_steering.envs.scenario import NominalModel
+from ilc_steering.core.checks import check_gains
+from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["CyclicILCAgent"]
 
@@ -91,7 +91,7 @@ class CyclicILCAgent:
         # Eq. 39 is the nominal open-loop solution from the measured start to the learned target.
         return self.models[segment].solve(z_start=observation[:n], z_goal=self._targets[segment])
 
-    def learn(self, info: dict[str, Any]) -> None:
+    def learn(self, info: Mapping[str, Any]) -> None:
         """Eq. (40) in state space: move the segment's target by ``nu`` times its waypoint error."""
         segment = int(info["segment"])
         self._targets[segment] = self._targets[segment] + self.nu * np.asarray(info["waypoint_error"], dtype=np.float64)

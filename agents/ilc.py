@@ -27,23 +27,19 @@ error is corrected, which for that task is all of it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.envs.scenario import NominalModel
+from ilc_steering.agents.base import LearnerContext
+from ilc_steering.core.checks import check_gains
+from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["ILCAgent", "check_gains"]
+__all__ = ["ILCAgent", "make_ilc"]
 
 Array = npt.NDArray[np.float64]
-
-
-def check_gains(nu_a: float, nu_b: float) -> None:
-    """``ValueError`` unless both learning gains lie in ``(0, 2)`` (eqs. 33-34, 40)."""
-    for name, value in (("nu_a", nu_a), ("nu_b", nu_b)):
-        if not 0 < value < 2:
-            raise ValueError(f"{name} must be in (0, 2), got {value}")
 
 
 class ILCAgent:
@@ -73,19 +69,20 @@ class ILCAgent:
     def reset(self) -> None:
         """Back to the fictitious zero iteration: the next action is its eq. 33-34 update."""
         n, q = self.model.dimension, self.model.profile.v2_terms
-        c11 = self.nu_a * (self.model.z_goal[0] - self.model.z_start[0]) / self.model.profile.durations[0]
+        c11 = self.nu_a * (self.model.z_goal[0] - self.model.z_start[0]) / self.model.profile.learned_area
         error_b = self.model.z_goal[1:] - self.model.z_start[1:]
-        self._action = np.concatenate([[c11], self._update_c2(c11, np.eye(n - 1), np.zeros((n - 1, q)), np.zeros(q), error_b)])
+        c2 = self._update_c2(c11, np.eye(n - 1), np.zeros((n - 1, q)), np.zeros(q), error_b)
+        self._action = np.concatenate([[c11], c2])
 
     def act(self, observation: Any = None) -> Array:
         """The coefficients ``c = (c11, c21..c2q)`` for the next trial."""
         return self._action.copy()
 
-    def learn(self, info: dict[str, Any]) -> None:
+    def learn(self, info: Mapping[str, Any]) -> None:
         """Update from a finished trial's ``info``: its ``error`` and the ``action`` applied."""
         c = np.asarray(info.get("action", self._action), dtype=np.float64)
         error = np.asarray(info["error"], dtype=np.float64)
-        c11 = c[0] + self.nu_a * error[0] / self.model.profile.durations[0]  # eq. 33
+        c11 = c[0] + self.nu_a * error[0] / self.model.profile.learned_area  # eq. 33
         V, W = self.model.transition(c[0])
         self._action = np.concatenate([[c11], self._update_c2(c11, V, W, c[1:], error[1:])])
 
@@ -94,3 +91,8 @@ class ILCAgent:
         V_next, W_next = self.model.transition(c11)
         rhs = self.nu_b * error_b - (V_next - V) @ self.model.z_start[1:] - (W_next - W) @ c2
         return c2 + np.linalg.lstsq(W_next, rhs, rcond=None)[0]
+
+
+def make_ilc(context: LearnerContext) -> ILCAgent:
+    """The paper's learner with the config's gains (``compare`` method ``ilc``)."""
+    return ILCAgent(context.model, context.nu_a, context.nu_b)

@@ -20,9 +20,11 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from ilc_steering.agents.adapters import PullLearner
+from ilc_steering.agents.base import LearnerContext
 from ilc_steering.config import ConfigError
 
-__all__ = ["RL_ALGORITHMS", "check_hyperparameters", "hyperparameters", "train"]
+__all__ = ["RL_ALGORITHMS", "check_hyperparameters", "hyperparameters", "make_learner", "train"]
 
 RL_ALGORITHMS = ("ppo", "sac", "td3")
 _OWN_KEYS = {"n_timesteps", "noise_std"}  # ours; every other key goes to the SB3 constructor
@@ -79,3 +81,16 @@ def train(algorithm: str, env: gym.Env[Any, Any], params: dict[str, Any], seed: 
     model.learn(total_timesteps=trials, callback=StopTrainingOnMaxEpisodes(max_episodes=trials),
                 progress_bar=progress_bar)
     return model
+
+
+def make_learner(
+    algorithm: str, params: dict[str, Any], trials: int, progress_bar: bool, context: LearnerContext
+) -> PullLearner:
+    """``algorithm`` with hyperparameters ``params`` as a learner that trains for ``trials``
+    trials in the ``[-1, 1]`` rescaling of the context's action box, seeded with ``context.seed``."""
+
+    def run(env: gym.Env[Any, Any]) -> None:
+        rescaled = gym.wrappers.RescaleAction(env, np.float32(-1), np.float32(1))
+        train(algorithm, rescaled, params, context.seed, trials, progress_bar)
+
+    return PullLearner(run, context.action_space, context.observation_space)

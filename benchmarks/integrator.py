@@ -19,10 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
+import gymnasium as gym
+
+import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
-from ilc_steering.config import load_config
-from ilc_steering.envs.reference import car_trial
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.reference import car_trial
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.loop import run_trials
 from ilc_steering.tables import markdown_table, median_seconds, write_results
 
 
@@ -36,14 +40,11 @@ class Args:
     """Folder for the JSON, CSV and Markdown results."""
 
 
-def ilc_actions(scenario: Scenario, count: int) -> list[np.ndarray]:
-    agent, actions = ILCAgent(scenario.nominal), []
-    for _ in range(count):
-        c = agent.act()
-        trial = scenario.run(c[None])
-        agent.learn({**{k: v[0] for k, v in scenario.measure(trial.final, trial.status).items()}, "action": c})
-        actions.append(c)
-    return actions
+def ilc_actions(config: SteeringConfig, count: int) -> list[np.ndarray]:
+    """The actions of the first ``count`` trials of eqs. 33-34 on ``config``."""
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=config)
+    rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), count)  # type: ignore[attr-defined]
+    return [info["action"] for info in rollout.infos]
 
 
 def main(args: Args) -> list[dict[str, object]]:
@@ -54,16 +55,20 @@ def main(args: Args) -> list[dict[str, object]]:
     rows: list[dict[str, object]] = []
     for name in tasks:
         base = load_config(name)
-        actions = ilc_actions(Scenario(base), trials)
-        scenario = Scenario(base)
-        truth = [car_trial(scenario, c, 1e-12) for c in actions]
-        ref_time = median_seconds(lambda: [car_trial(scenario, c, 1e-8) for c in actions], repeats) / trials
-        ref_error = max(np.abs(car_trial(scenario, c, 1e-8) - x).max() for c, x in zip(actions, truth))
+        actions = ilc_actions(base, trials)
+        scenario = Scenario.from_config(base)
+
+        def reference(c: np.ndarray, rtol: float) -> np.ndarray:
+            return car_trial(scenario.plant, scenario.profile, scenario.x_start, c, rtol)  # type: ignore[arg-type]  # noqa: B023
+
+        truth = [reference(c, 1e-12) for c in actions]
+        ref_time = median_seconds(lambda: [reference(c, 1e-8) for c in actions], repeats) / trials  # noqa: B023
+        ref_error = max(np.abs(reference(c, 1e-8) - x).max() for c, x in zip(actions, truth))
         rows.append({"task": name, "method": "solve_ivp DOP853 rtol=1e-8", "max_step": None,
                      "ms_per_trial": 1e3 * ref_time, "speedup": 1.0, "max_error": ref_error})
         for h in steps:
             config = type(base)(base.name, base.plant, base.task, base.learning, type(base.simulation)(h))
-            sim = Scenario(config)
+            sim = Scenario.from_config(config)
             sim.run(actions[0][None])  # compile outside the timing
             t = median_seconds(lambda: [sim.run(c[None]) for c in actions], repeats) / trials
             error = max(np.abs(sim.run(c[None]).final[0] - x).max() for c, x in zip(actions, truth))

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from ilc_steering.config import load_config
-from ilc_steering.envs.reference import car_trial
+from ilc_steering.core.reference import car_trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
@@ -85,7 +85,8 @@ def trial_actions(scenario: Scenario, count: int, seed: int) -> np.ndarray:
 
 def solve_ivp_final(scenario: Scenario, c: np.ndarray, rtol: float) -> np.ndarray:
     """The final world configuration of one trial by ``solve_ivp`` DOP853 at ``rtol`` = atol."""
-    return scenario.to_world(scenario.plant.configuration(car_trial(scenario, c, rtol)))
+    final = car_trial(scenario.plant, scenario.profile, scenario.x_start, c, rtol)  # type: ignore[arg-type]
+    return scenario.to_world(scenario.plant.configuration(final))
 
 
 def peak_traced_mb(fn: Any) -> float:
@@ -97,7 +98,7 @@ def peak_traced_mb(fn: Any) -> float:
 
 
 def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
-    scenario = Scenario(load_config(name))
+    scenario = Scenario.from_config(load_config(name))
     trials = trial_actions(scenario, max(*args.sizes, args.scalar_steps, args.accuracy_trials), args.seed)
     k = args.accuracy_trials
     truth = np.array([solve_ivp_final(scenario, c, 1e-12) for c in trials[:k]])
@@ -158,7 +159,7 @@ COMPILE_SNIPPET = """
 import time
 from ilc_steering.config import load_config
 from ilc_steering.envs.scenario import Scenario
-scenario = Scenario(load_config("forward_parking"))
+scenario = Scenario.from_config(load_config("forward_parking"))
 c = scenario.nominal.solve()[None]
 start = time.perf_counter(); scenario.run(c); serial = time.perf_counter() - start
 start = time.perf_counter(); scenario.run(c, parallel=True); parallel = time.perf_counter() - start

@@ -1,24 +1,24 @@
-"""Environments and the mathematics they share: chained form, input profiles, car, integrator.
+"""The environments: one trial per episode, N trials per vector step, and the cyclic task.
 
-Importing this package registers ``ilc_steering/ChainedSteering-v0`` (one trial per episode;
-its ``vector_entry_point`` runs ``num_envs`` trials per step in one batched call)
-and ``ilc_steering/CyclicSteering-v0`` (a non-resetting cycle of waypoints) with Gymnasium.
+The env ids are registered by ``import ilc_steering``; the classes here are loaded on first use.
 """
 
-from gymnasium.envs.registration import register, registry
+from __future__ import annotations
 
-from ilc_steering.envs.cyclic_env import CyclicSteeringEnv
-from ilc_steering.envs.scenario import NominalModel
-from ilc_steering.envs.steering_env import ChainedSteeringEnv
-from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from importlib import import_module
+from typing import Any
 
-__all__ = ["ChainedSteeringEnv", "ChainedSteeringVectorEnv", "CyclicSteeringEnv", "NominalModel"]
+__all__ = ["ChainedSteeringEnv", "ChainedSteeringVectorEnv", "CyclicSteeringEnv", "Scenario"]
 
-if "ilc_steering/ChainedSteering-v0" not in registry:
-    register(
-        id="ilc_steering/ChainedSteering-v0",
-        entry_point="ilc_steering.envs.steering_env:ChainedSteeringEnv",
-        vector_entry_point="ilc_steering.envs.steering_vector_env:ChainedSteeringVectorEnv",
-    )
-if "ilc_steering/CyclicSteering-v0" not in registry:
-    register(id="ilc_steering/CyclicSteering-v0", entry_point="ilc_steering.envs.cyclic_env:make_cyclic_env")
+_LAZY = {
+    "ChainedSteeringEnv": "ilc_steering.envs.steering_env",
+    "ChainedSteeringVectorEnv": "ilc_steering.envs.steering_vector_env",
+    "CyclicSteeringEnv": "ilc_steering.envs.cyclic_env",
+    "Scenario": "ilc_steering.envs.scenario",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'ilc_steering.envs' has no attribute {name!r}")

@@ -11,9 +11,10 @@ import numpy.typing as npt
 from gymnasium.wrappers import TimeLimit
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.envs.car import check_chart
-from ilc_steering.envs.scenario import NominalModel, Scenario
-from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, drawn_wheelbase, reward, trial_info
+from ilc_steering.core.car import drawn_wheelbase
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, reward, trial_info
 
 __all__ = ["CyclicSteeringEnv", "make_cyclic_env"]
 
@@ -69,7 +70,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     (from 1), ``waypoint_error`` and ``error`` (``z_l^d - z_l``, eq. 40's epsilon), ``error_norm``,
     ``q_final``, ``z_final``, ``left_chart``, ``action``, ``clipped`` and, for the car,
     ``cartesian_error`` [m] and ``orientation_error`` [rad]; with ``record_trajectory=True``,
-    ``trajectory``, the segment's :class:`~ilc_steering.envs.trajectory.Trajectory` (time from
+    ``trajectory``, the segment's :class:`~ilc_steering.core.trajectory.Trajectory` (time from
     the segment's start).
 
     ## Rendering
@@ -119,17 +120,10 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self.config = load_config(config)
         if not self.config.is_cyclic:
             raise ValueError(f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal")
-        self._scenario = Scenario(self.config)
+        self._scenario = Scenario.from_config(self.config)
         models = self._scenario.nominals
-        sizes = {m.profile.num_coefficients for m in models}
-        if len(sizes) != 1:
-            raise ValueError(f"{self.config.name}: every segment needs the same v2_terms for one action space, got {sorted(sizes)}")
-        (size,) = sizes
-        bound = self.config.task.action_bound  # type: ignore[union-attr]
-        if bound is not None and len(bound) != size:
-            raise ValueError(f"{self.config.name}: task.action_bound needs {size} values, got {len(bound)}")
-        high = np.asarray(bound) if bound is not None else 10.0 * np.max([m.action_scale() for m in models], axis=0)
-        high = high.astype(np.float32)
+        size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
+        high = self._scenario.action_high.astype(np.float32)
         self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self.num_segments = len(models)
         n = models[0].dimension
@@ -139,7 +133,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._segment = 0
         self._cycle = 1
         names = ["home", *(f"q{l}" for l in range(1, self.num_segments))]
-        self._view = TrialView(self._scenario.waypoints, drawn_wheelbase(self.config), names)
+        self._view = TrialView(self._scenario.waypoints, drawn_wheelbase(self._scenario.nominal.chained_map), names)
 
     @property
     def nominal_models(self) -> list[NominalModel]:
@@ -161,13 +155,12 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         return self._observation(), {"q": np.asarray(start, dtype=np.float64).copy(), "segment": 0, "cycle": 1}
 
     def _check_start(self, start: Any) -> Array:
-        names = "(x, y, theta, phi)" if self._scenario.is_car else "z"
+        names = "(" + ", ".join(self._scenario.kind.coordinate_labels(self._scenario.waypoints.shape[1])) + ")"
         q = check_action(start, self._scenario.waypoints[0].shape, names, what="options['start']")
-        if self._scenario.is_car:
-            check_chart(self._scenario.to_task(q))
-            limit = self.config.plant.steering_limit
-            if limit is not None and abs(q[3]) > limit:
-                raise ValueError(f"start phi = {q[3]} rad exceeds plant.steering_limit = {limit} rad")
+        try:
+            self._scenario.check_start(q)
+        except ValueError as error:
+            raise ValueError(f"options['start']: {error}") from None
         return q
 
     def step(self, action: Any) -> tuple[Array, float, bool, bool, dict[str, Any]]:

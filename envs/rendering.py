@@ -17,7 +17,16 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-__all__ = ["Canvas", "car_outline", "draw_pose", "draw_trial", "draw_waypoints", "plane", "render_scene", "setup_workspace"]
+__all__ = [
+    "Canvas",
+    "car_outline",
+    "draw_pose",
+    "draw_trial",
+    "draw_waypoints",
+    "plane",
+    "render_scene",
+    "setup_workspace",
+]
 
 Array = npt.NDArray[np.float64]
 

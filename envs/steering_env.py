@@ -10,10 +10,23 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.envs.scenario import NominalModel, Scenario
-from ilc_steering.envs.trajectory import Trajectory
+from ilc_steering.core.car import drawn_wheelbase
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.score import trial_cost
+from ilc_steering.core.trajectory import Trajectory
+from ilc_steering.envs.scenario import Scenario
 
-__all__ = ["ChainedSteeringEnv", "TrialView", "action_names", "check_action", "check_render_mode", "drawn_wheelbase", "reward", "task_spaces", "trial_info", "trial_infos"]
+__all__ = [
+    "ChainedSteeringEnv",
+    "TrialView",
+    "action_names",
+    "check_action",
+    "check_render_mode",
+    "reward",
+    "task_spaces",
+    "trial_info",
+    "trial_infos",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -61,17 +74,11 @@ def trial_info(measured: dict[str, Array], applied: Array, requested: Array) -> 
 def task_spaces(scenario: Scenario) -> tuple[gym.spaces.Box, gym.spaces.Box, npt.NDArray[np.float32]]:
     """The action space, observation space and (constant) observation of a one-trial task."""
     model = scenario.nominal
-    bound = scenario.config.task.action_bound
-    high = (np.asarray(bound) if bound is not None else 10.0 * model.action_scale()).astype(np.float32)
+    high = scenario.action_high.astype(np.float32)
     observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
     limit = np.float32(10.0 * (np.abs(observation).max() + 1.0))
     observation_space = gym.spaces.Box(-limit, limit, shape=observation.shape, dtype=np.float32)
     return gym.spaces.Box(-high, high, dtype=np.float32), observation_space, observation
-
-
-def drawn_wheelbase(config: SteeringConfig) -> float | None:
-    """The wheelbase [m] the car is drawn with (the nominal one), ``None`` for a chained plant."""
-    return getattr(config.plant, "wheelbase", None)
 
 
 def action_names(model: NominalModel) -> str:
@@ -137,7 +144,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     learning error of eqs. 33-34), ``error_norm``, ``left_chart``, ``action`` (as applied, after
     clipping), ``clipped`` and, for the car, ``cartesian_error`` [m] and ``orientation_error``
     [rad]. With ``record_trajectory=True`` it also holds ``trajectory``, the trial's
-    :class:`~ilc_steering.envs.trajectory.Trajectory` (``t``, ``q(t)``, ``u1(t)``, ``u2(t)`` at
+    :class:`~ilc_steering.core.trajectory.Trajectory` (``t``, ``q(t)``, ``u1(t)``, ``u2(t)`` at
     every integrator step). ``reset`` returns ``q_start`` and ``q_goal``.
 
     ## Rendering
@@ -154,7 +161,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     trajectory in ``info`` (off by default: recording costs memory and time on the fast path).
 
     The learner's view of the system is ``env.unwrapped.nominal_model``
-    (:class:`~ilc_steering.envs.scenario.NominalModel`); the true plant stays inside the env.
+    (:class:`~ilc_steering.core.nominal.NominalModel`); the true plant stays inside the env.
 
     ## Version History
 
@@ -183,10 +190,11 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.record_trajectory = record_trajectory
         self.config = load_config(config)
-        self._scenario = Scenario(self.config)
+        self._scenario = Scenario.from_config(self.config)
         self.action_space, self.observation_space, self._observation = task_spaces(self._scenario)
         self._action_names = action_names(self._scenario.nominal)
-        self._view = TrialView(self._scenario.waypoints, drawn_wheelbase(self.config), ["start", "goal"])
+        wheelbase = drawn_wheelbase(self._scenario.nominal.chained_map)
+        self._view = TrialView(self._scenario.waypoints, wheelbase, ["start", "goal"])
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -270,6 +278,4 @@ class TrialView:
 def reward(info: dict[str, Any]) -> Any:
     """Minus the weighted final error, for one trial's ``info`` or a batch's (see the ``## Rewards``
     section of :class:`ChainedSteeringEnv`)."""
-    if "cartesian_error" in info:
-        return -(info["cartesian_error"] + info["orientation_error"])
-    return -info["error_norm"]
+    return -trial_cost(info)

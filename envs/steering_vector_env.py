@@ -12,7 +12,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.envs.scenario import NominalModel, Scenario
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
     ChainedSteeringEnv,
     action_names,
@@ -72,7 +73,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self.num_envs = int(num_envs)
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
-        self._scenario = Scenario(self.config)
+        self._scenario = Scenario.from_config(self.config)
         self.single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

@@ -37,7 +37,7 @@ WHY_DIFFERENT = {
 
 
 def _columns(config: SteeringConfig) -> list[str]:
-    names = ["cartesian [m]", "orientation [rad]"] if config.plant.model == "car" else ["error norm"]
+    names = ["cartesian [m]", "orientation [rad]"] if config.plant.kind.has_pose else ["error norm"]
     if not config.is_cyclic:
         return names
     return [f"wp{l} {name}" for l in range(1, len(config.task.waypoints) + 1) for name in names]  # type: ignore[union-attr]
@@ -46,7 +46,7 @@ def _columns(config: SteeringConfig) -> list[str]:
 def _print_header(config: SteeringConfig, count: int) -> None:
     tol = config.learning.tolerance
     unit = "cycles" if config.is_cyclic else "trials"
-    bound = f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.model == "car" else f"{tol.error} on ||z^d - z||"
+    bound = f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.kind.has_pose else f"{tol.error} on ||z^d - z||"
     print(f"{config.name}: {count} {unit}, tolerance {bound}{' at every waypoint' if config.is_cyclic else ''}")
     print(f"{unit[:-1]:>5}  " + "  ".join(f"{c:>17}" for c in _columns(config)))
 

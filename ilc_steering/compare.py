@@ -1,9 +1,12 @@
 """Trials to tolerance: ILC against RL (SB3) and black-box optimizers, across seeds.
 
-Every method drives ``ilc_steering/ChainedSteering-v0`` through ``env.step`` inside a
-:class:`TrialLog`, which counts every trial (probes and random exploration included), records
-the errors, and refuses a step past the budget. ILC acts in physical units; the others act in
-the ``[-1, 1]`` box of ``RescaleAction``.
+Every method is a :class:`~ilc_steering.agents.base.Learner` built from the same
+:class:`~ilc_steering.agents.base.LearnerContext` (the nominal model and the env's spaces), run
+on ``ilc_steering/ChainedSteering-v0`` by the one trial loop,
+:func:`~ilc_steering.loop.run_trials`, which runs and counts every trial it asks for (probes
+and random exploration included) up to the budget; a :class:`TrialLog` records the errors.
+ILC acts in physical units; the black-box and RL methods, through
+:class:`~ilc_steering.agents.adapters.PullLearner`, in the ``[-1, 1]`` box of ``RescaleAction``.
 
 A run folder holds ``run.json`` (the arguments), ``cells/<method>__<scenario>__<seed>.json`` (one
 per finished cell, written when it finishes) and, at the end, ``compare.{csv,json,md,png}``.
@@ -28,9 +31,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ilc_steering.agents.base import Learner, LearnerContext
+from ilc_steering.loop import run_trials
 from ilc_steering.tables import markdown_table, write_results
 
-__all__ = ["Args", "BudgetSpent", "TrialLog", "main", "parse", "run_cell"]
+__all__ = ["Args", "TrialLog", "main", "make_learner", "parse", "run_cell"]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 LOOSE = (0.01, 0.01)  # [m], [rad]
@@ -64,27 +69,16 @@ class Args:
 QUICK = {"seeds": (0, 1), "ilc_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "progress_bar": False}
 
 
-class BudgetSpent(Exception):
-    """Raised by :class:`TrialLog` on a step past the budget; ends a black-box method's run."""
+class TrialLog:
+    """A trial-loop callback that keeps every trial's Cartesian [m] and orientation [rad] errors."""
 
-
-class TrialLog(gym.Wrapper[Any, Any, Any, Any]):
-    """Counts every trial, keeps its Cartesian [m] and orientation [rad] errors, and raises
-    :class:`BudgetSpent` instead of running trial ``budget + 1``."""
-
-    def __init__(self, env: gym.Env[Any, Any], budget: int) -> None:
-        super().__init__(env)
-        self.budget = budget
+    def __init__(self) -> None:
         self.cartesian: list[float] = []
         self.orientation: list[float] = []
 
-    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
-        if len(self.cartesian) >= self.budget:
-            raise BudgetSpent(f"budget of {self.budget} trials spent")
-        obs, reward, terminated, truncated, info = self.env.step(action)
+    def __call__(self, k: int, info: dict[str, Any]) -> None:
         self.cartesian.append(float(info["cartesian_error"]))
         self.orientation.append(float(info["orientation_error"]))
-        return obs, reward, terminated, truncated, info
 
 
 def first_within(log: TrialLog, tolerance: tuple[float, float]) -> int | None:
@@ -102,18 +96,6 @@ def best_so_far(log: TrialLog) -> list[list[float]]:
     return [[int(i) + 1, float(best[i])] for i in changed]
 
 
-def _run_ilc(env: TrialLog, seed: int) -> None:
-    from ilc_steering.agents import ILCAgent
-
-    config = env.unwrapped.config  # type: ignore[attr-defined]
-    agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)  # type: ignore[attr-defined]
-    obs, _ = env.reset(seed=seed)
-    while len(env.cartesian) < env.budget:
-        obs, _, _, _, info = env.step(agent.act(obs))
-        agent.learn(info)
-        obs, _ = env.reset()
-
-
 def budget(args: Args, method: str, scenario: str) -> int:
     from ilc_steering.agents.rl import RL_ALGORITHMS, hyperparameters
 
@@ -124,35 +106,53 @@ def budget(args: Args, method: str, scenario: str) -> int:
     return args.blackbox_trials
 
 
+def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
+    """The learner of ``method`` for ``scenario``, built from ``context`` alone."""
+    from ilc_steering.agents import blackbox, rl
+    from ilc_steering.agents.ilc import make_ilc
+
+    if method == "ilc":
+        return make_ilc(context)
+    if method in rl.RL_ALGORITHMS:
+        params = rl.hyperparameters(method, scenario)
+        return rl.make_learner(method, params, budget(args, method, scenario), args.progress_bar, context)
+    if method in blackbox.BLACKBOX_METHODS:
+        return blackbox.make_learner(method, context)
+    raise ValueError(f"unknown method {method!r}; choose from {METHODS}")
+
+
 def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any]:
     """One (method, scenario, seed) cell: the method's run within its budget, and what it reached."""
-    from ilc_steering.agents.blackbox import BLACKBOX_METHODS
-    from ilc_steering.agents.rl import RL_ALGORITHMS, hyperparameters, train
-
     trials = budget(args, method, scenario)
     env = gym.make(ENV_ID, config=scenario)
-    if method != "ilc":
-        env = gym.wrappers.RescaleAction(env, np.float32(-1), np.float32(1))
-    log = TrialLog(env, trials)
+    unwrapped: Any = env.unwrapped
+    config = unwrapped.config
+    context = LearnerContext(
+        unwrapped.nominal_model,
+        env.action_space,  # type: ignore[arg-type]
+        env.observation_space,  # type: ignore[arg-type]
+        seed,
+        config.learning.nu_a,
+        config.learning.nu_b,
+    )
+    learner = make_learner(args, method, scenario, context)
+    log = TrialLog()
     start = time.perf_counter()
-    if method == "ilc":
-        _run_ilc(log, seed)
-    elif method in RL_ALGORITHMS:
-        log.reset(seed=seed)
-        train(method, log, hyperparameters(method, scenario), seed, trials, args.progress_bar)
-    elif method in BLACKBOX_METHODS:
-        log.reset(seed=seed)
-        try:
-            BLACKBOX_METHODS[method](log, seed)
-        except BudgetSpent:
-            pass
-    else:
-        raise ValueError(f"unknown method {method!r}; choose from {METHODS}")
+    run_trials(env, learner, trials, seed=seed, callbacks=[log])
     wall = time.perf_counter() - start
     curve = best_so_far(log)
-    return {"method": method, "scenario": scenario, "seed": seed, "budget": trials, "trials": len(log.cartesian),
-            "trials_to_loose": first_within(log, LOOSE), "trials_to_tight": first_within(log, TIGHT),
-            "best_error": curve[-1][1], "wall_s": wall, "curve": curve}
+    return {
+        "method": method,
+        "scenario": scenario,
+        "seed": seed,
+        "budget": trials,
+        "trials": len(log.cartesian),
+        "trials_to_loose": first_within(log, LOOSE),
+        "trials_to_tight": first_within(log, TIGHT),
+        "best_error": curve[-1][1],
+        "wall_s": wall,
+        "curve": curve,
+    }
 
 
 def cell_path(out: Path, method: str, scenario: str, seed: int) -> Path:

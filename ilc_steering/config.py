@@ -10,13 +10,18 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib import resources
-from math import isfinite, pi
+from math import isfinite
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
+from ilc_steering.core.car import CarModel, frame_angle, rotate
+from ilc_steering.core.checks import ParameterError, check_gains
+from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
+from ilc_steering.core.profiles import PiecewiseProfile
 
 __all__ = [
     "CarPlantConfig",
@@ -47,11 +52,19 @@ def _positive(value: float) -> bool:
     return isfinite(value) and value > 0
 
 
-def _check_pieces(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> None:
-    """The input profile's keys (eqs. 15-17): positive durations, a fixed v1 for each later piece."""
-    _require(len(pieces) >= 1 and all(map(_positive, pieces)), "pieces", f"durations must be > 0 s, got {list(pieces)}")
-    _require(len(v1_fixed) == len(pieces) - 1, "v1_fixed", f"needs one value per piece after the first ({len(pieces) - 1}), got {len(v1_fixed)}")
-    _require(all(isfinite(v) for v in v1_fixed), "v1_fixed", "values must be finite")
+@contextmanager
+def _domain(key: str = "", names: dict[str, str] | None = None) -> Iterator[None]:
+    """Build a domain object, its range rules reported as config errors: a
+    :class:`ParameterError` names the key (its parameter, renamed by ``names``); any other
+    ``ValueError`` is put under ``key``."""
+    try:
+        yield
+    except ConfigError:
+        raise
+    except ParameterError as error:
+        raise ConfigError(f"{(names or {}).get(error.name, error.name)}: {error.problem}") from None
+    except ValueError as error:
+        raise ConfigError(f"{key}: {error}") from None
 
 
 @dataclass(frozen=True)
@@ -64,14 +77,28 @@ class CarPlantConfig:
     steering_limit: float | None = None  # bound on |phi| [rad]; None for none
 
     def __post_init__(self) -> None:
-        for key in ("wheelbase", "wheel_radius", "true_wheelbase", "true_wheel_radius"):
-            _require(_positive(getattr(self, key)), key, f"must be finite and > 0 m, got {getattr(self, key)}")
-        limit = self.steering_limit
-        _require(limit is None or 0 < limit < pi / 2, "steering_limit", f"must be in (0, pi/2) rad or null, got {limit}")
+        self.plant()
 
     @property
     def dimension(self) -> int:
         return 4
+
+    @property
+    def kind(self) -> PlantKind:
+        return CarPlant.kind
+
+    def nominal_map(self) -> CarModel:
+        """The geometry the controller assumes (eqs. 4-5)."""
+        with _domain():
+            return CarModel(self.wheelbase, self.wheel_radius)
+
+    def plant(self) -> CarPlant:
+        """The simulated car: true geometry, steered with the nominal one."""
+        nominal = self.nominal_map()
+        with _domain(names={"wheelbase": "true_wheelbase", "wheel_radius": "true_wheel_radius"}):
+            true = CarModel(self.true_wheelbase, self.true_wheel_radius)
+        with _domain():
+            return CarPlant(true, nominal, self.steering_limit)
 
 
 @dataclass(frozen=True)
@@ -82,10 +109,30 @@ class ChainedPlantConfig:
     v2_gain: float = 1.0  # true gain on v2 [-]; 1.0 unperturbed
 
     def __post_init__(self) -> None:
-        _require(self.dimension >= 3, "dimension", f"must be >= 3, got {self.dimension}")
-        for key in ("v1_gain", "v2_gain"):
-            value = getattr(self, key)
-            _require(isfinite(value) and value != 0, key, f"must be finite and nonzero, got {value}")
+        self.plant()
+
+    @property
+    def kind(self) -> PlantKind:
+        return ChainedPlant.kind
+
+    def nominal_map(self) -> None:
+        """A chained plant needs no map."""
+        return None
+
+    def plant(self) -> ChainedPlant:
+        with _domain():
+            return ChainedPlant(self.dimension, self.v1_gain, self.v2_gain)
+
+
+def _profile(leg: SegmentConfig | TaskConfig) -> PiecewiseProfile:
+    with _domain():
+        return PiecewiseProfile(leg.pieces, leg.v1_fixed, leg.v2_terms)
+
+
+def _check_bound(bound: tuple[float, ...] | None, size: int) -> None:
+    if bound is not None:
+        _require(len(bound) == size, "action_bound", f"needs 1 + v2_terms = {size} values, got {len(bound)}")
+        _require(all(map(_positive, bound)), "action_bound", "values must be finite and > 0")
 
 
 @dataclass(frozen=True)
@@ -95,15 +142,17 @@ class TaskConfig:
     pieces: tuple[float, ...]  # Delta_i [s]; T is their sum
     v1_fixed: tuple[float, ...]  # c12..c1p: v1 on pieces 2..p [m/s for the car]
     v2_terms: int  # q, the number of basis functions of v2
-    action_bound: tuple[float, ...] | None = None  # |c_i| bounds of the action box; None: 10x NominalModel.action_scale()
+    action_bound: tuple[float, ...] | None = None  # |c_i| bounds; None: 10x NominalModel.action_scale()
 
     def __post_init__(self) -> None:
         for key in ("start", "goal"):
             _require(all(isfinite(v) for v in getattr(self, key)), key, "values must be finite")
-        _check_pieces(self.pieces, self.v1_fixed)
-        if self.action_bound is not None:
-            _require(len(self.action_bound) == 1 + self.v2_terms, "action_bound", f"needs 1 + v2_terms = {1 + self.v2_terms} values, got {len(self.action_bound)}")
-            _require(all(map(_positive, self.action_bound)), "action_bound", "values must be finite and > 0")
+        _profile(self)
+        _check_bound(self.action_bound, 1 + self.v2_terms)
+
+    def profile(self) -> PiecewiseProfile:
+        """The input profile of eqs. 15-17."""
+        return _profile(self)
 
 
 @dataclass(frozen=True)
@@ -113,21 +162,31 @@ class SegmentConfig:
     v2_terms: int  # q
 
     def __post_init__(self) -> None:
-        _check_pieces(self.pieces, self.v1_fixed)
+        _profile(self)
+
+    def profile(self) -> PiecewiseProfile:
+        """The input profile of eqs. 15-17."""
+        return _profile(self)
 
 
 @dataclass(frozen=True)
 class CyclicTaskConfig:
     waypoints: tuple[tuple[float, ...], ...]  # q_0^d (home), q_1^d, ...; the cycle ends back at home
     segments: tuple[SegmentConfig, ...]  # one per segment (waypoint l-1 -> l), or one for all
-    action_bound: tuple[float, ...] | None = None  # |c_i| bounds of the action box; None: 10x the largest action_scale()
+    action_bound: tuple[float, ...] | None = None  # |c_i| bounds; None: 10x the largest action_scale()
 
     def __post_init__(self) -> None:
-        if self.action_bound is not None:
-            _require(all(map(_positive, self.action_bound)), "action_bound", "values must be finite and > 0")
-        _require(len(self.waypoints) >= 2, "waypoints", f"a cycle needs at least 2 waypoints, got {len(self.waypoints)}")
+        count = len(self.waypoints)
+        _require(count >= 2, "waypoints", f"a cycle needs at least 2 waypoints, got {count}")
         _require(all(isfinite(v) for w in self.waypoints for v in w), "waypoints", "values must be finite")
-        _require(len(self.segments) in (1, len(self.waypoints)), "segments", f"needs 1 entry or one per segment ({len(self.waypoints)}), got {len(self.segments)}")
+        _require(
+            len(self.segments) in (1, count),
+            "segments",
+            f"needs 1 entry or one per segment ({count}), got {len(self.segments)}",
+        )
+        terms = sorted({s.v2_terms for s in self.segments})
+        _require(len(terms) == 1, "segments", f"every segment needs the same v2_terms (one action space), got {terms}")
+        _check_bound(self.action_bound, 1 + terms[0])
 
     def segment(self, index: int) -> SegmentConfig:
         """The segment from waypoint ``index`` to waypoint ``index + 1`` (mod the cycle)."""
@@ -154,9 +213,8 @@ class LearningConfig:
     tolerance: ToleranceConfig
 
     def __post_init__(self) -> None:
-        for key in ("nu_a", "nu_b"):
-            value = getattr(self, key)
-            _require(0 < value < 2, key, f"must be in (0, 2), got {value}")
+        with _domain():
+            check_gains(self.nu_a, self.nu_b)
         _require(self.trials >= 1, "trials", f"must be >= 1, got {self.trials}")
 
 
@@ -180,19 +238,39 @@ class SteeringConfig:
     def is_cyclic(self) -> bool:
         return isinstance(self.task, CyclicTaskConfig)
 
+    def points(self) -> list[tuple[str, tuple[float, ...]]]:
+        """The task's configurations with their keys: start and goal, or the waypoints."""
+        if isinstance(self.task, CyclicTaskConfig):
+            return [(f"task.waypoints[{i}]", w) for i, w in enumerate(self.task.waypoints)]
+        return [("task.start", self.task.start), ("task.goal", self.task.goal)]
+
+    def legs(self) -> list[tuple[str, TaskConfig | SegmentConfig]]:
+        """One (key, segment) per trial of a cycle: the task itself for a one-trial task."""
+        if isinstance(self.task, CyclicTaskConfig):
+            many = len(self.task.segments) > 1
+            return [(f"task.segments[{i if many else 0}]", self.task.segment(i)) for i in range(len(self.task.waypoints))]
+        return [("task", self.task)]
+
+    def frame(self) -> float:
+        """The rotation [rad] of the task frame (:func:`~ilc_steering.core.car.frame_angle`); 0 without a pose."""
+        if not self.plant.kind.has_pose:
+            return 0.0
+        points = self.points()
+        with _domain(points[-1][0]):
+            return frame_angle(*(point[2] for _, point in points))
+
     def __post_init__(self) -> None:
         n = self.plant.dimension
-        if isinstance(self.task, CyclicTaskConfig):
-            points = [(f"task.waypoints[{i}]", w) for i, w in enumerate(self.task.waypoints)]
-            r = len(points)
-            legs = [(f"task.segments[{i if len(self.task.segments) > 1 else 0}]", self.task.segment(i), points[i][1], points[(i + 1) % r][1]) for i in range(r)]
-        else:
-            points = [("task.start", self.task.start), ("task.goal", self.task.goal)]
-            legs = [("task", self.task, self.task.start, self.task.goal)]
+        points = self.points()
         for key, point in points:
             _require(len(point) == n, key, f"needs {n} values for plant.model {self.plant.model}, got {len(point)}")
-        for key, leg, start, goal in legs:
-            _require(leg.v2_terms >= n - 1, f"{key}.v2_terms", f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {leg.v2_terms}")
+        for i, (key, leg) in enumerate(self.legs()):
+            start, goal = points[i][1], points[(i + 1) % len(points)][1]
+            _require(
+                leg.v2_terms >= n - 1,
+                f"{key}.v2_terms",
+                f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {leg.v2_terms}",
+            )
             _require(
                 goal[0] != start[0] or any(v != 0 for v in leg.v1_fixed),
                 f"{key}.v1_fixed",
@@ -200,21 +278,19 @@ class SteeringConfig:
                 "add a piece with a nonzero fixed v1, as in the paper's parallel parking",
             )
         tolerance = self.learning.tolerance
-        if self.plant.model == "car":
-            _require(tolerance.cartesian is not None and tolerance.orientation is not None, "learning.tolerance", "a car needs {cartesian: [m], orientation: [rad]}")
-            limit = self.plant.steering_limit
-            for key, point in points:
-                phi = point[3]
-                _require(abs(phi) < pi / 2, key, f"phi = {phi} rad: the chained form needs |phi| < pi/2")
-                _require(limit is None or abs(phi) <= limit, key, f"phi = {phi} rad exceeds plant.steering_limit = {limit} rad")
-            from ilc_steering.envs.car import frame_angle  # here: envs imports this module
-
-            try:
-                frame_angle(*(point[2] for _, point in points))
-            except ValueError as error:
-                raise ConfigError(f"{points[-1][0]}: {error}") from None
+        if self.plant.kind.has_pose:
+            _require(
+                tolerance.cartesian is not None and tolerance.orientation is not None,
+                "learning.tolerance",
+                f"a {self.plant.model} needs {{cartesian: [m], orientation: [rad]}}",
+            )
         else:
             _require(tolerance.error is not None, "learning.tolerance", "a chained plant needs {error: ...}")
+        frame = self.frame()
+        plant = self.plant.plant()
+        for key, point in points:
+            with _domain(key, {"phi": key}):
+                plant.check_configuration(rotate(list(point), frame) if self.plant.kind.has_pose else list(point))
 
 
 def _is_optional(hint: Any) -> bool:
@@ -294,6 +370,8 @@ def packaged_configs() -> list[str]:
 
 
 def _read(source: str | Path) -> tuple[Any, str]:
+    import yaml
+
     path = Path(source)
     if path.suffix in (".yaml", ".yml") or path.exists():
         if not path.is_file():

@@ -26,9 +26,10 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ilc_steering.config import ConfigError, SteeringConfig, load_config
+from ilc_steering.core.car import drawn_wheelbase
+from ilc_steering.core.plants import PlantKind
+from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
-from ilc_steering.envs.steering_env import drawn_wheelbase
-from ilc_steering.envs.trajectory import Trajectory
 
 __all__ = ["Run", "load_run", "write_plots"]
 
@@ -51,18 +52,23 @@ class Run:
         return self.config.name
 
     @property
-    def is_car(self) -> bool:
-        return self.config.plant.model == "car"
+    def kind(self) -> PlantKind:
+        return self.config.plant.kind
+
+    @property
+    def has_pose(self) -> bool:
+        """The robot has ``x``, ``y``, ``theta``: Cartesian and orientation errors, a workspace drawing."""
+        return self.kind.has_pose
 
     @property
     def wheelbase(self) -> float | None:
-        """The drawn car's wheelbase [m] (the nominal one), ``None`` for a chained plant."""
-        return drawn_wheelbase(self.config)
+        """The drawn car's wheelbase [m] (the nominal one), ``None`` for a robot not drawn as a car."""
+        return drawn_wheelbase(self.config.plant.nominal_map())
 
     @property
     def dimension(self) -> int | None:
-        """``None`` for a car, else the chained form's ``n`` (for axis labels)."""
-        return None if self.is_car else self.config.plant.dimension
+        """``None`` for a robot with a pose, else the chained form's ``n`` (for axis labels)."""
+        return None if self.has_pose else self.config.plant.dimension
 
     def trajectory(self, record: dict[str, Any]) -> Trajectory:
         if "trajectory" not in record:
@@ -130,7 +136,7 @@ def coordinates_figure(run: Run) -> Figure:
     """Figs. 4, 8, 12: the generalized coordinates over the last trial (the steering limit dashed)."""
     last = run.records[-1]
     trajectory = run.trajectory(last)
-    labels = ["x [m]", "y [m]", "θ [rad]", "φ [rad]"] if run.is_car else [f"z{i + 1}" for i in range(trajectory.q.shape[1])]
+    labels = run.kind.coordinate_labels(trajectory.q.shape[1])
     figure = _figure(6.4, 1.6 * len(labels) + 0.8)
     axes = _time_panels(figure, trajectory.t, trajectory.q, labels)
     limit = getattr(run.config.plant, "steering_limit", None)
@@ -146,7 +152,7 @@ def inputs_figure(run: Run) -> Figure:
     """Figs. 5, 9, 13, 17, 20: the inputs the controller commanded in the last trial."""
     last = run.records[-1]
     trajectory = run.trajectory(last)
-    labels = ["u1 [rad/s]", "u2 [rad/s]"] if run.is_car else ["v1", "v2"]
+    labels = list(run.kind.inputs)
     figure = _figure(6.4, 4.0)
     _time_panels(figure, trajectory.t, trajectory.u, labels)
     figure.suptitle(f"{run.name}: control inputs during trial {last['trial']}", fontsize=10)
@@ -157,7 +163,7 @@ def inputs_figure(run: Run) -> Figure:
 def _error_series(run: Run, records: list[dict[str, Any]]) -> list[tuple[str, str, list[float], float | None]]:
     """(label, marker, values, tolerance) of each error the run's plant is judged by."""
     tolerance = run.config.learning.tolerance
-    if run.is_car:
+    if run.has_pose:
         return [
             ("Cartesian [m]", "*", [r["cartesian_error"] for r in records], tolerance.cartesian),
             ("orientation [rad]", "o", [r["orientation_error"] for r in records], tolerance.orientation),
@@ -181,7 +187,7 @@ def errors_figure(run: Run) -> Figure:
         ax.plot(trials, values, marker=marker, color=color, label=label)
         if tolerance is not None:
             ax.axhline(tolerance, color=color, linestyle="--", linewidth=0.8)
-    _log_axis(ax, "trial", "final error [m], [rad]" if run.is_car else "final error")
+    _log_axis(ax, "trial", "final error [m], [rad]" if run.has_pose else "final error")
     ax.set_xticks(trials)
     ax.set_title(f"{run.name}: final errors over the trials (tolerances dashed)", fontsize=10)
     ax.legend(fontsize=8)
@@ -205,9 +211,9 @@ def path_figure(run: Run, cycles: int = 5) -> Figure:
     for number, record in enumerate(shown, start=1):
         shade = (record["cycle"] - 1) / max(last_cycle - 1, 1)
         color = colors(0.85 * shade)
-        path = plane(run.trajectory(record).q, run.is_car)
+        path = plane(run.trajectory(record).q, run.has_pose)
         ax.plot(*path.T, color=color, linewidth=1.0, label=f"cycle {record['cycle']}" if record["index"] == 1 else None)
-        end = plane(np.asarray(record["final_state"]), run.is_car)
+        end = plane(np.asarray(record["final_state"]), run.has_pose)
         ax.plot(*end, "k.", markersize=4)
         ax.annotate(str(number), end, xytext=(4, 4), textcoords="offset points", fontsize=8)
     setup_workspace(ax, run.dimension, f"{run.name}: path over cycles 1-{last_cycle}, arrivals numbered in order")

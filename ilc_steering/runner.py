@@ -1,9 +1,12 @@
-"""The trial loop: an ILC agent learning on a registered env, trial after trial."""
+"""Runs of the paper's learners on a config, as records for the CLI, JSON and figures.
+
+Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -12,10 +15,12 @@ import gymnasium as gym
 
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.ilc import ILCAgent
-from ilc_steering.config import SteeringConfig, ToleranceConfig, load_config
-from ilc_steering.envs.trajectory import Trajectory
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.score import within_tolerance
+from ilc_steering.core.trajectory import Trajectory
+from ilc_steering.loop import run_trials
 
-__all__ = ["CycleRecord", "CyclicRunResult", "RunResult", "TrialRecord", "run_cyclic_ilc", "run_ilc", "within_tolerance"]
+__all__ = ["CycleRecord", "CyclicRunResult", "RunResult", "TrialRecord", "run_cyclic_ilc", "run_ilc"]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
@@ -70,18 +75,6 @@ class RunResult:
         return _run_json(self.config, "trials", self.trials, self.converged_at)
 
 
-def within_tolerance(tolerance: ToleranceConfig, info: dict[str, Any]) -> bool:
-    """Whether a trial's ``info`` meets the tolerance: Cartesian and orientation for a car,
-    the chained-error norm otherwise."""
-    if tolerance.error is not None and info["error_norm"] > tolerance.error:
-        return False
-    if tolerance.cartesian is not None and info["cartesian_error"] > tolerance.cartesian:
-        return False
-    if tolerance.orientation is not None and info["orientation_error"] > tolerance.orientation:
-        return False
-    return True
-
-
 def _record(index: int, info: dict[str, Any]) -> TrialRecord:
     return TrialRecord(
         trajectory=info.get("trajectory"),
@@ -108,24 +101,21 @@ def run_ilc(
     """
     config = load_config(config)
     count = config.learning.trials if trials is None else trials
-    if count < 1:
-        raise ValueError(f"trials must be >= 1, got {count}")
     env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
     agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)  # type: ignore[attr-defined]
     records: list[TrialRecord] = []
-    converged_at = None
-    for k in range(1, count + 1):
-        observation, _ = env.reset(seed=k)
-        _, _, _, _, info = env.step(agent.act(observation))
-        agent.learn(info)
-        record = _record(k, info)
-        records.append(record)
+    converged: list[int] = []
+
+    def keep(k: int, info: dict[str, Any]) -> None:
+        records.append(_record(k, info))
         if on_trial is not None:
-            on_trial(record)
-        if converged_at is None and within_tolerance(config.learning.tolerance, info):
-            converged_at = k
+            on_trial(records[-1])
+        if not converged and within_tolerance(config.learning.tolerance, info):
+            converged.append(k)
+
+    run_trials(env, agent, count, seed=1, callbacks=[keep])
     env.close()
-    return RunResult(config, records, converged_at)
+    return RunResult(config, records, converged[0] if converged else None)
 
 
 @dataclass(frozen=True)
@@ -173,24 +163,26 @@ def run_cyclic_ilc(
     env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles, record_trajectory=trajectories)
     models = env.unwrapped.nominal_models  # type: ignore[attr-defined]
     agent = CyclicILCAgent(models, config.learning.nu_a, config.learning.nu_b)
-    observation, _ = env.reset(seed=0, options=None if start is None else {"start": start})
     records: list[CycleRecord] = []
-    converged_at = None
+    converged: list[int] = []
     waypoints: list[TrialRecord] = []
-    met = True
-    truncated = False
-    while not truncated:
-        observation, _, _, truncated, info = env.step(agent.act(observation))
-        agent.learn(info)
+    met: list[bool] = []
+
+    def keep(k: int, info: dict[str, Any]) -> None:
         waypoints.append(_record(info["waypoint"], info))
-        met = met and within_tolerance(config.learning.tolerance, info)
-        if info["waypoint"] == len(models):
-            record = CycleRecord(info["cycle"], waypoints)
-            records.append(record)
-            if on_cycle is not None:
-                on_cycle(record)
-            if converged_at is None and met:
-                converged_at = info["cycle"]
-            waypoints, met = [], True
+        met.append(within_tolerance(config.learning.tolerance, info))
+        if info["waypoint"] < len(models):
+            return
+        record = CycleRecord(info["cycle"], list(waypoints))
+        records.append(record)
+        if on_cycle is not None:
+            on_cycle(record)
+        if not converged and all(met):
+            converged.append(record.cycle)
+        waypoints.clear()
+        met.clear()
+
+    steps = (config.learning.trials if cycles is None else cycles) * len(models)
+    run_trials(env, agent, steps, seed=0, options=None if start is None else {"start": start}, callbacks=[keep])
     env.close()
-    return CyclicRunResult(config, records, converged_at)
+    return CyclicRunResult(config, records, converged[0] if converged else None)

@@ -5,8 +5,8 @@ import pytest
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
 
-from ilc_steering.envs.chained_form import chained_rhs, drift_matrix, piece_transition, transition
-from ilc_steering.envs.profiles import PiecewiseProfile
+from ilc_steering.core.chained_form import chained_rhs, drift_matrix, piece_transition, transition
+from ilc_steering.core.profiles import PiecewiseProfile
 
 
 @pytest.mark.parametrize("n", [3, 4, 6])

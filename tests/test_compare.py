@@ -9,20 +9,28 @@ import pytest
 
 from ilc_steering import compare
 from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
-from ilc_steering.compare import Args, BudgetSpent, TrialLog, run_cell, run_cells
+from ilc_steering.agents.adapters import PullLearner
+from ilc_steering.compare import Args, TrialLog, run_cell, run_cells
 from ilc_steering.config import ConfigError
+from ilc_steering.loop import run_trials
 
 TINY = dict(seeds=(0, 1), ilc_trials=5, blackbox_trials=30, rl_trials=24, progress_bar=False)
 
 
 def test_trial_log_counts_every_trial_and_refuses_one_past_the_budget():
-    log = TrialLog(gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking"), budget=3)
-    c = log.unwrapped.nominal_model.solve()
-    for _ in range(3):
-        log.reset()
-        log.step(c)
-    with pytest.raises(BudgetSpent):
-        log.step(c)
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
+    c = env.unwrapped.nominal_model.solve()
+    asked = []
+
+    def forever(port):  # an optimizer that never stops asking for trials
+        while True:
+            port.reset()
+            asked.append(port.step(c))
+
+    learner = PullLearner(forever, env.action_space, env.observation_space)
+    log = TrialLog()
+    rollout = run_trials(env, learner, 3, callbacks=[log])
+    assert len(rollout) == 3 and len(asked) == 3  # the fourth step was stopped inside the optimizer
     assert len(log.cartesian) == 3
     np.testing.assert_allclose(log.cartesian, 0.1, rtol=1e-6)  # the 10% perturbation
     assert compare.first_within(log, (0.2, 0.2)) == 1 and compare.first_within(log, (0.01, 0.01)) is None

@@ -15,7 +15,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.config import load_config
 from ilc_steering.envs import steering_env
-from ilc_steering.envs.car import CarModel
+from ilc_steering.core.car import CarModel
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -89,8 +89,8 @@ def test_bad_actions_raise_and_out_of_bound_actions_are_clipped():
 def test_the_agent_sees_only_the_nominal_model():
     env = make()
     model = env.unwrapped.nominal_model
-    assert model.car == CarModel(0.2, 0.02)
-    reachable = [v for v in vars(model).values()] + list(vars(model.car).values()) + list(vars(model.profile).values())
+    assert model.chained_map == CarModel(0.2, 0.02)
+    reachable = [v for v in vars(model).values()] + list(vars(model.chained_map).values()) + list(vars(model.profile).values())
     for value in reachable:
         assert not np.any(np.isin(np.atleast_1d(np.asarray(value, dtype=object)), [0.22, 0.022]))
 

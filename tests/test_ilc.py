@@ -7,6 +7,7 @@ import pytest
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
 from ilc_steering.config import load_config
+from ilc_steering.loop import run_trials
 from ilc_steering.runner import run_ilc
 
 
@@ -28,13 +29,8 @@ def errors(config, trials):
     env = gym.make("ilc_steering/ChainedSteering-v0", config=config)
     agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)
     model = env.unwrapped.nominal_model
-    out = [model.z_goal - model.z_start]  # the fictitious zero iteration
-    for _ in range(trials):
-        env.reset(seed=0)
-        *_, info = env.step(agent.act())
-        agent.learn(info)
-        out.append(info["error"])
-    return np.array(out)
+    rollout = run_trials(env, agent, trials, seed=0)
+    return np.array([model.z_goal - model.z_start] + [info["error"] for info in rollout.infos])  # from the zero iteration
 
 
 @pytest.mark.parametrize("nu_b", [0.5, 1.5])
@@ -84,14 +80,11 @@ def test_saturated_car_converges_with_the_learning_law_unchanged():
 def test_ilc_actions_stay_inside_the_action_box():
     for name in ["forward_parking", "forward_parking_saturated", "parallel_parking", "chained_perturbed"]:
         env = gym.make("ilc_steering/ChainedSteering-v0", config=name)
-        agent = ILCAgent(env.unwrapped.nominal_model)
-        for _ in range(6):
-            env.reset()
-            c = agent.act()
+        rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), 6)
+        for info in rollout.infos:
+            c = info["action"]
             assert env.action_space.contains(c.astype(np.float32)), (name, c)
-            *_, info = env.step(c)
             assert not info["clipped"]
-            agent.learn(info)
 
 
 def test_agent_interface():

@@ -3,14 +3,19 @@
 import numpy as np
 import pytest
 
+import gymnasium as gym
+
+import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
 from ilc_steering.config import load_config
-from ilc_steering.envs import integrate as kernel
-from ilc_steering.envs.integrate import LEFT_CHART, OK
-from ilc_steering.envs.plants import ChainedPlant, simulate
-from ilc_steering.envs.profiles import PiecewiseProfile
-from ilc_steering.envs.reference import reference_trial
+from ilc_steering.core import integrate as kernel
+from ilc_steering.core.integrate import LEFT_CHART, OK
+from ilc_steering.core.plants import ChainedPlant
+from ilc_steering.core.profiles import PiecewiseProfile
+from ilc_steering.core.reference import reference_trial
+from ilc_steering.core.simulate import simulate
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.loop import run_trials
 
 
 def paper_car(q, v1, v2, nominal, true, limit):
@@ -25,9 +30,10 @@ def paper_car(q, v1, v2, nominal, true, limit):
 
 def reference(scenario, c):
     """DOP853 at rtol = atol = 1e-12 on the paper-typed field, restarted at every limit crossing."""
-    cfg = scenario.config.plant
-    limit = np.inf if cfg.steering_limit is None else cfg.steering_limit
-    nominal, true = (cfg.wheelbase, cfg.wheel_radius), (cfg.true_wheelbase, cfg.true_wheel_radius)
+    plant = scenario.plant
+    limit = np.inf if plant.steering_limit is None else plant.steering_limit
+    nominal = (plant.nominal.wheelbase, plant.nominal.wheel_radius)
+    true = (plant.true.wheelbase, plant.true.wheel_radius)
 
     def field(t, q):
         v1, v2 = scenario.profile.evaluate(c, np.array(t))
@@ -37,16 +43,9 @@ def reference(scenario, c):
 
 
 def ilc_actions(name, count):
-    scenario = Scenario(load_config(name))
-    agent = ILCAgent(scenario.nominal)
-    actions = []
-    for _ in range(count):
-        c = agent.act()
-        actions.append(c)
-        trial = scenario.run(c[None])
-        info = {k: v[0] for k, v in scenario.measure(trial.final, trial.status).items()}
-        agent.learn({**info, "action": c})
-    return scenario, actions
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=name)
+    rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), count)
+    return Scenario.from_config(load_config(name)), [info["action"] for info in rollout.infos]
 
 
 def test_tableau_is_consistent():
@@ -66,7 +65,7 @@ def test_car_final_state_within_1e9_of_dop853(name):
 
 def test_car_with_the_steering_limit_engaged_within_1e6_of_an_event_reference():
     scenario, actions = ilc_actions("forward_parking_saturated", 4)
-    limit = scenario.config.plant.steering_limit
+    limit = scenario.plant.steering_limit
     for c in actions:
         trial = scenario.run(c[None], record=True)
         assert np.any(np.abs(trial.states[0, :, 3]) > limit), "the limit must be engaged in this test"
@@ -77,7 +76,7 @@ def test_steering_limit_clips_the_wheel_angle():
     scenario, actions = ilc_actions("forward_parking_saturated", 1)
     trial = scenario.run(actions[0][None], record=True)
     q = scenario.plant.configuration(trial.states[0])
-    assert np.max(np.abs(q[:, 3])) == pytest.approx(scenario.config.plant.steering_limit, abs=1e-15)
+    assert np.max(np.abs(q[:, 3])) == pytest.approx(scenario.plant.steering_limit, abs=1e-15)
 
 
 def test_chained_plant_with_gains_matches_the_closed_form():
@@ -99,7 +98,7 @@ def test_chained_plant_with_gains_matches_the_closed_form():
 def test_nominal_car_is_exactly_the_chained_form():
     config = load_config("parallel_parking")
     plant = {**config.plant.__dict__, "true_wheelbase": 0.2, "true_wheel_radius": 0.02}
-    scenario = Scenario(type(config)(config.name, type(config.plant)(**plant), config.task, config.learning))
+    scenario = Scenario.from_config(type(config)(config.name, type(config.plant)(**plant), config.task, config.learning))
     c = scenario.nominal.solve() * np.array([1.0, 0.9, 1.1, 1.05])
     z_final = scenario.to_chained(scenario.run(c[None]).final[0])
     np.testing.assert_allclose(z_final, scenario.nominal.final_state(c), atol=1e-9)
@@ -115,7 +114,7 @@ def test_batch_equals_single_trials_and_parallel_equals_serial():
 
 
 def test_a_trial_that_leaves_the_chart_stops_with_a_finite_state():
-    scenario = Scenario(load_config("forward_parking"))
+    scenario = Scenario.from_config(load_config("forward_parking"))
     c = scenario.nominal.solve() * np.array([1.0, 300.0, 300.0, 300.0])
     trial = scenario.run(c[None], record=True)
     assert trial.status[0] == LEFT_CHART

@@ -10,7 +10,10 @@ steering rate [rad/s]. The change of coordinates :math:`z = \alpha(q)`,
 
 and the input transformation :math:`u = \beta(q) v` (eqs. 4-5) put the car in the chained form of
 eq. 1 when they use the car's true wheelbase ``ell`` and wheel radius ``rho``. The controller
-only knows *nominal* values; the plant in :mod:`ilc_steering.envs.plants` uses the true ones.
+only knows *nominal* values; the plant in :mod:`ilc_steering.core.plants` uses the true ones.
+
+Everything here is plain numpy, so a learner that needs the map pays for no compiler; the
+simulator compiles the same formulas (:mod:`ilc_steering.core.integrate`).
 
 The map is defined for ``|theta| < pi/2`` and ``|phi| < pi/2``. A task whose orientations do not
 fit is handled by rotating the x-y frame (the remark at the end of section 4): see
@@ -20,48 +23,36 @@ fit is handled by rotating the x-y frame (the remark at the end of section 4): s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import isfinite, pi
+from math import pi
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
-__all__ = ["CarModel", "car_velocity", "chained_inputs", "closed_loop_velocity", "frame_angle", "rotate"]
+from ilc_steering.core.checks import require_positive
+
+__all__ = ["CarModel", "car_velocity", "chained_inputs", "check_chart", "drawn_wheelbase", "frame_angle", "rotate"]
 
 Array = npt.NDArray[np.float64]
 
 
-@njit(cache=True)
-def car_velocity(theta, phi, u1, u2, wheelbase, wheel_radius):  # type: ignore[no-untyped-def]
-    """Eq. (3): ``(dx, dy, dtheta, dphi)`` of a rear-wheel-drive car [m/s, m/s, rad/s, rad/s]."""
+def car_velocity(theta: Any, phi: Any, u1: Any, u2: Any, wheelbase: float, wheel_radius: float) -> tuple[Any, Any, Any, Any]:
+    """Eq. (3): ``(dx, dy, dtheta, dphi)`` of a rear-wheel-drive car [m/s, m/s, rad/s, rad/s].
+
+    ``theta``, ``phi`` [rad], ``u1`` [rad/s] and ``u2`` [rad/s] are scalars or arrays of one shape.
+    """
     speed = wheel_radius * u1
     return np.cos(theta) * speed, np.sin(theta) * speed, np.tan(phi) * speed / wheelbase, u2
 
 
-@njit(cache=True)
-def chained_inputs(theta, phi, v1, v2, wheelbase, wheel_radius):  # type: ignore[no-untyped-def]
-    """Eqs. (4)-(5): the car inputs ``(u1, u2)`` that realise chained inputs ``(v1, v2)`` at ``q``."""
+def chained_inputs(theta: Any, phi: Any, v1: Any, v2: Any, wheelbase: float, wheel_radius: float) -> tuple[Any, Any]:
+    """Eqs. (4)-(5): the car inputs ``(u1, u2)`` [rad/s] that realise chained inputs ``(v1, v2)`` at ``q``."""
     c = np.cos(theta)
     s_phi = np.sin(phi)
     c_phi = np.cos(phi)
     u1 = v1 / (wheel_radius * c)
     u2 = -3.0 / wheelbase * np.sin(theta) / c**2 * s_phi**2 * v1 + wheelbase * c**3 * c_phi**2 * v2
     return u1, u2
-
-
-@njit(cache=True, inline="always")
-def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheelbase, true_wheel_radius):  # type: ignore[no-untyped-def]
-    """Eq. (3) of a car with the true geometry, driven by eqs. (4)-(5) with the nominal one [m].
-
-    Equals ``car_velocity(theta, phi, *chained_inputs(theta, phi, v1, v2, wheelbase,
-    wheel_radius), true_wheelbase, true_wheel_radius)`` with each sine and cosine evaluated
-    once: this is the integrator's inner loop.
-    """
-    s, c = np.sin(theta), np.cos(theta)
-    s_phi, c_phi = np.sin(phi), np.cos(phi)
-    speed = true_wheel_radius / wheel_radius * v1 / c  # true rho times the commanded u1
-    dphi = -3.0 / wheelbase * s / (c * c) * s_phi * s_phi * v1 + wheelbase * c * c * c * c_phi * c_phi * v2
-    return c * speed, s * speed, s_phi / c_phi * speed / true_wheelbase, dphi
 
 
 @dataclass(frozen=True)
@@ -73,9 +64,7 @@ class CarModel:
 
     def __post_init__(self) -> None:
         for name in ("wheelbase", "wheel_radius"):
-            value = getattr(self, name)
-            if not (isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be finite and > 0 m, got {value}")
+            require_positive(name, getattr(self, name), "m")
 
     def to_chained(self, q: Array) -> Array:
         """The change of coordinates ``z = alpha(q)`` of section 2.1, for ``q`` of shape ``(..., 4)``."""
@@ -96,8 +85,14 @@ class CarModel:
     def inputs(self, q: Array, v1: Array | float, v2: Array | float) -> tuple[Array, Array]:
         """``u = beta(q) v`` (eqs. 4-5): wheel speed ``u1`` [rad/s] and steering rate ``u2`` [rad/s]."""
         q = np.asarray(q, dtype=np.float64)
-        u1, u2 = chained_inputs(q[..., 2], q[..., 3], v1, v2, self.wheelbase, self.wheel_radius)
+        u1, u2 = chained_inputs(q[..., 2], q[..., 3], np.asarray(v1), np.asarray(v2), self.wheelbase, self.wheel_radius)
         return np.asarray(u1), np.asarray(u2)
+
+
+def drawn_wheelbase(chained_map: object) -> float | None:
+    """The wheelbase [m] a robot is drawn with: the nominal one of a car's map, ``None`` for any other
+    (a chained plant is drawn as a point)."""
+    return chained_map.wheelbase if isinstance(chained_map, CarModel) else None
 
 
 def check_chart(q: Array) -> None:

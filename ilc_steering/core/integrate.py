@@ -2,8 +2,8 @@
 
 The method is the 8th-order, 12-stage Dormand-Prince tableau (the one behind scipy's DOP853),
 run with a fixed step: on the paper's tasks a step of 1/32 s lands within 1e-9 of an adaptive
-DOP853 reference at rtol = atol = 1e-12, where classic RK4 would need a step of 1/400 s and
-about seven times the work (measured in tests/test_integrate.py and benchmarks/).
+DOP853 reference at rtol = atol = 1e-12 (``tests/test_integrate.py``; ``benchmarks/integrator.py``
+measures accuracy and speed against the step).
 
 The inputs are piecewise polynomials in each piece's local time (from an input profile), and
 every piece boundary is a step boundary, so no step straddles a jump of ``v1`` or ``v2``.
@@ -28,16 +28,15 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
-from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from ilc_steering.envs.car import closed_loop_velocity
+from ilc_steering.core import dop853
+from ilc_steering.core.plants import CAR_FIELD as CAR
+from ilc_steering.core.plants import CHAINED_FIELD as CHAINED
 
-__all__ = ["CAR", "CHAINED", "DEFAULT_MAX_STEP", "LEFT_CHART", "OK", "integrate", "steps_per_piece"]
+__all__ = ["DEFAULT_MAX_STEP", "LEFT_CHART", "OK", "closed_loop_velocity", "integrate", "steps_per_piece"]
 
 Array = npt.NDArray[np.float64]
 
-CAR = 0
-CHAINED = 1
 OK = 0
 LEFT_CHART = 1
 CHART_MARGIN = 1e-3  # [rad] closest |theta|, |phi| may come to pi/2 before the trial stops
@@ -45,11 +44,26 @@ _CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 DEFAULT_MAX_STEP = 1.0 / 32.0  # [s]
 _MAX_ITERATIONS = 60  # of the root finder at a steering-limit crossing; it needs about 23
 
-# scipy keeps the tableau in a private module; tests/test_integrate.py checks its order conditions.
-_STAGES = _dop853.N_STAGES
-_A = np.ascontiguousarray(_dop853.A[:_STAGES, :_STAGES])
-_B = np.ascontiguousarray(_dop853.B)
-_C = np.ascontiguousarray(_dop853.C[:_STAGES])
+_STAGES = dop853.STAGES
+_A = np.ascontiguousarray(dop853.A)
+_B = np.ascontiguousarray(dop853.B)
+_C = np.ascontiguousarray(dop853.C)
+
+
+@njit(cache=True, inline="always")
+def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheelbase, true_wheel_radius):  # type: ignore[no-untyped-def]
+    """Eq. (3) of a car with the true geometry, driven by eqs. (4)-(5) with the nominal one:
+    ``(dx, dy, dtheta, dphi)`` [m/s, m/s, rad/s, rad/s].
+
+    Equals ``car_velocity(theta, phi, *chained_inputs(theta, phi, v1, v2, wheelbase,
+    wheel_radius), true_wheelbase, true_wheel_radius)`` of :mod:`ilc_steering.core.car` (tested)
+    with each sine and cosine evaluated once: this is the integrator's inner loop.
+    """
+    s, c = np.sin(theta), np.cos(theta)
+    s_phi, c_phi = np.sin(phi), np.cos(phi)
+    speed = true_wheel_radius / wheel_radius * v1 / c  # true rho times the commanded u1
+    dphi = -3.0 / wheelbase * s / (c * c) * s_phi * s_phi * v1 + wheelbase * c * c * c * c_phi * c_phi * v2
+    return c * speed, s * speed, s_phi / c_phi * speed / true_wheelbase, dphi
 
 
 # The helpers are inlined into one function per plant (see _simulate_one): with the state
@@ -200,7 +214,7 @@ def _parallel(model, params, x0, durations, steps, v1c, v2c, out, status, traj):
 
 
 def steps_per_piece(durations: Array, max_step: float) -> npt.NDArray[np.int64]:
-    """The number of equal steps on each piece so that none is longer than ``max_step`` [s]."""
+    """The number of equal steps on each span so that none is longer than ``max_step`` [s]."""
     return np.maximum(1, np.ceil(np.asarray(durations) / max_step - 1e-9)).astype(np.int64)
 
 

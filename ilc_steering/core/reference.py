@@ -1,8 +1,9 @@
 """Reference trials with scipy's adaptive ``solve_ivp``: slow and tight, for tests and benchmarks.
 
-Each piece of the input profile is integrated separately (the inputs jump between pieces), and
+Each span of the input profile is integrated separately (the inputs jump between spans), and
 with a steering limit the integration restarts at every crossing of ``|phi_c| = limit``, where
-the vector field has a kink (see :mod:`ilc_steering.envs.integrate`).
+the vector field has a kink (see :mod:`ilc_steering.core.integrate`). The car's field is built
+from eqs. 3-5 as written in :mod:`ilc_steering.core.car`, not from the kernel's fused form.
 """
 
 from __future__ import annotations
@@ -13,8 +14,9 @@ import numpy as np
 import numpy.typing as npt
 from scipy.integrate import solve_ivp
 
-from ilc_steering.envs.car import car_velocity, chained_inputs
-from ilc_steering.envs.scenario import Scenario
+from ilc_steering.core.car import car_velocity, chained_inputs
+from ilc_steering.core.plants import CarPlant
+from ilc_steering.core.profiles import InputProfile
 
 __all__ = ["car_field", "car_trial", "reference_trial"]
 
@@ -27,7 +29,7 @@ def reference_trial(field: Field, x0: Array, breakpoints: Array, limit: float = 
     ``rtol`` (= atol), restarted at the breakpoints and at every ``|x[3]| = limit``."""
 
     def crossing(t: float, x: Array) -> float:
-        return abs(x[3]) - limit
+        return float(abs(x[3]) - limit)
 
     crossing.terminal = True  # type: ignore[attr-defined]
     x = np.array(x0, dtype=np.float64)
@@ -43,25 +45,23 @@ def reference_trial(field: Field, x0: Array, breakpoints: Array, limit: float = 
     return x
 
 
-def car_field(scenario: Scenario, c: Array) -> Field:
-    """The closed-loop car of a car scenario under coefficients ``c``, on the library's formulas."""
-    cfg = scenario.config.plant
-    if cfg.model != "car":
-        raise ValueError(f"car_field needs a car scenario, got plant.model = {cfg.model!r}")
-    limit = np.inf if cfg.steering_limit is None else cfg.steering_limit
+def car_field(plant: CarPlant, profile: InputProfile, c: Array) -> Field:
+    """The closed-loop car ``plant`` under coefficients ``c``: eqs. 4-5 with its nominal geometry
+    from the clipped wheel angle, eq. 3 with its true geometry, the servo integrating ``u2``."""
+    limit = np.inf if plant.steering_limit is None else plant.steering_limit
+    nominal, true = plant.nominal, plant.true
 
     def field(t: float, q: Array) -> Array:
-        v1, v2 = scenario.profile.evaluate(c, np.array(t))
+        v1, v2 = profile.evaluate(c, np.array(t))
         phi = min(max(q[3], -limit), limit)
-        u1, u2 = chained_inputs(q[2], phi, float(v1), float(v2), cfg.wheelbase, cfg.wheel_radius)
-        dx, dy, dtheta, _ = car_velocity(q[2], phi, u1, u2, cfg.true_wheelbase, cfg.true_wheel_radius)
+        u1, u2 = chained_inputs(q[2], phi, float(v1), float(v2), nominal.wheelbase, nominal.wheel_radius)
+        dx, dy, dtheta, _ = car_velocity(q[2], phi, u1, u2, true.wheelbase, true.wheel_radius)
         return np.array([dx, dy, dtheta, u2])
 
     return field
 
 
-def car_trial(scenario: Scenario, c: Array, rtol: float = 1e-12) -> Array:
-    """The final plant state (task frame) of one trial of a car scenario by :func:`reference_trial`."""
-    limit = scenario.config.plant.steering_limit
-    return reference_trial(car_field(scenario, c), scenario.x_start, scenario.profile.breakpoints,
-                           np.inf if limit is None else limit, rtol)
+def car_trial(plant: CarPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
+    """The final state of one trial of ``plant`` from ``x0`` (task frame) by :func:`reference_trial`."""
+    limit = np.inf if plant.steering_limit is None else plant.steering_limit
+    return reference_trial(car_field(plant, profile, c), x0, profile.breakpoints, limit, rtol)

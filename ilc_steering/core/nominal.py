@@ -1,0 +1,93 @@
+"""The nominal model: everything a learner may know about the system, and nothing more.
+
+A learner is built from a :class:`NominalModel`: the nominal chained form of dimension ``n``, the
+input profile, the start and goal in chained coordinates and, for a robot, the *nominal* map
+between its configuration and the chained form. This module imports no plant, simulator or
+environment (``tests/test_structure.py`` walks the imports to keep it so): the true plant is
+not reachable from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.profiles import InputProfile
+
+__all__ = ["ChainedMap", "NominalModel"]
+
+Array = npt.NDArray[np.float64]
+
+
+@runtime_checkable
+class ChainedMap(Protocol):
+    """A robot's change of coordinates to the chained form and its input transformation, with the
+    geometry the controller assumes (for the car: eqs. 4-5, :class:`~ilc_steering.core.car.CarModel`)."""
+
+    def to_chained(self, q: Array) -> Array:
+        """``z = alpha(q)`` for configurations ``(..., nq)``."""
+        ...
+
+    def from_chained(self, z: Array) -> Array:
+        """``q = alpha^{-1}(z)``."""
+        ...
+
+    def inputs(self, q: Array, v1: Any, v2: Any) -> tuple[Array, Array]:
+        """``u = beta(q) v``: the robot's inputs that realise chained inputs ``v1``, ``v2`` at ``q``."""
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class NominalModel:
+    """What a learner may know: the nominal chained form, the input profile and the task.
+
+    ``z_start`` and ``z_goal`` are the start and goal in chained coordinates (computed with the
+    nominal map, in the task frame). ``chained_map`` is the nominal map of the robot, or ``None``
+    for a plant that is itself in chained form. No true plant parameter is reachable from here.
+    """
+
+    dimension: int
+    profile: InputProfile
+    z_start: Array
+    z_goal: Array
+    chained_map: ChainedMap | None = None
+
+    def transition(self, c11: float) -> tuple[Array, Array]:
+        """Eqs. (24)-(25): ``V`` and ``W`` of ``z_b`` when the learned ``v1`` coefficient is ``c11``."""
+        return self.profile.transition(c11, self.dimension)
+
+    def z1_change(self, c11: float) -> float:
+        """Eq. (12): the change of ``z1`` over a trial whose learned ``v1`` coefficient is ``c11``."""
+        return self.profile.learned_area * float(c11) + self.profile.fixed_displacement
+
+    def final_state(self, c: Array, z_start: Array | None = None) -> Array:
+        """Eq. (23) with eq. (12): the nominal ``z(T)`` of a trial with coefficients ``c``."""
+        z0 = self.z_start if z_start is None else z_start
+        V, W = self.transition(c[0])
+        return np.concatenate([[z0[0] + self.z1_change(c[0])], V @ z0[1:] + W @ c[1:]])
+
+    def solve(self, z_start: Array | None = None, z_goal: Array | None = None) -> Array:
+        """The open-loop coefficients that steer the *nominal* system exactly from ``z_start`` to
+        ``z_goal`` (default: the task's), by eq. 12 for ``c11`` and eq. 23 for ``c2`` (section 2.2)."""
+        z0 = self.z_start if z_start is None else z_start
+        zd = self.z_goal if z_goal is None else z_goal
+        p = self.profile
+        c11 = (zd[0] - z0[0] - p.fixed_displacement) / p.learned_area
+        V, W = self.transition(c11)
+        c2 = np.linalg.lstsq(W, zd[1:] - V @ z0[1:], rcond=None)[0]
+        return np.concatenate([[c11], c2])
+
+    def action_scale(self) -> Array:
+        """A natural magnitude for each coefficient, never zero: for ``c11`` the largest of the
+        nominal solution, the mean speed ``|z1^d - z1^0| / Delta_1`` and the fixed ``v1`` values;
+        for ``c2j`` the largest term ``|c2i| Delta**(i-1)`` of the nominal ``v2``, over ``Delta**(j-1)``
+        (``Delta`` the longest piece), so every term may reach the peak of the nominal ``v2``."""
+        c = self.solve()
+        p = self.profile
+        c11 = max(abs(c[0]), abs(self.z_goal[0] - self.z_start[0]) / p.learned_area, *np.abs(p.v1_fixed))
+        powers = max(p.durations) ** np.arange(p.v2_terms)
+        peak = max(float(np.max(np.abs(c[1:]) * powers)), 1e-9)
+        return np.concatenate([[c11], np.maximum(np.abs(c[1:]), peak / powers)])

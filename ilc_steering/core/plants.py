@@ -1,0 +1,171 @@
+"""Simulated plants: the *true* systems a learner drives, behind one :class:`Plant` protocol.
+
+A plant holds its true parameters; the learner never sees it (it gets a
+:class:`~ilc_steering.core.nominal.NominalModel`). It is driven by the chained inputs ``v(t)`` of
+an input profile: the car converts them with the controller's *nominal* transform (eqs. 4-5) from
+its measured configuration at every instant.
+
+Each plant names its :class:`PlantKind`, the one answer to "what kind of robot is this" (does it
+have a planar pose, hence a Cartesian and an orientation error; how are its coordinates called).
+``PLANTS`` is the table from ``plant.model`` in a config to the plant class. A new robot is a
+module with its geometry and its plant class, a row here and its vector field in the compiled
+kernel (:mod:`ilc_steering.core.integrate`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import isfinite, pi
+from typing import ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.car import CarModel, check_chart
+from ilc_steering.core.checks import require
+
+__all__ = ["CAR_FIELD", "CHAINED_FIELD", "PLANTS", "CarPlant", "ChainedPlant", "Plant", "PlantKind"]
+
+Array = npt.NDArray[np.float64]
+
+CAR_FIELD = 0
+"""Kernel id of the closed-loop car field (eq. 3 driven through eqs. 4-5)."""
+CHAINED_FIELD = 1
+"""Kernel id of the chained form with input gains (eq. 1, perturbed as eq. 37)."""
+
+
+@dataclass(frozen=True)
+class PlantKind:
+    """What kind of robot a plant is, for everything that reports or draws it."""
+
+    name: str
+    """``plant.model`` in a config."""
+    has_pose: bool
+    """The configuration starts with ``x`` [m], ``y`` [m], ``theta`` [rad]: the task has a Cartesian and an
+    orientation error, and its frame may be rotated (end of section 4)."""
+    coordinates: tuple[str, ...]
+    """Labels of the configuration's entries, with units (empty: ``z1..zn``)."""
+    inputs: tuple[str, str]
+    """Labels of the robot's two inputs, with units."""
+
+    def coordinate_labels(self, size: int) -> list[str]:
+        """Labels of a configuration of ``size`` entries."""
+        return list(self.coordinates) if self.coordinates else [f"z{i + 1}" for i in range(size)]
+
+
+CAR = PlantKind("car", True, ("x [m]", "y [m]", "θ [rad]", "φ [rad]"), ("u1 [rad/s]", "u2 [rad/s]"))
+CHAINED = PlantKind("chained", False, (), ("v1", "v2"))
+
+
+@runtime_checkable
+class Plant(Protocol):
+    """What a simulated robot provides (``tests/test_protocols.py`` checks every entry of ``PLANTS``)."""
+
+    kind: ClassVar[PlantKind]
+
+    @property
+    def state_dim(self) -> int:
+        """Entries of the simulated state ``x``."""
+        ...
+
+    def configuration(self, x: Array) -> Array:
+        """The measured configurations of states ``x`` ``(..., state_dim)``."""
+        ...
+
+    def check_configuration(self, q: Array) -> None:
+        """``ValueError`` unless ``q`` is a configuration a trial may start from (finite, in the chart,
+        within the plant's limits)."""
+        ...
+
+    def kernel(self) -> tuple[int, Array]:
+        """The compiled vector field's id and its parameter vector (true parameters included)."""
+        ...
+
+
+@dataclass(frozen=True)
+class CarPlant:
+    """The car of eq. (3) with its true geometry, steered through the nominal eqs. (4)-(5).
+
+    ``steering_limit`` bounds the wheel angle ``|phi|`` [rad] (``None`` for none). The state's
+    fourth entry is then the servo's commanded angle, which may wind past the limit while the
+    wheel rests at the stop (see :mod:`ilc_steering.core.integrate`); :meth:`configuration`
+    gives the car's ``q``.
+    """
+
+    kind: ClassVar[PlantKind] = CAR
+    true: CarModel
+    nominal: CarModel
+    steering_limit: float | None = None
+
+    def __post_init__(self) -> None:
+        limit = self.steering_limit
+        require(
+            limit is None or (isfinite(limit) and 0 < limit < pi / 2),
+            "steering_limit",
+            f"must be in (0, pi/2) rad or null, got {limit}",
+        )
+
+    @property
+    def state_dim(self) -> int:
+        return 4
+
+    def configuration(self, x: Array) -> Array:
+        """The configurations ``q`` of states ``x`` (``(..., 4)``): the wheel angle is the clipped command."""
+        if self.steering_limit is None:
+            return np.asarray(x)
+        q = np.array(x, dtype=np.float64)
+        q[..., 3] = np.clip(q[..., 3], -self.steering_limit, self.steering_limit)
+        return q
+
+    def check_configuration(self, q: Array) -> None:
+        """The chart of eq. 4 (``|theta|, |phi| < pi/2`` in the task frame) and the steering limit."""
+        check_chart(q)
+        phi = np.asarray(q, dtype=np.float64)[..., 3]
+        limit = self.steering_limit
+        require(
+            limit is None or bool(np.all(np.abs(phi) <= limit)),
+            "phi",
+            f"{np.asarray(phi).tolist()} rad exceeds the steering limit of {limit} rad",
+        )
+
+    def kernel(self) -> tuple[int, Array]:
+        limit = np.inf if self.steering_limit is None else self.steering_limit
+        params = [self.nominal.wheelbase, self.nominal.wheel_radius, self.true.wheelbase, self.true.wheel_radius]
+        return CAR_FIELD, np.array([*params, limit])
+
+
+@dataclass(frozen=True)
+class ChainedPlant:
+    """The chained form of eq. (1) with true input gains: ``v1_gain * v1`` drives every
+    ``v1`` term and ``v2_gain * v2`` drives ``z2`` (a perturbation of the form of eq. 37)."""
+
+    kind: ClassVar[PlantKind] = CHAINED
+    dimension: int
+    v1_gain: float = 1.0
+    v2_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        require(self.dimension >= 3, "dimension", f"must be >= 3, got {self.dimension}")
+        for name in ("v1_gain", "v2_gain"):
+            value = getattr(self, name)
+            require(isfinite(value) and value != 0, name, f"must be finite and nonzero, got {value}")
+
+    @property
+    def state_dim(self) -> int:
+        return self.dimension
+
+    def configuration(self, x: Array) -> Array:
+        """The state is the configuration."""
+        return np.asarray(x)
+
+    def check_configuration(self, q: Array) -> None:
+        q = np.asarray(q, dtype=np.float64)
+        require(q.shape[-1] == self.dimension, "z", f"needs {self.dimension} values, got shape {q.shape}")
+        require(bool(np.all(np.isfinite(q))), "z", f"must be finite, got {q.tolist()}")
+
+    def kernel(self) -> tuple[int, Array]:
+        return CHAINED_FIELD, np.array([self.v1_gain, self.v2_gain])
+
+
+PLANTS: dict[str, type[CarPlant] | type[ChainedPlant]] = {"car": CarPlant, "chained": ChainedPlant}
+"""``plant.model`` -> plant class."""

@@ -1,0 +1,71 @@
+"""The trial loop: a learner on an env for a budget of trials. The only copy in the library.
+
+The runner, the comparison, the benchmarks and the tests all call :func:`run_trials`. Each step
+of the env is one trial (for the cyclic env, one segment); every trial the learner asks for is
+run, counted and recorded, and nothing past the budget is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+
+from ilc_steering.agents.base import Learner
+
+__all__ = ["Rollout", "TrialCallback", "run_trials"]
+
+TrialCallback = Callable[[int, dict[str, Any]], bool | None]
+"""Called after trial ``k`` (from 1) with its ``info``; returning ``True`` stops the loop."""
+
+
+@dataclass
+class Rollout:
+    """The per-trial record of a loop: each trial's ``info`` and reward, in order."""
+
+    infos: list[dict[str, Any]] = field(default_factory=list)
+    rewards: list[float] = field(default_factory=list)
+    stopped: bool = False
+    """A callback stopped the loop before the budget was spent."""
+
+    def __len__(self) -> int:
+        return len(self.infos)
+
+
+def run_trials(
+    env: gym.Env[Any, Any],
+    learner: Learner,
+    trials: int,
+    *,
+    seed: int | None = None,
+    options: dict[str, Any] | None = None,
+    callbacks: Sequence[TrialCallback] = (),
+) -> Rollout:
+    """Run ``learner`` on ``env`` for at most ``trials`` trials: act, step, learn, and reset when the
+    episode ends (every trial for the one-trial env; at truncation for the cyclic env).
+
+    ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method (the
+    adapters of pull-style optimizers) is closed when the loop ends, however it ends.
+    """
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
+        raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
+    rollout = Rollout()
+    observation, _ = env.reset(seed=seed, options=options)
+    try:
+        for k in range(1, trials + 1):
+            observation, reward, terminated, truncated, info = env.step(learner.act(observation))
+            learner.learn(info)
+            rollout.infos.append(info)
+            rollout.rewards.append(float(reward))
+            if any([bool(callback(k, info)) for callback in callbacks]):
+                rollout.stopped = k < trials
+                break
+            if k < trials and (terminated or truncated):
+                observation, _ = env.reset()
+    finally:
+        close = getattr(learner, "close", None)
+        if callable(close):
+            close()
+    return rollout
