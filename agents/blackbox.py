@@ -38,6 +38,14 @@ __all__ = ["BLACKBOX_METHODS", "cma_es", "gauss_newton", "make_learner", "nelder
 Array = npt.NDArray[np.float64]
 
 
+def _box(env: gym.Env[Any, Any]) -> gym.spaces.Box:
+    """The env's action space, which must be a ``Box``."""
+    space = env.action_space
+    if not isinstance(space, gym.spaces.Box):
+        raise TypeError(f"a black-box optimizer needs a Box action space, got {space}")
+    return space
+
+
 def _trial(env: gym.Env[Any, Any], x: Array) -> tuple[float, dict[str, Any]]:
     """One trial at action ``x``: its cost ``-reward`` and its ``info``."""
     env.reset()
@@ -47,7 +55,7 @@ def _trial(env: gym.Env[Any, Any], x: Array) -> tuple[float, dict[str, Any]]:
 
 def start_point(env: gym.Env[Any, Any], seed: int, spread: float = 0.02) -> Array:
     """A seeded point near the centre of the action box: ``spread`` of its half-widths."""
-    space = env.action_space
+    space = _box(env)
     centre, half = 0.5 * (space.high + space.low), 0.5 * (space.high - space.low)
     return (centre + spread * half * np.random.default_rng(seed).uniform(-1, 1, size=space.shape)).astype(np.float64)
 
@@ -57,11 +65,12 @@ def cma_es(env: gym.Env[Any, Any], seed: int, sigma0: float = 0.1) -> None:
     restarted from a new seeded point whenever its own termination criteria stop it."""
     import cma
 
-    space = env.action_space
+    space = _box(env)
     options = {"bounds": [space.low.tolist(), space.high.tolist()], "verbose": -9}
     for restart in range(10**6):
-        strategy = cma.CMAEvolutionStrategy(start_point(env, seed + 1000 * restart), sigma0,
-                                            {**options, "seed": seed + 1000 * restart + 1})
+        strategy = cma.CMAEvolutionStrategy(
+            start_point(env, seed + 1000 * restart), sigma0, {**options, "seed": seed + 1000 * restart + 1}
+        )
         while not strategy.stop():
             candidates = strategy.ask()
             strategy.tell(candidates, [_trial(env, x)[0] for x in candidates])
@@ -69,17 +78,21 @@ def cma_es(env: gym.Env[Any, Any], seed: int, sigma0: float = 0.1) -> None:
 
 def nelder_mead(env: gym.Env[Any, Any], seed: int) -> None:
     """scipy's Nelder-Mead (adaptive), restarted from a new seeded point whenever it converges."""
-    space = env.action_space
+    space = _box(env)
     for restart in range(10**6):
-        minimize(lambda y: _trial(env, np.clip(y, space.low, space.high))[0], start_point(env, seed + 1000 * restart),
-                 method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-14, "maxfev": 10**9, "adaptive": True})
+        minimize(
+            lambda y: _trial(env, np.clip(y, space.low, space.high))[0],
+            start_point(env, seed + 1000 * restart),
+            method="Nelder-Mead",
+            options={"xatol": 1e-12, "fatol": 1e-14, "maxfev": 10**9, "adaptive": True},
+        )
 
 
 def gauss_newton(env: gym.Env[Any, Any], seed: int, probe: float = 1e-6) -> None:
     """Gauss-Newton on ``r = info["error"]`` with a forward-difference Jacobian (``probe`` in
     action units, one trial per coefficient); a step that does not lower ``||r||`` is halved,
     and after 30 halvings the method restarts from a new seeded point."""
-    space = env.action_space
+    space = _box(env)
     for restart in range(10**6):
         x = start_point(env, seed + 1000 * restart)
         residual = np.asarray(_trial(env, x)[1]["error"], dtype=np.float64)

@@ -61,8 +61,9 @@ def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) ->
     return params
 
 
-def train(algorithm: str, env: gym.Env[Any, Any], params: dict[str, Any], seed: int, trials: int,
-          progress_bar: bool = False) -> Any:
+def train(
+    algorithm: str, env: gym.Env[Any, Any], params: dict[str, Any], seed: int, trials: int, progress_bar: bool = False
+) -> Any:
     """Train ``algorithm`` on ``env`` (actions in ``[-1, 1]``) for exactly ``trials`` trials."""
     from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
     from stable_baselines3.common.noise import NormalActionNoise
@@ -70,7 +71,7 @@ def train(algorithm: str, env: gym.Env[Any, Any], params: dict[str, Any], seed: 
     cls = _algorithm_class(algorithm)
     kwargs = {k: v for k, v in params.items() if k not in _OWN_KEYS}
     if "noise_std" in params:
-        size = env.action_space.shape[0]
+        (size,) = env.action_space.shape or (0,)
         kwargs["action_noise"] = NormalActionNoise(np.zeros(size), params["noise_std"] * np.ones(size))
     if "learning_starts" in kwargs:
         kwargs["learning_starts"] = min(kwargs["learning_starts"], trials)
@@ -78,8 +79,9 @@ def train(algorithm: str, env: gym.Env[Any, Any], params: dict[str, Any], seed: 
         kwargs["n_steps"] = min(kwargs["n_steps"], trials)
         kwargs["batch_size"] = min(kwargs.get("batch_size", 64), kwargs["n_steps"])
     model = cls(env=env, seed=seed, device="cpu", verbose=0, **kwargs)
-    model.learn(total_timesteps=trials, callback=StopTrainingOnMaxEpisodes(max_episodes=trials),
-                progress_bar=progress_bar)
+    model.learn(
+        total_timesteps=trials, callback=StopTrainingOnMaxEpisodes(max_episodes=trials), progress_bar=progress_bar
+    )
     return model
 
 

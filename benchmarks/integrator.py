@@ -16,10 +16,10 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
@@ -48,7 +48,11 @@ def ilc_actions(config: SteeringConfig, count: int) -> list[np.ndarray]:
 
 
 def main(args: Args) -> list[dict[str, object]]:
-    tasks = ["forward_parking", "parallel_parking"] if args.quick else ["forward_parking", "forward_parking_saturated", "parallel_parking"]
+    tasks = (
+        ["forward_parking", "parallel_parking"]
+        if args.quick
+        else ["forward_parking", "forward_parking_saturated", "parallel_parking"]
+    )
     steps = [1 / 32] if args.quick else [1 / 8, 1 / 16, 1 / 32, 1 / 64]
     trials = 2 if args.quick else 4
     repeats = 1 if args.quick else args.repeats
@@ -64,24 +68,46 @@ def main(args: Args) -> list[dict[str, object]]:
         truth = [reference(c, 1e-12) for c in actions]
         ref_time = median_seconds(lambda: [reference(c, 1e-8) for c in actions], repeats) / trials  # noqa: B023
         ref_error = max(np.abs(reference(c, 1e-8) - x).max() for c, x in zip(actions, truth))
-        rows.append({"task": name, "method": "solve_ivp DOP853 rtol=1e-8", "max_step": None,
-                     "ms_per_trial": 1e3 * ref_time, "speedup": 1.0, "max_error": ref_error})
+        rows.append(
+            {
+                "task": name,
+                "method": "solve_ivp DOP853 rtol=1e-8",
+                "max_step": None,
+                "ms_per_trial": 1e3 * ref_time,
+                "speedup": 1.0,
+                "max_error": ref_error,
+            }
+        )
         for h in steps:
             config = type(base)(base.name, base.plant, base.task, base.learning, type(base.simulation)(h))
             sim = Scenario.from_config(config)
             sim.run(actions[0][None])  # compile outside the timing
-            t = median_seconds(lambda: [sim.run(c[None]) for c in actions], repeats) / trials
+            t = median_seconds(lambda: [sim.run(c[None]) for c in actions], repeats) / trials  # noqa: B023
             error = max(np.abs(sim.run(c[None]).final[0] - x).max() for c, x in zip(actions, truth))
-            rows.append({"task": name, "method": "compiled RK8 fixed step", "max_step": h,
-                         "ms_per_trial": 1e3 * t, "speedup": ref_time / t, "max_error": error})
+            rows.append(
+                {
+                    "task": name,
+                    "method": "compiled RK8 fixed step",
+                    "max_step": h,
+                    "ms_per_trial": 1e3 * t,
+                    "speedup": ref_time / t,
+                    "max_error": error,
+                }
+            )
     write(rows, args.out)
     return rows
 
 
-def write(rows: list[dict[str, object]], out: Path) -> None:
+def write(rows: list[dict[str, Any]], out: Path) -> None:
     table = [
-        [str(r["task"]), str(r["method"]), "adaptive" if r["max_step"] is None else f"1/{round(1 / float(r['max_step']))}",
-         f"{r['ms_per_trial']:.3f}", f"{r['speedup']:.1f}x", f"{r['max_error']:.1e}"]
+        [
+            str(r["task"]),
+            str(r["method"]),
+            "adaptive" if r["max_step"] is None else f"1/{round(1 / float(r['max_step']))}",
+            f"{r['ms_per_trial']:.3f}",
+            f"{r['speedup']:.1f}x",
+            f"{r['max_error']:.1e}",
+        ]
         for r in rows
     ]
     header = ["task", "method", "max step [s]", "ms / trial", "speed-up vs solve_ivp", "max final-state error"]

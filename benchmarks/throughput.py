@@ -74,7 +74,14 @@ class Args:
     """Folder for the JSON, CSV and Markdown results."""
 
 
-QUICK = {"repeats": 2, "sizes": (1, 64), "scalar_steps": 50, "render_steps": 2, "reference_trials": 1, "accuracy_trials": 2}
+QUICK = {
+    "repeats": 2,
+    "sizes": (1, 64),
+    "scalar_steps": 50,
+    "render_steps": 2,
+    "reference_trials": 1,
+    "accuracy_trials": 2,
+}
 
 
 def trial_actions(scenario: Scenario, count: int, seed: int) -> np.ndarray:
@@ -112,9 +119,19 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
 
     def row(path: str, n: int, seconds_per_call: float, err: float, memory_mb: float) -> None:
         per_trial = seconds_per_call / n
-        rows.append({"task": name, "path": path, "N": n, "trials_per_s": 1.0 / per_trial, "ms_per_trial": 1e3 * per_trial,
-                     "speedup": reference / per_trial, "max_error": err, "peak_traced_mb": memory_mb,
-                     "reference_spread": spread})
+        rows.append(
+            {
+                "task": name,
+                "path": path,
+                "N": n,
+                "trials_per_s": 1.0 / per_trial,
+                "ms_per_trial": 1e3 * per_trial,
+                "speedup": reference / per_trial,
+                "max_error": err,
+                "peak_traced_mb": memory_mb,
+                "reference_spread": spread,
+            }
+        )
 
     ref = trials[: args.reference_trials]
     reference = median_seconds(lambda: [solve_ivp_final(scenario, c, 1e-8) for c in ref], args.repeats) / len(ref)
@@ -135,15 +152,28 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
     recording.reset(seed=args.seed)
     per_step = median_seconds(lambda: [recording.step(c) for c in steps], args.repeats) / len(steps)
     recorded = np.array([recording.step(c)[4]["trajectory"].q[-1] for c in trials[:k]])
-    row("env.step, record_trajectory", 1, per_step, error(scenario.to_task(recorded)),
-        peak_traced_mb(lambda: recording.step(trials[0])))
+    row(
+        "env.step, record_trajectory",
+        1,
+        per_step,
+        error(scenario.to_task(recorded)),
+        peak_traced_mb(lambda: recording.step(trials[0])),
+    )
     rendering = ChainedSteeringEnv(name, render_mode="rgb_array")
     rendering.reset(seed=args.seed)
     rendering.step(trials[0])
     rendering.render()  # import matplotlib and build the canvas outside the timing
     drawn = trials[: args.render_steps]
-    per_step = median_seconds(lambda: [(rendering.step(c), rendering.render()) for c in drawn], args.repeats) / len(drawn)
-    row("env.step + render(), rgb_array", 1, per_step, float("nan"), peak_traced_mb(lambda: (rendering.step(trials[0]), rendering.render())))
+    per_step = median_seconds(lambda: [(rendering.step(c), rendering.render()) for c in drawn], args.repeats) / len(
+        drawn
+    )
+    row(
+        "env.step + render(), rgb_array",
+        1,
+        per_step,
+        float("nan"),
+        peak_traced_mb(lambda: (rendering.step(trials[0]), rendering.render())),
+    )
 
     for n in args.sizes:
         envs = ChainedSteeringVectorEnv(n, name)
@@ -174,7 +204,9 @@ def compile_times() -> dict[str, float]:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         for state in ("cold", "cached"):
             # Run outside the checkout: from its root, the bare ilc_steering/ folder would shadow the install.
-            done = subprocess.run([sys.executable, "-c", COMPILE_SNIPPET], env=env, cwd=cache, capture_output=True, text=True)
+            done = subprocess.run(
+                [sys.executable, "-c", COMPILE_SNIPPET], env=env, cwd=cache, capture_output=True, text=True
+            )
             if done.returncode != 0:
                 raise RuntimeError(f"compile-time probe failed:\n{done.stderr}")
             serial, parallel = map(float, done.stdout.split())
@@ -185,27 +217,55 @@ def compile_times() -> dict[str, float]:
 def machine() -> dict[str, Any]:
     import numba
 
-    return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(), "numba_threads": numba.get_num_threads(), "python": platform.python_version(),
-            "numpy": np.__version__, "numba": numba.__version__}
+    return {
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "numba_threads": numba.get_num_threads(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+    }
 
 
 def report(rows: list[dict[str, Any]], extra: dict[str, Any]) -> str:
-    table = [[r["task"], r["path"], f"{r['trials_per_s']:,.0f}", f"{r['ms_per_trial']:.4f}", f"{r['speedup']:.1f}x",
-              f"{r['max_error']:.1e}", f"{r['peak_traced_mb']:.2f}"] for r in rows]
-    header = ["task", "path", "trials / s", "ms / trial", "speed-up vs solve_ivp", "max final-state error", "peak traced memory [MB]"]
+    table = [
+        [
+            r["task"],
+            r["path"],
+            f"{r['trials_per_s']:,.0f}",
+            f"{r['ms_per_trial']:.4f}",
+            f"{r['speedup']:.1f}x",
+            f"{r['max_error']:.1e}",
+            f"{r['peak_traced_mb']:.2f}",
+        ]
+        for r in rows
+    ]
+    header = [
+        "task",
+        "path",
+        "trials / s",
+        "ms / trial",
+        "speed-up vs solve_ivp",
+        "max final-state error",
+        "peak traced memory [MB]",
+    ]
     text = markdown_table(header, table, [False, False, True, True, True, True, True])
     spreads = {r["task"]: r["reference_spread"] for r in rows}
     text += "\nThe reference itself, rtol = 1e-12 against 1e-13 (max final-state difference): "
     text += ", ".join(f"{task} {value:.1e}" for task, value in spreads.items()) + ".\n"
     m = extra["machine"]
-    text += (f"\n{m['cpus']} CPUs ({m['processor']}), {m['numba_threads']} numba threads, Python {m['python']}, "
-             f"numpy {m['numpy']}, numba {m['numba']}. Peak RSS of the run: {extra['peak_rss_mb']:.0f} MB.\n")
+    text += (
+        f"\n{m['cpus']} CPUs ({m['processor']}), {m['numba_threads']} numba threads, Python {m['python']}, "
+        f"numpy {m['numpy']}, numba {m['numba']}. Peak RSS of the run: {extra['peak_rss_mb']:.0f} MB.\n"
+    )
     if "compile" in extra:
         c = extra["compile"]
-        text += (f"Compile time of the first trial: {c['cold_serial_s']:.1f} s serial + {c['cold_parallel_s']:.1f} s "
-                 f"parallel with an empty numba cache; {c['cached_serial_s']:.2f} s + {c['cached_parallel_s']:.2f} s "
-                 "from the cache in a new process.\n")
+        text += (
+            f"Compile time of the first trial: {c['cold_serial_s']:.1f} s serial + {c['cold_parallel_s']:.1f} s "
+            f"parallel with an empty numba cache; {c['cached_serial_s']:.2f} s + {c['cached_parallel_s']:.2f} s "
+            "from the cache in a new process.\n"
+        )
     return text
 
 
@@ -231,7 +291,9 @@ def parse(argv: list[str] | None = None) -> Args:
     parser.add_argument("--no-compile-time", action="store_true", help="skip timing numba's compilation")
     parser.add_argument("--out", type=Path, default=Args.out, help="folder for the results")
     ns = parser.parse_args(argv)
-    return Args(quick=ns.quick, repeats=ns.repeats, sizes=tuple(ns.sizes), compile_time=not ns.no_compile_time, out=ns.out)
+    return Args(
+        quick=ns.quick, repeats=ns.repeats, sizes=tuple(ns.sizes), compile_time=not ns.no_compile_time, out=ns.out
+    )
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ import numpy.typing as npt
 from gymnasium.wrappers import TimeLimit
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.core.car import drawn_wheelbase
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, reward, trial_info
@@ -119,11 +118,13 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self.record_trajectory = record_trajectory
         self.config = load_config(config)
         if not self.config.is_cyclic:
-            raise ValueError(f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal")
+            raise ValueError(
+                f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal"
+            )
         self._scenario = Scenario.from_config(self.config)
         models = self._scenario.nominals
         size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
-        high = self._scenario.action_high.astype(np.float32)
+        high = self._high = self._scenario.action_high.astype(np.float32)
         self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self.num_segments = len(models)
         n = models[0].dimension
@@ -133,7 +134,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._segment = 0
         self._cycle = 1
         names = ["home", *(f"q{l}" for l in range(1, self.num_segments))]
-        self._view = TrialView(self._scenario.waypoints, drawn_wheelbase(self._scenario.nominal.chained_map), names)
+        self._view = TrialView.of(self._scenario, names)
 
     @property
     def nominal_models(self) -> list[NominalModel]:
@@ -148,7 +149,11 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Array, dict[str, Any]]:
         super().reset(seed=seed)
-        start = self._scenario.waypoints[0] if not options or "start" not in options else self._check_start(options["start"])
+        start = (
+            self._scenario.waypoints[0]
+            if not options or "start" not in options
+            else self._check_start(options["start"])
+        )
         self._x = self._scenario.to_task(np.asarray(start, dtype=np.float64)).copy()
         self._segment, self._cycle = 0, 1
         self._view.clear()
@@ -164,8 +169,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         return q
 
     def step(self, action: Any) -> tuple[Array, float, bool, bool, dict[str, Any]]:
-        c = check_action(action, self.action_space.shape, self._action_names)
-        applied = np.clip(c, self.action_space.low, self.action_space.high)
+        c = check_action(action, self._high.shape, self._action_names)
+        applied = np.clip(c, -self._high, self._high)
         leg = self._segment
         record = self.record_trajectory or self.render_mode is not None
         trial = self._scenario.run(applied[None], x0=self._x[None], record=record, leg=leg)

@@ -47,7 +47,11 @@ def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
     half = WHEEL_HALF_LENGTH * wheelbase
     front = rear + wheelbase * heading
     steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
-    return body, np.array([rear - half * heading, rear + half * heading]), np.array([front - half * steered, front + half * steered])
+    return (
+        body,
+        np.array([rear - half * heading, rear + half * heading]),
+        np.array([front - half * steered, front + half * steered]),
+    )
 
 
 def plane(q: Array, is_car: bool) -> Array:
@@ -56,7 +60,15 @@ def plane(q: Array, is_car: bool) -> Array:
     return q[..., :2] if is_car else q[..., [0, -1]]
 
 
-def draw_pose(ax: Axes, q: Array, wheelbase: float | None, color: str, linestyle: str = "-", alpha: float = 1.0, label: str | None = None) -> None:
+def draw_pose(
+    ax: Axes,
+    q: Array,
+    wheelbase: float | None,
+    color: str,
+    linestyle: str = "-",
+    alpha: float = 1.0,
+    label: str | None = None,
+) -> None:
     """One configuration: the car's outline and wheels, or a marker for a chained plant."""
     if wheelbase is None:
         point = plane(q, False)
@@ -78,7 +90,9 @@ def draw_waypoints(ax: Axes, waypoints: Array, wheelbase: float | None, names: S
         ax.annotate(name, (x, y), xytext=(-8, -24), textcoords="offset points", color=color, fontsize=8)
 
 
-def draw_trial(ax: Axes, q: Array, wheelbase: float | None, snapshots: int = 8, color: str = PATH, label: str | None = None) -> None:
+def draw_trial(
+    ax: Axes, q: Array, wheelbase: float | None, snapshots: int = 8, color: str = PATH, label: str | None = None
+) -> None:
     """A trial's path (the rear-axle midpoint) with the car drawn at ``snapshots`` evenly spaced
     instants, the stroboscopic view of the paper's Figs. 3, 7 and 11."""
     path = plane(q, wheelbase is not None)

@@ -54,7 +54,8 @@ class SB3VecEnv(VecEnv):
         self.reset_infos = _unbatch(info, self.num_envs)
         self._reset_seeds()
         self._reset_options()
-        return obs
+        observations: VecEnvObs = obs
+        return observations
 
     def step_async(self, actions: npt.NDArray[Any]) -> None:
         self._actions = actions
@@ -66,7 +67,7 @@ class SB3VecEnv(VecEnv):
         self._actions = None
         dones = terminations | truncations
         infos = _unbatch(info.get("final_info", {}), self.num_envs)
-        final_obs = info.get("final_obs")
+        final_obs: Any = info.get("final_obs")
         for i in np.flatnonzero(dones):
             infos[i]["terminal_observation"] = final_obs[i]
             infos[i]["TimeLimit.truncated"] = bool(truncations[i] and not terminations[i])
@@ -82,7 +83,9 @@ class SB3VecEnv(VecEnv):
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         setattr(self.venv.unwrapped, attr_name, value)
 
-    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any) -> list[Any]:
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
         result = _find_attr(self.venv, method_name)(*method_args, **method_kwargs)
         return [result for _ in self._get_indices(indices)]
 
@@ -90,7 +93,7 @@ class SB3VecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]  # the copies are not single gym.Envs
 
     def get_images(self) -> Sequence[npt.NDArray[Any] | None]:
-        frames = self.venv.render()
+        frames: Any = self.venv.render()
         return list(frames) if frames is not None else [None] * self.num_envs
 
 

@@ -108,24 +108,26 @@ class Scenario:
 
     @property
     def start(self) -> Array:
-        return self.waypoints[0]
+        start: Array = self.waypoints[0]
+        return start
 
     @property
     def goal(self) -> Array:
-        return self.waypoints[1]
+        goal: Array = self.waypoints[1]
+        return goal
 
     def to_chained(self, x: Array) -> Array:
         """Configurations ``(..., nx)`` in the task frame to chained coordinates (nominal map)."""
         chained_map = self.nominal.chained_map
-        return np.asarray(x) if chained_map is None else chained_map.to_chained(x)
+        return np.asarray(x, dtype=np.float64) if chained_map is None else chained_map.to_chained(x)
 
     def to_world(self, x: Array) -> Array:
         """Configurations in the task frame to the world frame."""
-        return rotate(x, -self.frame) if self.kind.has_pose else np.asarray(x)
+        return rotate(x, -self.frame) if self.kind.has_pose else np.asarray(x, dtype=np.float64)
 
     def to_task(self, q: Array) -> Array:
         """World configurations to the task frame."""
-        return rotate(q, self.frame) if self.kind.has_pose else np.asarray(q)
+        return rotate(q, self.frame) if self.kind.has_pose else np.asarray(q, dtype=np.float64)
 
     def run(
         self, c: Array, x0: Array | None = None, record: bool = False, parallel: bool = False, leg: int = 0

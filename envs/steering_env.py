@@ -191,10 +191,12 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self.record_trajectory = record_trajectory
         self.config = load_config(config)
         self._scenario = Scenario.from_config(self.config)
-        self.action_space, self.observation_space, self._observation = task_spaces(self._scenario)
+        action_space, observation_space, self._observation = task_spaces(self._scenario)
+        self.observation_space = observation_space  # type: ignore[assignment]
+        self.action_space = action_space  # type: ignore[assignment]  # Box is Gymnasium's Space of arrays
+        self._low, self._high = action_space.low, action_space.high
         self._action_names = action_names(self._scenario.nominal)
-        wheelbase = drawn_wheelbase(self._scenario.nominal.chained_map)
-        self._view = TrialView(self._scenario.waypoints, wheelbase, ["start", "goal"])
+        self._view = TrialView.of(self._scenario, ["start", "goal"])
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -209,8 +211,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         return self._observation.copy(), info
 
     def step(self, action: Any) -> tuple[npt.NDArray[np.float32], float, bool, bool, dict[str, Any]]:
-        c = check_action(action, self.action_space.shape, self._action_names)
-        applied = np.clip(c, self.action_space.low, self.action_space.high)
+        c = check_action(action, self._high.shape, self._action_names)
+        applied = np.clip(c, self._low, self._high)
         record = self.record_trajectory or self.render_mode is not None
         trials = self._scenario.run(applied[None], record=record)
         info = trial_info(self._scenario.measure(trials.final, trials.status), applied, c)
@@ -236,17 +238,25 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
 class TrialView:
     """What the envs draw: the waypoints (world frame; ``wheelbase`` [m] for a car's outline,
-    ``None`` for a chained plant) and the paths of the last trials, with a title line of the last
-    trial's errors. Matplotlib is imported at the first frame."""
+    ``None`` for a robot drawn as a point) and the paths of the last trials, with a title line of
+    the last trial's errors (Cartesian and orientation where the robot has a pose). Matplotlib is
+    imported at the first frame."""
 
-    def __init__(self, waypoints: Array, wheelbase: float | None, names: list[str]) -> None:
+    def __init__(self, waypoints: Array, wheelbase: float | None, names: list[str], has_pose: bool) -> None:
         self._waypoints = waypoints
         self._wheelbase = wheelbase
         self._names = names
+        self._has_pose = has_pose
         self._paths: list[Array] = []
         self._errors = ""
         self.count = 0
         self._canvas: Any = None
+
+    @classmethod
+    def of(cls, scenario: Scenario, names: list[str]) -> TrialView:
+        """The view of a scenario's waypoints, the robot drawn with its nominal geometry."""
+        wheelbase = drawn_wheelbase(scenario.nominal.chained_map)
+        return cls(scenario.waypoints, wheelbase, names, scenario.kind.has_pose)
 
     def clear(self) -> None:
         """Forget the trials (the canvas stays)."""
@@ -256,7 +266,7 @@ class TrialView:
         """Remember a trial's path (the last ``keep`` of them are drawn) and its errors."""
         self._paths = [*self._paths, trajectory.q][-keep:]
         self.count += 1
-        if "cartesian_error" in info:
+        if self._has_pose:
             self._errors = f"error {info['cartesian_error']:.2e} m, {info['orientation_error']:.2e} rad"
         else:
             self._errors = f"error {info['error_norm']:.2e}"

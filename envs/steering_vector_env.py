@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -74,7 +73,9 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
         self._scenario = Scenario.from_config(self.config)
-        self.single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
+        single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
+        self.single_action_space = single_action_space
+        self._low, self._high = single_action_space.low, single_action_space.high
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._observations = np.tile(observation, (self.num_envs, 1))
@@ -92,11 +93,11 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         super().reset(seed=seed if not isinstance(seed, list) else seed[0])
         return self._observations.copy(), self._reset_info()
 
-    def step(
+    def step(  # type: ignore[override]  # Gymnasium annotates the flags as the action array type
         self, actions: Any
     ) -> tuple[npt.NDArray[np.float32], Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
-        c = check_action(actions, self.action_space.shape, self._action_names, what="actions")
-        applied = np.clip(c, self.single_action_space.low, self.single_action_space.high)
+        c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")
+        applied = np.clip(c, self._low, self._high)
         trials = self._scenario.run(applied, parallel=self.parallel)
         final_info = trial_infos(self._scenario.measure(trials.final, trials.status), applied, c)
         rewards = np.asarray(reward(final_info), dtype=np.float64)

@@ -46,7 +46,9 @@ def _columns(config: SteeringConfig) -> list[str]:
 def _print_header(config: SteeringConfig, count: int) -> None:
     tol = config.learning.tolerance
     unit = "cycles" if config.is_cyclic else "trials"
-    bound = f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.kind.has_pose else f"{tol.error} on ||z^d - z||"
+    bound = (
+        f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.kind.has_pose else f"{tol.error} on ||z^d - z||"
+    )
     print(f"{config.name}: {count} {unit}, tolerance {bound}{' at every waypoint' if config.is_cyclic else ''}")
     print(f"{unit[:-1]:>5}  " + "  ".join(f"{c:>17}" for c in _columns(config)))
 
@@ -69,7 +71,9 @@ def _learn(config: SteeringConfig, count: int | None, trajectories: bool) -> Run
     """Run the config's learner with a table row per trial (or cycle) as it finishes."""
     _print_header(config, config.learning.trials if count is None else count)
     if config.is_cyclic:
-        result: RunResult | CyclicRunResult = run_cyclic_ilc(config, count, on_cycle=_print_row, trajectories=trajectories)
+        result: RunResult | CyclicRunResult = run_cyclic_ilc(
+            config, count, on_cycle=_print_row, trajectories=trajectories
+        )
     else:
         result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories)
     unit = "cycles" if config.is_cyclic else "trials"
@@ -140,19 +144,36 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="learn on one scenario (one-trial or cyclic); exit 0 if it converged")
     run.add_argument("config", help="a YAML file or a packaged config name, e.g. forward_parking")
-    run.add_argument("--trials", type=int, default=None, help="number of trials, or cycles for a cyclic config (default: the config's)")
-    run.add_argument("--json", type=Path, default=None, help="write the per-trial results and trajectories here (input of `plot`)")
-    run.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures of this run here as PNGs")
+    run.add_argument(
+        "--trials",
+        type=int,
+        default=None,
+        help="number of trials, or cycles for a cyclic config (default: the config's)",
+    )
+    run.add_argument(
+        "--json", type=Path, default=None, help="write the per-trial results and trajectories here (input of `plot`)"
+    )
+    run.add_argument(
+        "--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures of this run here as PNGs"
+    )
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")
     reproduce.add_argument("--json-dir", type=Path, default=None, help="write one JSON per scenario here")
-    reproduce.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures (Figs. 3-14, 23-25) here as PNGs")
+    reproduce.add_argument(
+        "--plots",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="write the paper's figures (Figs. 3-14, 23-25) here as PNGs",
+    )
     reproduce.set_defaults(handler=_reproduce)
     plot = sub.add_parser("plot", help="draw the paper's figures of a run written by `run --json`")
     plot.add_argument("run", type=Path, help="the run's JSON file")
     plot.add_argument("--out", type=Path, required=True, metavar="DIR", help="write the PNGs here")
     plot.set_defaults(handler=_plot)
-    compare = sub.add_parser("compare", help="trials to tolerance: ILC against RL and black-box optimizers, across seeds")
+    compare = sub.add_parser(
+        "compare", help="trials to tolerance: ILC against RL and black-box optimizers, across seeds"
+    )
     add_compare_arguments(compare)
     compare.set_defaults(handler=_compare)
     return parser

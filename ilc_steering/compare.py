@@ -129,8 +129,8 @@ def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any
     config = unwrapped.config
     context = LearnerContext(
         unwrapped.nominal_model,
-        env.action_space,  # type: ignore[arg-type]
-        env.observation_space,  # type: ignore[arg-type]
+        unwrapped.action_space,
+        unwrapped.observation_space,
         seed,
         config.learning.nu_a,
         config.learning.nu_b,
@@ -194,8 +194,11 @@ def run_cells(args: Args, runner: Callable[[Args, str, str, int], dict[str, Any]
                 _write_atomic(path, cell)
                 cells.append(cell)
                 reached = cell["trials_to_tight"] or "-"
-                print(f"{scenario:26s} {method:13s} seed {seed}: best {cell['best_error']:.2e} "
-                      f"(tight at {reached}) in {cell['wall_s']:.1f} s", flush=True)
+                print(
+                    f"{scenario:26s} {method:13s} seed {seed}: best {cell['best_error']:.2e} "
+                    f"(tight at {reached}) in {cell['wall_s']:.1f} s",
+                    flush=True,
+                )
     return cells
 
 
@@ -210,7 +213,10 @@ def _count(values: list[float], budget: int) -> str:
     q1, q2, q3 = _quartiles(values)
     if math.isinf(q2):
         return f"> {budget}"
-    text = lambda v: f"> {budget}" if math.isinf(v) else f"{v:.0f}"  # noqa: E731
+
+    def text(v: float) -> str:
+        return f"> {budget}" if math.isinf(v) else f"{v:.0f}"
+
     return f"{q2:.0f} [{text(q1)}, {text(q3)}]"
 
 
@@ -226,10 +232,18 @@ class Summary:
     wall: list[float] = field(default_factory=list)
 
     def row(self) -> dict[str, Any]:
-        return {"method": self.method, "scenario": self.scenario, "budget": self.budget, "seeds": self.seeds,
-                "reached_loose": int(np.isfinite(self.loose).sum()), "reached_tight": int(np.isfinite(self.tight).sum()),
-                "trials_to_loose_q1_median_q3": _quartiles(self.loose), "trials_to_tight_q1_median_q3": _quartiles(self.tight),
-                "best_error_q1_median_q3": _quartiles(self.best), "wall_s_median": float(np.median(self.wall))}
+        return {
+            "method": self.method,
+            "scenario": self.scenario,
+            "budget": self.budget,
+            "seeds": self.seeds,
+            "reached_loose": int(np.isfinite(self.loose).sum()),
+            "reached_tight": int(np.isfinite(self.tight).sum()),
+            "trials_to_loose_q1_median_q3": _quartiles(self.loose),
+            "trials_to_tight_q1_median_q3": _quartiles(self.tight),
+            "best_error_q1_median_q3": _quartiles(self.best),
+            "wall_s_median": float(np.median(self.wall)),
+        }
 
 
 def summarize(cells: list[dict[str, Any]]) -> list[Summary]:
@@ -245,18 +259,35 @@ def summarize(cells: list[dict[str, Any]]) -> list[Summary]:
 
 
 def report(summaries: list[Summary]) -> str:
-    header = ["scenario", "method", "budget", "trials to 1 cm / 0.01 rad", "trials to 0.5 mm / 0.5 mrad",
-              "best error [m + rad]", "wall [s]"]
+    header = [
+        "scenario",
+        "method",
+        "budget",
+        "trials to 1 cm / 0.01 rad",
+        "trials to 0.5 mm / 0.5 mrad",
+        "best error [m + rad]",
+        "wall [s]",
+    ]
     rows = []
     for s in summaries:
         b1, b2, b3 = _quartiles(s.best)
-        rows.append([s.scenario, s.method, str(s.budget),
-                     f"{_count(s.loose, s.budget)} ({int(np.isfinite(s.loose).sum())}/{s.seeds})",
-                     f"{_count(s.tight, s.budget)} ({int(np.isfinite(s.tight).sum())}/{s.seeds})",
-                     f"{b2:.1e} [{b1:.1e}, {b3:.1e}]", f"{np.median(s.wall):.3g}"])
-    note = ("\nMedian [interquartile range] across seeds (order statistics); (k/n): seeds that reached the tolerance within the budget. "
-            "Every trial counts, probes and random exploration included. Best error: the lowest Cartesian error [m] "
-            "+ orientation error [rad] of any trial within the budget.\n")
+        rows.append(
+            [
+                s.scenario,
+                s.method,
+                str(s.budget),
+                f"{_count(s.loose, s.budget)} ({int(np.isfinite(s.loose).sum())}/{s.seeds})",
+                f"{_count(s.tight, s.budget)} ({int(np.isfinite(s.tight).sum())}/{s.seeds})",
+                f"{b2:.1e} [{b1:.1e}, {b3:.1e}]",
+                f"{np.median(s.wall):.3g}",
+            ]
+        )
+    note = (
+        "\nMedian [interquartile range] across seeds (order statistics); "
+        "(k/n): seeds that reached the tolerance within the budget. "
+        "Every trial counts, probes and random exploration included. Best error: the lowest Cartesian error [m] "
+        "+ orientation error [rad] of any trial within the budget.\n"
+    )
     return markdown_table(header, rows, [False, False, True, True, True, True, True]) + note
 
 
@@ -269,7 +300,8 @@ def plot(cells: list[dict[str, Any]], scenarios: tuple[str, ...], path: Path) ->
 
     fig, axes = plt.subplots(1, len(scenarios), figsize=(5.5 * len(scenarios), 4.4), squeeze=False)
     methods = list(dict.fromkeys(c["method"] for c in cells))
-    colours = dict(zip(methods, plt.get_cmap("tab10").colors))
+    palette = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]
+    colours = dict(zip(methods, palette))
     for ax, scenario in zip(axes[0], scenarios):
         for method in methods:
             runs = [c for c in cells if c["scenario"] == scenario and c["method"] == method]
@@ -289,7 +321,11 @@ def plot(cells: list[dict[str, Any]], scenarios: tuple[str, ...], path: Path) ->
         ax.set_title(scenario)
         ax.grid(True, which="major", alpha=0.3)
     axes[0][0].legend(fontsize=8)
-    fig.suptitle("Best error against trials (median and interquartile range across seeds; dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)", fontsize=9)
+    fig.suptitle(
+        "Best error against trials (median and interquartile range across seeds; "
+        "dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -325,8 +361,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def from_namespace(ns: argparse.Namespace) -> Args:
-    return Args(quick=ns.quick, out=ns.out, methods=tuple(ns.methods), scenarios=tuple(ns.scenarios),
-                seeds=tuple(ns.seeds), progress_bar=not ns.no_progress_bar)
+    return Args(
+        quick=ns.quick,
+        out=ns.out,
+        methods=tuple(ns.methods),
+        scenarios=tuple(ns.scenarios),
+        seeds=tuple(ns.seeds),
+        progress_bar=not ns.no_progress_bar,
+    )
 
 
 def parse(argv: list[str] | None = None) -> Args:

@@ -18,6 +18,8 @@ from math import isfinite
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
 from ilc_steering.core.car import CarModel, frame_angle, rotate
 from ilc_steering.core.checks import ParameterError, check_gains
 from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
@@ -248,7 +250,9 @@ class SteeringConfig:
         """One (key, segment) per trial of a cycle: the task itself for a one-trial task."""
         if isinstance(self.task, CyclicTaskConfig):
             many = len(self.task.segments) > 1
-            return [(f"task.segments[{i if many else 0}]", self.task.segment(i)) for i in range(len(self.task.waypoints))]
+            return [
+                (f"task.segments[{i if many else 0}]", self.task.segment(i)) for i in range(len(self.task.waypoints))
+            ]
         return [("task", self.task)]
 
     def frame(self) -> float:
@@ -290,7 +294,8 @@ class SteeringConfig:
         plant = self.plant.plant()
         for key, point in points:
             with _domain(key, {"phi": key}):
-                plant.check_configuration(rotate(list(point), frame) if self.plant.kind.has_pose else list(point))
+                q = np.array(point, dtype=np.float64)
+                plant.check_configuration(rotate(q, frame) if self.plant.kind.has_pose else q)
 
 
 def _is_optional(hint: Any) -> bool:
@@ -318,7 +323,9 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
         _require(value in allowed, key, f"must be one of {list(allowed)}, got {value!r}")
         return value
     if hint is float:
-        _require(isinstance(value, (int, float)) and not isinstance(value, bool), key, f"must be a number, got {value!r}")
+        _require(
+            isinstance(value, (int, float)) and not isinstance(value, bool), key, f"must be a number, got {value!r}"
+        )
         return float(value)
     if hint is int:
         _require(isinstance(value, int) and not isinstance(value, bool), key, f"must be an integer, got {value!r}")
@@ -349,7 +356,9 @@ def _build(cls: Any, value: Any, key: str) -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     prefix = f"{key}." if key else ""
     unknown = sorted(set(value) - set(fields))
-    _require(not unknown, prefix + str(unknown[0]) if unknown else key, f"unknown key; allowed keys here: {sorted(fields)}")
+    _require(
+        not unknown, prefix + str(unknown[0]) if unknown else key, f"unknown key; allowed keys here: {sorted(fields)}"
+    )
     kwargs = {}
     for name, f in fields.items():
         if name in value:
@@ -390,6 +399,7 @@ def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> Steerin
         return source
     data, origin = (source, "<mapping>") if isinstance(source, dict) else _read(source)
     try:
-        return _build(SteeringConfig, data, "")
+        config: SteeringConfig = _build(SteeringConfig, data, "")
+        return config
     except ConfigError as error:
         raise ConfigError(f"{origin}: {error}") from None

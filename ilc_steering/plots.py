@@ -87,7 +87,10 @@ def load_run(source: Path | dict[str, Any]) -> Run:
     except (OSError, json.JSONDecodeError) as error:
         raise ValueError(f"{origin}: cannot read a run's JSON: {error}") from None
     if not isinstance(data, dict) or "config" not in data or data.get("kind") not in ("trials", "cycles"):
-        raise ValueError(f"{origin}: not a run's JSON (needs 'kind': 'trials' or 'cycles' and 'config'; written by `ilc-steering run --json`)")
+        raise ValueError(
+            f"{origin}: not a run's JSON (needs 'kind': 'trials' or 'cycles' and 'config'; "
+            "written by `ilc-steering run --json`)"
+        )
     try:
         config = load_config(data["config"])
     except ConfigError as error:
@@ -126,8 +129,17 @@ def trajectory_figure(run: Run) -> Figure:
     task = run.config.task
     draw_waypoints(ax, np.array([task.start, task.goal]), run.wheelbase, ["start", "goal"])  # type: ignore[union-attr]
     draw_trial(ax, run.trajectory(last).q, run.wheelbase, snapshots=10, label=f"trial {last['trial']}")
-    draw_pose(ax, np.asarray(first["final_state"]), run.wheelbase, FIRST, linestyle=":", label=f"end of trial {first['trial']}")
-    setup_workspace(ax, run.dimension, f"{run.name}: trajectory during trial {last['trial']} (end of trial {first['trial']} dotted)")
+    draw_pose(
+        ax,
+        np.asarray(first["final_state"]),
+        run.wheelbase,
+        FIRST,
+        linestyle=":",
+        label=f"end of trial {first['trial']}",
+    )
+    setup_workspace(
+        ax, run.dimension, f"{run.name}: trajectory during trial {last['trial']} (end of trial {first['trial']} dotted)"
+    )
     ax.legend(fontsize=8, loc="best")
     return figure
 
@@ -215,7 +227,7 @@ def path_figure(run: Run, cycles: int = 5) -> Figure:
         ax.plot(*path.T, color=color, linewidth=1.0, label=f"cycle {record['cycle']}" if record["index"] == 1 else None)
         end = plane(np.asarray(record["final_state"]), run.has_pose)
         ax.plot(*end, "k.", markersize=4)
-        ax.annotate(str(number), end, xytext=(4, 4), textcoords="offset points", fontsize=8)
+        ax.annotate(str(number), (float(end[0]), float(end[1])), xytext=(4, 4), textcoords="offset points", fontsize=8)
     setup_workspace(ax, run.dimension, f"{run.name}: path over cycles 1-{last_cycle}, arrivals numbered in order")
     ax.legend(fontsize=8, loc="best")
     return figure

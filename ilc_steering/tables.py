@@ -31,7 +31,9 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric
     return "\n".join(lines) + "\n"
 
 
-def write_results(rows: list[dict[str, Any]], out: Path, stem: str, markdown: str, extra: dict[str, Any] | None = None) -> None:
+def write_results(
+    rows: list[dict[str, Any]], out: Path, stem: str, markdown: str, extra: dict[str, Any] | None = None
+) -> None:
     """Write ``stem.json`` (``{"rows": rows, **extra}``), ``stem.csv`` (the rows) and ``stem.md`` to ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     (out / f"{stem}.json").write_text(json.dumps({"rows": rows, **(extra or {})}, indent=1, default=str))

@@ -5,15 +5,17 @@ import pytest
 
 from ilc_steering.config import ConfigError, load_config
 from ilc_steering.core.car import CarModel, car_velocity, chained_inputs, frame_angle, rotate
-from ilc_steering.core.integrate import closed_loop_velocity
 from ilc_steering.core.chained_form import chained_rhs
+from ilc_steering.core.integrate import closed_loop_velocity
 
 CAR = CarModel(wheelbase=0.2, wheel_radius=0.02)
 
 
 def test_alpha_round_trip():
     rng = np.random.default_rng(1)
-    q = np.column_stack([rng.normal(size=50), rng.normal(size=50), rng.uniform(-1.4, 1.4, 50), rng.uniform(-1.2, 1.2, 50)])
+    q = np.column_stack(
+        [rng.normal(size=50), rng.normal(size=50), rng.uniform(-1.4, 1.4, 50), rng.uniform(-1.2, 1.2, 50)]
+    )
     np.testing.assert_allclose(CAR.from_chained(CAR.to_chained(q)), q, atol=1e-12)
 
 
@@ -71,7 +73,13 @@ def test_a_half_turn_task_is_rejected_with_an_intermediate_configuration():
         frame_angle(0.0, np.pi)
     raw = {
         "name": "u_turn",
-        "plant": {"model": "car", "wheelbase": 0.2, "wheel_radius": 0.02, "true_wheelbase": 0.2, "true_wheel_radius": 0.02},
+        "plant": {
+            "model": "car",
+            "wheelbase": 0.2,
+            "wheel_radius": 0.02,
+            "true_wheelbase": 0.2,
+            "true_wheel_radius": 0.02,
+        },
         "task": {"start": [0, 0, 0.0, 0], "goal": [1, 1, 3.2, 0], "pieces": [5.0], "v1_fixed": [], "v2_terms": 3},
         "learning": {"nu_a": 1.0, "nu_b": 1.0, "trials": 3, "tolerance": {"cartesian": 1e-3, "orientation": 1e-3}},
     }

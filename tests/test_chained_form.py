@@ -55,7 +55,11 @@ def test_transition_predicts_the_chained_ode(n, durations, v1_fixed):
     for t0, t1 in zip(profile.breakpoints[:-1], profile.breakpoints[1:]):
         sol = solve_ivp(
             lambda t, y: chained_rhs(y, *map(float, profile.evaluate(c, np.array(t)))),
-            (t0, t1), z, method="DOP853", rtol=1e-12, atol=1e-12,
+            (t0, t1),
+            z,
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-12,
         )
         z = sol.y[:, -1]
     V, W = profile.transition(c[0], n)

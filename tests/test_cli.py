@@ -47,9 +47,16 @@ def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, 
     assert "| cyclic_home_goal | Figs. 23-25 | not stated | 6 |" in out
     assert "forward_parking_saturated:" in out  # where it differs, it says why
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "cyclic_home_goal.json", "forward_parking.json", "forward_parking_saturated.json", "parallel_parking.json"]
-    one_trial = [f"{name}_{kind}.png" for name in ("forward_parking", "forward_parking_saturated", "parallel_parking")
-                 for kind in ("trajectory", "coordinates", "inputs", "errors")]
+        "cyclic_home_goal.json",
+        "forward_parking.json",
+        "forward_parking_saturated.json",
+        "parallel_parking.json",
+    ]
+    one_trial = [
+        f"{name}_{kind}.png"
+        for name in ("forward_parking", "forward_parking_saturated", "parallel_parking")
+        for kind in ("trajectory", "coordinates", "inputs", "errors")
+    ]
     cyclic = ["cyclic_home_goal_path.png", "cyclic_home_goal_waypoint_errors.png"]
     assert sorted(p.name for p in figures.iterdir()) == sorted(one_trial + cyclic)
 
@@ -58,7 +65,10 @@ def test_python_dash_m_entry_point(tmp_path):
     # Outside the checkout: from its root, `python -m` would find the bare ilc_steering/ folder first.
     done = subprocess.run(
         [sys.executable, "-m", "ilc_steering", "run", "forward_parking", "--trials", "5"],
-        capture_output=True, text=True, timeout=300, cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
     )
     assert done.returncode == 0, done.stderr
     assert "converged at trial 4" in done.stdout

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ilc_steering import compare
-from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
 from ilc_steering.agents.adapters import PullLearner
+from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
 from ilc_steering.compare import Args, TrialLog, run_cell, run_cells
 from ilc_steering.config import ConfigError
 from ilc_steering.loop import run_trials
@@ -93,11 +93,15 @@ def test_interrupted_run_resumes_without_recomputing_finished_cells(tmp_path):
 
 
 def test_main_writes_well_formed_results(tmp_path):
-    args = Args(out=tmp_path, methods=("ilc", "nelder_mead", "ppo"), scenarios=("forward_parking", "parallel_parking"), **TINY)
+    args = Args(
+        out=tmp_path, methods=("ilc", "nelder_mead", "ppo"), scenarios=("forward_parking", "parallel_parking"), **TINY
+    )
     compare.main(args)
     with open(tmp_path / "compare.csv") as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 3 * 2 * 2 and {"method", "scenario", "seed", "trials_to_tight", "best_error", "wall_s"} <= set(rows[0])
+    assert len(rows) == 3 * 2 * 2 and {"method", "scenario", "seed", "trials_to_tight", "best_error", "wall_s"} <= set(
+        rows[0]
+    )
     data = json.loads((tmp_path / "compare.json").read_text())
     assert len(data["summary"]) == 6 and len(data["cells"]) == 12
     table = (tmp_path / "compare.md").read_text()

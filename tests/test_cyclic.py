@@ -140,18 +140,33 @@ def test_cli_runs_cyclic_configs(tmp_path, capsys):
 def test_cyclic_config_errors():
     raw = chained_cycle().__dict__
     base = {
-        "name": "c", "plant": {"model": "chained", "dimension": 4},
+        "name": "c",
+        "plant": {"model": "chained", "dimension": 4},
         "learning": {"nu_a": 1.0, "nu_b": 1.0, "trials": 2, "tolerance": {"error": 1e-3}},
     }
     assert raw["name"] == "chained_cycle"
     with pytest.raises(ConfigError, match="task.segments: needs 1 entry or one per segment"):
-        load_config({**base, "task": {"waypoints": [[0, 0, 0, 0], [1, 0, 0, 0], [2, 0, 0, 0]], "segments": [
-            {"pieces": [1.0], "v1_fixed": [], "v2_terms": 3}] * 2}})
+        load_config(
+            {
+                **base,
+                "task": {
+                    "waypoints": [[0, 0, 0, 0], [1, 0, 0, 0], [2, 0, 0, 0]],
+                    "segments": [{"pieces": [1.0], "v1_fixed": [], "v2_terms": 3}] * 2,
+                },
+            }
+        )
     with pytest.raises(ConfigError, match="task: needs exactly one of the keys"):
         load_config({**base, "task": {"pieces": [1.0]}})
     with pytest.raises(ConfigError, match=r"task.waypoints\[1\]: needs 4 values"):
-        load_config({**base, "task": {"waypoints": [[0, 0, 0, 0], [1, 0, 0]], "segments": [
-            {"pieces": [1.0], "v1_fixed": [], "v2_terms": 3}]}})
+        load_config(
+            {
+                **base,
+                "task": {
+                    "waypoints": [[0, 0, 0, 0], [1, 0, 0]],
+                    "segments": [{"pieces": [1.0], "v1_fixed": [], "v2_terms": 3}],
+                },
+            }
+        )
 
 
 def test_docstring_example_runs():

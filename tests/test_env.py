@@ -14,8 +14,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.config import load_config
-from ilc_steering.envs import steering_env
 from ilc_steering.core.car import CarModel
+from ilc_steering.envs import steering_env
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -27,7 +27,9 @@ def make(config="forward_parking"):
     return gym.make(ENV_ID, config=config)
 
 
-@pytest.mark.parametrize("config", ["forward_parking", "forward_parking_saturated", "parallel_parking", "chained_perturbed"])
+@pytest.mark.parametrize(
+    "config", ["forward_parking", "forward_parking_saturated", "parallel_parking", "chained_perturbed"]
+)
 def test_gymnasium_check_env_passes_with_only_documented_warnings(config):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -52,7 +54,16 @@ def test_one_step_episode_and_info():
     obs2, reward, terminated, truncated, info = env.step(c)
     assert (terminated, truncated) == (True, False)
     np.testing.assert_array_equal(obs2, obs)
-    for key in ("q_final", "z_final", "error", "error_norm", "cartesian_error", "orientation_error", "left_chart", "action"):
+    for key in (
+        "q_final",
+        "z_final",
+        "error",
+        "error_norm",
+        "cartesian_error",
+        "orientation_error",
+        "left_chart",
+        "action",
+    ):
         assert key in info
     assert reward == pytest.approx(-(info["cartesian_error"] + info["orientation_error"]))
     assert info["cartesian_error"] == pytest.approx(np.hypot(*info["q_final"][:2]))
@@ -90,7 +101,9 @@ def test_the_agent_sees_only_the_nominal_model():
     env = make()
     model = env.unwrapped.nominal_model
     assert model.chained_map == CarModel(0.2, 0.02)
-    reachable = [v for v in vars(model).values()] + list(vars(model.chained_map).values()) + list(vars(model.profile).values())
+    reachable = (
+        [v for v in vars(model).values()] + list(vars(model.chained_map).values()) + list(vars(model.profile).values())
+    )
     for value in reachable:
         assert not np.any(np.isin(np.atleast_1d(np.asarray(value, dtype=object)), [0.22, 0.022]))
 

@@ -19,7 +19,13 @@ def chained_config(n, pieces, v1_fixed, nu_a=1.0, nu_b=1.0, gains=(1.0, 1.0)):
         {
             "name": f"chained_n{n}_p{len(pieces)}",
             "plant": {"model": "chained", "dimension": n, "v1_gain": gains[0], "v2_gain": gains[1]},
-            "task": {"start": start.tolist(), "goal": goal.tolist(), "pieces": pieces, "v1_fixed": v1_fixed, "v2_terms": n - 1},
+            "task": {
+                "start": start.tolist(),
+                "goal": goal.tolist(),
+                "pieces": pieces,
+                "v1_fixed": v1_fixed,
+                "v2_terms": n - 1,
+            },
             "learning": {"nu_a": nu_a, "nu_b": nu_b, "trials": 8, "tolerance": {"error": 1e-9}},
         }
     )
@@ -30,11 +36,15 @@ def errors(config, trials):
     agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)
     model = env.unwrapped.nominal_model
     rollout = run_trials(env, agent, trials, seed=0)
-    return np.array([model.z_goal - model.z_start] + [info["error"] for info in rollout.infos])  # from the zero iteration
+    return np.array(
+        [model.z_goal - model.z_start] + [info["error"] for info in rollout.infos]
+    )  # from the zero iteration
 
 
 @pytest.mark.parametrize("nu_b", [0.5, 1.5])
-@pytest.mark.parametrize("n, pieces, v1_fixed", [(4, [5.0], []), (5, [2.0, 1.5], [0.6]), (3, [1.0, 1.0, 2.0], [-0.5, 0.8])])
+@pytest.mark.parametrize(
+    "n, pieces, v1_fixed", [(4, [5.0], []), (5, [2.0, 1.5], [0.6]), (3, [1.0, 1.0, 2.0], [-0.5, 0.8])]
+)
 def test_error_contracts_by_one_minus_nu_on_the_nominal_system(n, pieces, v1_fixed, nu_b):
     nu_a = 0.7
     eps = errors(chained_config(n, pieces, v1_fixed, nu_a, nu_b), 6)

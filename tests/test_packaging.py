@@ -10,12 +10,29 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_wheel_ships_every_subpackage_and_config(tmp_path):
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path), str(ROOT)],
-        check=True, capture_output=True, timeout=600,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path),
+            str(ROOT),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=600,
     )
     (wheel,) = tmp_path.glob("ilc_steering-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    for folder, package in (("envs", "ilc_steering/envs"), ("agents", "ilc_steering/agents"), ("ilc_steering", "ilc_steering")):
+    for folder, package in (
+        ("envs", "ilc_steering/envs"),
+        ("agents", "ilc_steering/agents"),
+        ("ilc_steering", "ilc_steering"),
+    ):
         for source in (ROOT / folder).glob("*.py"):
             assert f"{package}/{source.name}" in names
     for config in (ROOT / "configs").rglob("*.yaml"):

@@ -27,7 +27,12 @@ def ink(frame):
 
 @pytest.mark.parametrize(
     ("env_id", "config"),
-    [(STEERING, "forward_parking"), (STEERING, "forward_parking_saturated"), (STEERING, "chained_perturbed"), (CYCLIC, "cyclic_home_goal")],
+    [
+        (STEERING, "forward_parking"),
+        (STEERING, "forward_parking_saturated"),
+        (STEERING, "chained_perturbed"),
+        (CYCLIC, "cyclic_home_goal"),
+    ],
 )
 def test_a_frame_shows_the_task_and_then_the_trial(env_id, config):
     env = gym.make(env_id, config=config, render_mode="rgb_array")
@@ -155,7 +160,9 @@ def test_equal_relative_perturbation_of_wheelbase_and_radius_leaves_theta_and_ph
     """The yaw rate rho u1 tan(phi) / ell keeps its nominal value when ell and rho grow by the same
     factor: only the speed along the path changes (why simulation 1's orientation error is round-off)."""
     config = load_config("forward_parking")
-    nominal = dataclasses.replace(config, plant=dataclasses.replace(config.plant, true_wheelbase=0.2, true_wheel_radius=0.02))
+    nominal = dataclasses.replace(
+        config, plant=dataclasses.replace(config.plant, true_wheelbase=0.2, true_wheel_radius=0.02)
+    )
     c = np.array([0.2, -0.3, 0.1, 0.02])
     runs = []
     for cfg in (config, nominal):

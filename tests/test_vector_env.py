@@ -23,8 +23,13 @@ def native(num_envs, config, **kwargs):
 
 
 def sync(num_envs, config):
-    return gym.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="sync", config=config,
-                        vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})
+    return gym.make_vec(
+        ENV_ID,
+        num_envs=num_envs,
+        vectorization_mode="sync",
+        config=config,
+        vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP},
+    )
 
 
 def actions(space, rng, num_envs, spread=1.5):
@@ -60,7 +65,9 @@ def test_every_step_is_a_trial_with_the_nominal_solution():
         next_obs, rewards, terminations, truncations, info = envs.step(c)
         np.testing.assert_array_equal(next_obs, obs)  # the next episode's task
         np.testing.assert_allclose(info["final_info"]["cartesian_error"], 0.1, rtol=1e-6)  # 10% perturbation
-        np.testing.assert_array_equal(rewards, -(info["final_info"]["cartesian_error"] + info["final_info"]["orientation_error"]))
+        np.testing.assert_array_equal(
+            rewards, -(info["final_info"]["cartesian_error"] + info["final_info"]["orientation_error"])
+        )
 
 
 def test_parallel_batches_equal_serial_ones():

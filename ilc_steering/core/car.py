@@ -36,7 +36,9 @@ __all__ = ["CarModel", "car_velocity", "chained_inputs", "check_chart", "drawn_w
 Array = npt.NDArray[np.float64]
 
 
-def car_velocity(theta: Any, phi: Any, u1: Any, u2: Any, wheelbase: float, wheel_radius: float) -> tuple[Any, Any, Any, Any]:
+def car_velocity(
+    theta: Any, phi: Any, u1: Any, u2: Any, wheelbase: float, wheel_radius: float
+) -> tuple[Any, Any, Any, Any]:
     """Eq. (3): ``(dx, dy, dtheta, dphi)`` of a rear-wheel-drive car [m/s, m/s, rad/s, rad/s].
 
     ``theta``, ``phi`` [rad], ``u1`` [rad/s] and ``u2`` [rad/s] are scalars or arrays of one shape.

@@ -38,12 +38,20 @@ class InputProfile(Protocol):
       polynomials on the ``spans`` that the integrator steps through.
     """
 
-    durations: tuple[float, ...]
-    """The pieces ``Delta_1..Delta_p`` [s] of the profile; ``T`` is their sum."""
-    v1_fixed: tuple[float, ...]
-    """``c12..c1p``: the fixed level of ``v1`` on pieces ``2..p``."""
-    v2_terms: int
-    """``q``, the number of coefficients of ``v2``."""
+    @property
+    def durations(self) -> tuple[float, ...]:
+        """The pieces ``Delta_1..Delta_p`` [s] of the profile; ``T`` is their sum."""
+        ...
+
+    @property
+    def v1_fixed(self) -> tuple[float, ...]:
+        """``c12..c1p``: the fixed level of ``v1`` on pieces ``2..p``."""
+        ...
+
+    @property
+    def v2_terms(self) -> int:
+        """``q``, the number of coefficients of ``v2``."""
+        ...
 
     @property
     def num_coefficients(self) -> int:

@@ -9,6 +9,7 @@ from eqs. 3-5 as written in :mod:`ilc_steering.core.car`, not from the kernel's 
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import pairwise
 
 import numpy as np
 import numpy.typing as npt
@@ -33,7 +34,7 @@ def reference_trial(field: Field, x0: Array, breakpoints: Array, limit: float = 
 
     crossing.terminal = True  # type: ignore[attr-defined]
     x = np.array(x0, dtype=np.float64)
-    for t, t1 in zip(breakpoints[:-1], breakpoints[1:]):
+    for t, t1 in pairwise(breakpoints):
         while t < t1:
             # Off an event by a hair, so the restarted solver does not stop on it again.
             events = crossing if np.isfinite(limit) and abs(abs(x[3]) - limit) > 1e-13 else None

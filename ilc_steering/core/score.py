@@ -37,6 +37,9 @@ def trial_cost(info: Mapping[str, Any]) -> Any:
 
 def within_tolerance(tolerance: Tolerance, info: Mapping[str, Any]) -> bool:
     """Whether a trial's ``info`` meets every bound of ``tolerance``."""
-    bounds = (("error_norm", tolerance.error), ("cartesian_error", tolerance.cartesian))
-    bounds += (("orientation_error", tolerance.orientation),)
+    bounds = [
+        ("error_norm", tolerance.error),
+        ("cartesian_error", tolerance.cartesian),
+        ("orientation_error", tolerance.orientation),
+    ]
     return all(bound is None or float(info[key]) <= bound for key, bound in bounds)

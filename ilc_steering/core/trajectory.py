@@ -45,5 +45,7 @@ class Trajectory:
         except KeyError as error:
             raise ValueError(f"a trajectory needs keys t, q and u; {error.args[0]!r} is missing") from None
         if t.ndim != 1 or q.ndim != 2 or u.shape != (t.size, 2) or q.shape[0] != t.size:
-            raise ValueError(f"trajectory shapes must be t (S,), q (S, nx), u (S, 2); got {t.shape}, {q.shape}, {u.shape}")
+            raise ValueError(
+                f"trajectory shapes must be t (S,), q (S, nx), u (S, 2); got {t.shape}, {q.shape}, {u.shape}"
+            )
         return cls(t, q, u, bool(data.get("left_chart", False)))

@@ -1,0 +1,123 @@
+"""Contract tests of the three protocols: Plant, InputProfile and Learner.
+
+A new plant, profile or learner passes these or is not one. Each check is a number that could be
+wrong: shapes, a closed form, determinism under a seed.
+"""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContext, blackbox, rl
+from ilc_steering.config import load_config, packaged_configs
+from ilc_steering.core.car import rotate
+from ilc_steering.core.integrate import OK
+from ilc_steering.core.plants import PLANTS, ChainedPlant, Plant, PlantKind
+from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
+from ilc_steering.core.simulate import simulate
+from ilc_steering.loop import run_trials
+
+CONFIGS = {name: load_config(name) for name in packaged_configs()}
+
+
+def plants_of_every_kind():
+    out = {}
+    for config in CONFIGS.values():
+        out.setdefault(config.plant.model, (config.plant.plant(), config))
+    assert set(out) == set(PLANTS), "every entry of PLANTS needs a packaged config"
+    return out
+
+
+@pytest.mark.parametrize("model", sorted(PLANTS))
+def test_plant_contract(model):
+    plant, config = plants_of_every_kind()[model]
+    assert isinstance(plant, Plant) and isinstance(plant, PLANTS[model])
+    assert isinstance(plant.kind, PlantKind) and plant.kind.name == model
+    start = np.array(config.points()[0][1])
+    x0 = rotate(start, config.frame()) if plant.kind.has_pose else start
+    plant.check_configuration(x0)
+    with pytest.raises(ValueError):
+        plant.check_configuration(np.full_like(x0, np.nan))
+    assert x0.shape == (plant.state_dim,)
+    assert plant.configuration(np.stack([x0, x0])).shape == (2, plant.state_dim)
+    field, params = plant.kernel()
+    assert isinstance(field, int) and params.dtype == np.float64 and params.ndim == 1
+    profile = config.legs()[0][1].profile()
+    c = np.zeros((1, profile.num_coefficients))
+    c[0, 0] = 0.1
+    trials = simulate(plant, profile, x0[None], c)
+    assert trials.status[0] == OK and trials.final.shape == (1, plant.state_dim) and np.all(np.isfinite(trials.final))
+    assert len(plant.kind.coordinate_labels(plant.state_dim)) == plant.state_dim
+
+
+def profiles():
+    rng = np.random.default_rng(3)
+    yield from {config.legs()[0][1].profile() for config in CONFIGS.values()}
+    yield PiecewiseProfile((1.0, 2.0, 1.5), (0.7, -0.4), 4)
+    yield PiecewiseProfile(tuple(rng.uniform(0.5, 2.0, size=2)), (rng.normal(),), 6)
+
+
+@pytest.mark.parametrize("profile", list(profiles()), ids=lambda p: f"p{len(p.durations)}q{p.v2_terms}")
+def test_input_profile_contract(profile):
+    assert isinstance(profile, InputProfile)
+    rng = np.random.default_rng(0)
+    c = rng.normal(size=(3, profile.num_coefficients))
+    assert profile.num_coefficients == 1 + profile.v2_terms
+    np.testing.assert_allclose(sum(profile.spans), sum(profile.durations), rtol=1e-15)
+    np.testing.assert_allclose(np.diff(profile.breakpoints), profile.spans, rtol=1e-12)
+    # polynomials and evaluate describe the same inputs
+    v1, v2 = profile.polynomials(c)
+    for s, (t0, span) in enumerate(zip(profile.breakpoints[:-1], profile.spans)):
+        tau = np.array([0.1, 0.5, 0.9]) * span
+        e1, e2 = profile.evaluate(c[1], t0 + tau)
+        np.testing.assert_allclose(np.polyval(v1[1, s, ::-1], tau), e1, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(np.polyval(v2[1, s, ::-1], tau), e2, rtol=1e-10, atol=1e-10)
+    # z1 (eq. 12) and z_b (eqs. 24-25) on the unperturbed chained form, as simulated
+    n = 1 + min(profile.v2_terms, 4)
+    z0 = rng.normal(size=(3, n))
+    final = simulate(ChainedPlant(n), profile, z0, c).final
+    for b in range(3):
+        z1 = z0[b, 0] + profile.learned_area * c[b, 0] + profile.fixed_displacement
+        assert final[b, 0] == pytest.approx(z1, abs=1e-12)
+        V, W = profile.transition(c[b, 0], n)
+        np.testing.assert_allclose(final[b, 1:], V @ z0[b, 1:] + W @ c[b, 1:], rtol=1e-9, atol=1e-9)
+
+
+def context(name="forward_parking", seed=0):
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=name)
+    unwrapped = env.unwrapped
+    return env, LearnerContext(unwrapped.nominal_model, unwrapped.action_space, unwrapped.observation_space, seed)
+
+
+LEARNERS = {
+    "ilc": lambda ctx: ILCAgent(ctx.model),
+    "gauss_newton": lambda ctx: blackbox.make_learner("gauss_newton", ctx),
+    "nelder_mead": lambda ctx: blackbox.make_learner("nelder_mead", ctx),
+    "cma_es": lambda ctx: blackbox.make_learner("cma_es", ctx),
+    "ppo": lambda ctx: rl.make_learner("ppo", rl.hyperparameters("ppo", "forward_parking"), 12, False, ctx),
+}
+
+
+@pytest.mark.parametrize("method", sorted(LEARNERS))
+def test_learner_contract(method):
+    env, ctx = context()
+    learner = LEARNERS[method](ctx)
+    assert isinstance(learner, Learner)
+    first = run_trials(env, learner, 6)
+    assert len(first) == 6
+    for info in first.infos:
+        assert info["action"].shape == env.action_space.shape and np.all(np.isfinite(info["action"]))
+    learner.reset()  # forget: the same seed gives the same trials again
+    again = run_trials(env, learner, 6)
+    for a, b in zip(first.infos, again.infos):
+        np.testing.assert_array_equal(a["action"], b["action"])
+
+
+def test_the_cyclic_learner_meets_the_protocol():
+    env = gym.make("ilc_steering/CyclicSteering-v0", config="cyclic_home_goal", cycles=2)
+    learner = CyclicILCAgent(env.unwrapped.nominal_models)
+    assert isinstance(learner, Learner)
+    rollout = run_trials(env, learner, 4)
+    assert [info["waypoint"] for info in rollout.infos] == [1, 2, 1, 2]
+    assert rollout.infos[-1]["cartesian_error"] < rollout.infos[1]["cartesian_error"]

@@ -1,0 +1,154 @@
+"""The package's seams: light imports, no import cycles, a pure core, an agent that cannot reach the plant."""
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+# Source folder -> the package it installs as (pyproject.toml's package-dir).
+FOLDERS = {
+    "ilc_steering": "ilc_steering",
+    "ilc_steering/core": "ilc_steering.core",
+    "envs": "ilc_steering.envs",
+    "agents": "ilc_steering.agents",
+}
+HEAVY = ("numba", "yaml", "matplotlib", "scipy.optimize", "torch", "stable_baselines3")
+
+
+def modules():
+    """Every module of the package: name -> source path."""
+    found = {}
+    for folder, package in FOLDERS.items():
+        for path in sorted((ROOT / folder).glob("*.py")):
+            found[package if path.stem == "__init__" else f"{package}.{path.stem}"] = path
+    return found
+
+
+MODULES = modules()
+
+
+def imports(path):
+    """Every module an import statement in ``path`` names, function-level imports included."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def edges(name, parents=False):
+    """The package's modules that ``name`` imports; with ``parents``, also the parent packages that
+    importing it runs first."""
+    targets = {m for m in imports(MODULES[name]) if m in MODULES}
+    if parents:
+        parts = name.split(".")
+        targets.update(".".join(parts[:i]) for i in range(1, len(parts)) if ".".join(parts[:i]) in MODULES)
+    return targets - {name}
+
+
+def closure(name, parents=False):
+    """Every module of the package that importing ``name`` reaches."""
+    seen, todo = set(), [name]
+    while todo:
+        for target in edges(todo.pop(), parents):
+            if target not in seen:
+                seen.add(target)
+                todo.append(target)
+    return seen
+
+
+def loaded_after(statement):
+    """The modules in ``sys.modules`` after ``statement`` in a fresh interpreter."""
+    code = f"import json, sys\n{statement}\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd="/")
+    return set(json.loads(out.stdout))
+
+
+def test_the_walk_sees_every_module():
+    assert {"ilc_steering.core.nominal", "ilc_steering.envs.scenario", "ilc_steering.agents.ilc"} <= set(MODULES)
+    assert "ilc_steering.core.car" in edges("ilc_steering.core.nominal") or "ilc_steering.core.profiles" in edges(
+        "ilc_steering.core.nominal"
+    )
+
+
+def test_no_import_cycles():
+    def visit(name, path):
+        if name in path:
+            return [*path[path.index(name) :], name]
+        for target in sorted(edges(name)):
+            cycle = visit(target, [*path, name])
+            if cycle:
+                return cycle
+        return None
+
+    for name in MODULES:
+        assert visit(name, []) is None, " -> ".join(visit(name, []))
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith("ilc_steering.core")))
+def test_the_core_imports_no_gymnasium_yaml_env_or_agent(name):
+    # The parent package is left out: its __init__ only registers the env ids (see the next tests).
+    reached = closure(name) | {name}
+    assert not [m for m in reached if m.startswith(("ilc_steering.envs", "ilc_steering.agents"))]
+    assert "ilc_steering.config" not in reached
+    third_party = {m.split(".")[0] for r in reached for m in imports(MODULES[r])}
+    assert not third_party & {"gymnasium", "yaml", "matplotlib", "torch", "stable_baselines3"}
+
+
+def test_the_package_inits_import_no_module_of_the_package():
+    for name in ("ilc_steering", "ilc_steering.core", "ilc_steering.envs"):
+        assert edges(name) == set(), name
+    assert {m.split(".")[0] for m in imports(MODULES["ilc_steering"])} <= {
+        "__future__",
+        "importlib",
+        "typing",
+        "gymnasium",
+    }
+
+
+@pytest.mark.parametrize(
+    "agent", ["ilc_steering.agents.ilc", "ilc_steering.agents.cyclic_ilc", "ilc_steering.agents.base"]
+)
+def test_the_nominal_model_and_the_agents_have_no_route_to_the_true_plant(agent):
+    plant_side = {
+        "ilc_steering.core.plants",
+        "ilc_steering.core.simulate",
+        "ilc_steering.core.integrate",
+        "ilc_steering.core.reference",
+        "ilc_steering.config",
+    }
+    for name in ("ilc_steering.core.nominal", agent):
+        reached = closure(name, parents=True)
+        assert not reached & plant_side, (name, reached & plant_side)
+        assert not [m for m in reached if m.startswith("ilc_steering.envs")]
+
+
+def test_import_ilc_steering_registers_the_envs_and_loads_nothing_heavy():
+    loaded = loaded_after(
+        "import ilc_steering, gymnasium\nassert 'ilc_steering/ChainedSteering-v0' in gymnasium.registry"
+    )
+    assert not [m for m in loaded if m.split(".")[0] in HEAVY or m in HEAVY]
+    assert not [m for m in loaded if m.startswith(("ilc_steering.envs.", "ilc_steering.agents."))]
+
+
+def test_the_agent_loads_neither_numba_nor_yaml():
+    loaded = loaded_after("from ilc_steering.agents import ILCAgent")
+    assert "numba" not in loaded and "yaml" not in loaded
+    assert not [m for m in loaded if m.startswith("ilc_steering.envs")]
+
+
+def test_lazy_names_resolve():
+    import ilc_steering
+    from ilc_steering import envs
+
+    assert ilc_steering.load_config("forward_parking").name == "forward_parking"
+    assert envs.ChainedSteeringEnv.__name__ == "ChainedSteeringEnv"
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        _ = ilc_steering.nope
