@@ -54,10 +54,10 @@ def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
     )
 
 
-def plane(q: Array, is_car: bool) -> Array:
+def plane(q: Array, has_pose: bool) -> Array:
     """The drawn coordinates of configurations ``(..., nx)``: ``(x, y)`` for a car, ``(z1, zn)`` otherwise."""
     q = np.asarray(q)
-    return q[..., :2] if is_car else q[..., [0, -1]]
+    return q[..., :2] if has_pose else q[..., [0, -1]]
 
 
 def draw_pose(

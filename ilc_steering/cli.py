@@ -30,7 +30,7 @@ PAPER: dict[str, tuple[int | None, str]] = {
 WHY_DIFFERENT = {
     "forward_parking_saturated": (
         "the paper does not say how its 45-degree saturation is modelled (ours: a steering servo whose "
-        "command winds past the stop, envs/integrate.py), and it judged 'exact steering' from its plots "
+        "command winds past the stop, ilc_steering/core/integrate.py), and it judged 'exact steering' from its plots "
         "where we count trials to a 0.5 mm tolerance"
     ),
 }

@@ -256,12 +256,10 @@ class SteeringConfig:
         return [("task", self.task)]
 
     def frame(self) -> float:
-        """The rotation [rad] of the task frame (:func:`~ilc_steering.core.car.frame_angle`); 0 without a pose."""
-        if not self.plant.kind.has_pose:
-            return 0.0
-        points = self.points()
-        with _domain(points[-1][0]):
-            return frame_angle(*(point[2] for _, point in points))
+        """The rotation [rad] of the task frame (:func:`~ilc_steering.core.car.frame_angle`, computed once,
+        on loading); 0 without a pose."""
+        frame: float = self.__dict__["_frame"]
+        return frame
 
     def __post_init__(self) -> None:
         n = self.plant.dimension
@@ -290,7 +288,11 @@ class SteeringConfig:
             )
         else:
             _require(tolerance.error is not None, "learning.tolerance", "a chained plant needs {error: ...}")
-        frame = self.frame()
+        frame = 0.0
+        if self.plant.kind.has_pose:
+            with _domain(points[-1][0]):
+                frame = frame_angle(*(point[2] for _, point in points))
+        object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         plant = self.plant.plant()
         for key, point in points:
             with _domain(key, {"phi": key}):
