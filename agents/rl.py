@@ -43,9 +43,12 @@ def hyperparameters(algorithm: str, scenario: str) -> dict[str, Any]:
     source = f"configs/rl/{algorithm}.yaml"
     _algorithm_class(algorithm)
     table = yaml.safe_load((resources.files("ilc_steering.configs") / "rl" / f"{algorithm}.yaml").read_text())
-    if scenario not in table:
-        raise ConfigError(f"{source}: no hyperparameters for scenario {scenario!r} (has {sorted(table)})")
-    return check_hyperparameters(algorithm, dict(table[scenario]), f"{source}: {scenario}")
+    key = scenario if scenario in table else "default"
+    if key not in table:
+        raise ConfigError(
+            f"{source}: no hyperparameters for scenario {scenario!r} and no default (has {sorted(table)})"
+        )
+    return check_hyperparameters(algorithm, dict(table[key]), f"{source}: {key}")
 
 
 def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) -> dict[str, Any]:

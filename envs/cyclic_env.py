@@ -149,11 +149,12 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Array, dict[str, Any]]:
         super().reset(seed=seed)
-        start = (
-            self._scenario.waypoints[0]
-            if not options or "start" not in options
-            else self._check_start(options["start"])
-        )
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
+        unknown = sorted(set(options or {}) - {"start"})
+        if unknown:
+            raise ValueError(f"options: unknown key {unknown[0]!r}; the cyclic env takes 'start' (a configuration)")
+        start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])
         self._x = self._scenario.to_task(np.asarray(start, dtype=np.float64)).copy()
         self._segment, self._cycle = 0, 1
         self._view.clear()
@@ -209,8 +210,8 @@ def make_cyclic_env(
 ) -> gym.Env[Array, npt.NDArray[np.float32]]:
     """The registered entry point: a :class:`CyclicSteeringEnv` truncated after ``cycles`` cycles
     (default: the config's ``learning.trials``) through ``TimeLimit``."""
+    if cycles is not None and (isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1):
+        raise ValueError(f"cycles must be a whole number >= 1 or None, got {cycles!r}")
     env = CyclicSteeringEnv(config, render_mode, record_trajectory)
-    count = env.config.learning.trials if cycles is None else cycles
-    if count < 1:
-        raise ValueError(f"cycles must be >= 1, got {count}")
+    count = env.config.learning.trials if cycles is None else int(cycles)
     return TimeLimit(env, max_episode_steps=count * env.num_segments)

@@ -17,7 +17,8 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.car import rotate
-from ilc_steering.core.integrate import DEFAULT_MAX_STEP, OK
+from ilc_steering.core.grid import DEFAULT_MAX_STEP
+from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.profiles import InputProfile

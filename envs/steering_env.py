@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import reprlib
 from pathlib import Path
 from typing import Any
 
@@ -32,11 +33,25 @@ Array = npt.NDArray[np.float64]
 
 
 def check_action(action: Any, shape: tuple[int, ...], names: str, what: str = "action") -> Array:
-    """``action`` as float64 of exactly ``shape``, or ``ValueError`` saying what is wrong."""
+    """``action`` as float64 of exactly ``shape``, or ``ValueError`` saying what is wrong: it must be
+    real numbers (integers or floats; not complex, text, dates, booleans or a masked array),
+    finite and within the float64 range."""
+    if isinstance(action, np.ma.MaskedArray):
+        raise ValueError(f"{what} must be a plain array of {names}, not a masked array")
     try:
-        c = np.asarray(action, dtype=np.float64)
+        raw = np.asarray(action)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"{what} must be numeric {names}, got {action!r}") from error
+        raise ValueError(f"{what} must be numeric {names}: {error}") from None
+    if raw.dtype.kind == "O":
+        try:
+            raw = np.asarray(action, dtype=np.float64)
+        except OverflowError:
+            raise ValueError(f"{what} has a value beyond the float64 range") from None
+        except (TypeError, ValueError):
+            raise ValueError(f"{what} must be numeric {names}, got {reprlib.repr(action)}") from None
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"{what} must be numeric {names} (real integers or floats), got dtype {raw.dtype}")
+    c = np.asarray(raw, dtype=np.float64)
     if c.shape != shape:
         raise ValueError(f"{what} must have shape {shape} = {names}, got shape {c.shape}")
     finite = np.isfinite(c)
@@ -190,6 +205,10 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.record_trajectory = record_trajectory
         self.config = load_config(config)
+        if self.config.is_cyclic:
+            raise ValueError(
+                f"{self.config.name}: a cyclic config (task.waypoints); use ilc_steering/CyclicSteering-v0 for it"
+            )
         self._scenario = Scenario.from_config(self.config)
         action_space, observation_space, self._observation = task_spaces(self._scenario)
         self.observation_space = observation_space  # type: ignore[assignment]

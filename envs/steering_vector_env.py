@@ -14,7 +14,6 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
-    ChainedSteeringEnv,
     action_names,
     check_action,
     check_render_mode,
@@ -58,7 +57,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ((3, 8), [True, True, True], True)
     """
 
-    metadata: dict[str, Any] = {**ChainedSteeringEnv.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
+    metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
+    """No render mode: one step runs thousands of trials; render a ``ChainedSteeringEnv`` instead."""
 
     def __init__(
         self,
@@ -67,7 +67,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         render_mode: str | None = None,
         parallel: bool | None = None,
     ) -> None:
-        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.num_envs = int(num_envs)
         self.render_mode = check_render_mode(render_mode, self.metadata)
@@ -90,7 +90,13 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        super().reset(seed=seed if not isinstance(seed, list) else seed[0])
+        if isinstance(seed, list):
+            if len(seed) != self.num_envs:
+                raise ValueError(f"seed: a list needs one seed per env ({self.num_envs}), got {len(seed)}")
+            seed = seed[0]  # one task, one random stream: the first seed sets it
+        if options:
+            raise ValueError(f"options: the vector env takes none, got {sorted(options)}")
+        super().reset(seed=seed)
         return self._observations.copy(), self._reset_info()
 
     def step(  # type: ignore[override]  # Gymnasium annotates the flags as the action array type

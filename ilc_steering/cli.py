@@ -1,21 +1,25 @@
 """The ``ilc-steering`` command (also ``python -m ilc_steering``).
 
-``run CONFIG`` learns on one scenario and exits 0 if the tolerance was met within the trials,
-1 otherwise, so it can gate a CI job. ``reproduce`` runs the paper's simulations. ``plot RUN.json``
-draws the paper's figures of a run. ``compare`` runs (or resumes) the benchmark of ILC against
-RL and black-box learners.
+``run CONFIG`` learns on one scenario, so it can gate a CI job. ``reproduce`` runs the paper's
+simulations. ``plot RUN.json`` draws the paper's figures of a run. ``compare`` runs (or resumes)
+the benchmark of ILC against RL and black-box learners. ``list`` shows the packaged configs.
+
+Exit codes: 0 converged (or done), 1 not converged, 2 bad input (a config, an argument, a run
+file, an unusable output path: all checked before any trial runs), 3 an internal error. Errors
+are one line; ``--debug`` adds the traceback.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
 from ilc_steering.compare import add_arguments as add_compare_arguments
-from ilc_steering.config import ConfigError, SteeringConfig, load_config
+from ilc_steering.config import ConfigError, SteeringConfig, load_config, packaged_configs
+from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import CycleRecord, CyclicRunResult, RunResult, TrialRecord, run_cyclic_ilc, run_ilc
 
 __all__ = ["main"]
@@ -62,9 +66,11 @@ def _values(record: TrialRecord) -> list[float]:
 def _print_row(record: TrialRecord | CycleRecord) -> None:
     if isinstance(record, CycleRecord):
         index, values = record.cycle, [v for w in record.waypoints for v in _values(w)]
+        left = any(w.left_chart for w in record.waypoints)
     else:
-        index, values = record.trial, _values(record)
-    print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values), flush=True)
+        index, values, left = record.trial, _values(record), record.left_chart
+    note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
+    print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 
 def _learn(config: SteeringConfig, count: int | None, trajectories: bool) -> RunResult | CyclicRunResult:
@@ -86,11 +92,11 @@ def _learn(config: SteeringConfig, count: int | None, trajectories: bool) -> Run
 
 
 def _save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Path | None) -> None:
-    """Write the run's JSON and its figures, where asked."""
+    """Write the run's JSON and its figures, where asked (the paths were checked before the run)."""
     data = result.to_json()
     if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(data))
+        write_json(json_path, data)
+        print(f"wrote {json_path}")
     if plots is not None:
         from ilc_steering.plots import write_plots
 
@@ -99,20 +105,32 @@ def _save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Pa
 
 
 def _run(args: argparse.Namespace) -> int:
-    result = _learn(load_config(args.config), args.trials, trajectories=args.json is not None or args.plots is not None)
+    config = load_config(args.config)
+    if args.trials is not None and args.trials < 1:
+        raise ValueError(f"--trials must be >= 1, got {args.trials}")
+    if args.json is not None:
+        check_output_file(args.json, "--json")
+    if args.plots is not None:
+        check_output_dir(args.plots, "--plots")
+    result = _learn(config, args.trials, trajectories=args.json is not None or args.plots is not None)
     _save(result, args.json, args.plots)
     return 0 if result.converged_at is not None else 1
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from ilc_steering.plots import write_plots
+    from ilc_steering.plots import load_run, write_plots
 
-    for path in write_plots(args.run, args.out):
+    run = load_run(args.run)
+    check_output_dir(args.out, "--out")
+    for path in write_plots(run, args.out):
         print(f"wrote {path}")
     return 0
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    for folder, option in ((args.json_dir, "--json-dir"), (args.plots, "--plots")):
+        if folder is not None:
+            check_output_dir(folder, option)
     rows = []
     for name, (paper, figures) in PAPER.items():
         result = _learn(load_config(name), None, trajectories=args.json_dir is not None or args.plots is not None)
@@ -140,8 +158,15 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ilc-steering", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="ilc-steering",
+        description="Iterative learning control of nonholonomic robots (Oriolo, Panzieri, Ulivi 1998).",
+        epilog="Exit codes: 0 converged, 1 not converged, 2 bad input, 3 internal error.",
+    )
+    parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
+    listing = sub.add_parser("list", help="the packaged configs, one line each")
+    listing.set_defaults(handler=_list)
     run = sub.add_parser("run", help="learn on one scenario (one-trial or cyclic); exit 0 if it converged")
     run.add_argument("config", help="a YAML file or a packaged config name, e.g. forward_parking")
     run.add_argument(
@@ -187,16 +212,43 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _list(args: argparse.Namespace) -> int:
+    for name in packaged_configs():
+        config = load_config(name)
+        unit = "cycles" if config.is_cyclic else "trials"
+        figures = PAPER.get(name, (None, ""))[1]
+        kind = f"{config.plant.model}, {'cyclic, ' if config.is_cyclic else ''}{config.learning.trials} {unit}"
+        print(f"{name:28s} {kind:28s} {figures}")
+    return 0
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split())
+    return text if len(text) <= 2000 else text[:2000] + " ..."
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         return int(args.handler(args))
-    except ConfigError as error:
-        print(f"ilc-steering: config error: {error}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("ilc-steering: interrupted", file=sys.stderr)
+        return 130
+    except ValueError as error:  # ConfigError included: bad input
+        if args.debug:
+            traceback.print_exc()
+        kind = "config error" if isinstance(error, ConfigError) else "error"
+        print(f"ilc-steering: {kind}: {_one_line(error)}", file=sys.stderr)
         return 2
-    except ValueError as error:
-        print(f"ilc-steering: {error}", file=sys.stderr)
-        return 2
+    except Exception as error:
+        if args.debug:
+            traceback.print_exc()
+        print(
+            f"ilc-steering: internal error: {type(error).__name__}: {_one_line(error)}. This is a bug: please report "
+            "it with the command that caused it (--debug prints the traceback).",
+            file=sys.stderr,
+        )
+        return 3
 
 
 if __name__ == "__main__":

@@ -20,10 +20,12 @@ recomputes or loses a finished cell.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,13 +35,15 @@ import numpy as np
 
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.loop import run_trials
+from ilc_steering.output import check_output_dir, write_json
 from ilc_steering.tables import markdown_table, write_results
 
 __all__ = ["Args", "TrialLog", "main", "make_learner", "parse", "run_cell"]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
-LOOSE = (0.01, 0.01)  # [m], [rad]
-TIGHT = (5e-4, 5e-4)  # [m], [rad]
+LOOSE = (0.01, 0.01)  # [m], [rad]; a chained plant: 0.01 on ||z^d - z(T)||
+TIGHT = (5e-4, 5e-4)  # [m], [rad]; a chained plant: 5e-4 on ||z^d - z(T)||
+MAX_SEED = 2**32 - 1
 METHODS = ("ilc", "gauss_newton", "nelder_mead", "cma_es", "ppo", "sac", "td3")
 SCENARIOS = ("forward_parking", "forward_parking_saturated", "parallel_parking")
 
@@ -66,30 +70,37 @@ class Args:
     """SB3's progress bar on RL cells."""
 
 
-QUICK = {"seeds": (0, 1), "ilc_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "progress_bar": False}
+QUICK = {"ilc_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "progress_bar": False}
+QUICK_SEEDS = (0, 1)
 
 
 class TrialLog:
-    """A trial-loop callback that keeps every trial's Cartesian [m] and orientation [rad] errors."""
+    """A trial-loop callback that keeps every trial's errors: Cartesian [m] and orientation [rad]
+    for a robot with a pose, the chained error norm for a chained plant (``cartesian`` holds it
+    then, ``orientation`` zeros), the cost every learner minimises, and whether it left the chart."""
 
     def __init__(self) -> None:
         self.cartesian: list[float] = []
         self.orientation: list[float] = []
+        self.left_chart: list[bool] = []
 
     def __call__(self, k: int, info: dict[str, Any]) -> None:
-        self.cartesian.append(float(info["cartesian_error"]))
-        self.orientation.append(float(info["orientation_error"]))
+        self.cartesian.append(float(info.get("cartesian_error", info["error_norm"])))
+        self.orientation.append(float(info.get("orientation_error", 0.0)))
+        self.left_chart.append(bool(info["left_chart"]))
 
 
 def first_within(log: TrialLog, tolerance: tuple[float, float]) -> int | None:
-    """The 1-based index of the first trial within ``tolerance`` (both errors), or None."""
+    """The 1-based index of the first trial within ``tolerance`` (both errors; a chained plant:
+    its error norm within the first), or None."""
     ok = (np.asarray(log.cartesian) <= tolerance[0]) & (np.asarray(log.orientation) <= tolerance[1])
     hits = np.flatnonzero(ok)
     return int(hits[0]) + 1 if hits.size else None
 
 
 def best_so_far(log: TrialLog) -> list[list[float]]:
-    """``[trial, best error]`` at every trial that improved the best Cartesian + orientation error."""
+    """``[trial, best error]`` at every trial that improved the best cost (Cartesian + orientation
+    error, or the chained error norm)."""
     error = np.asarray(log.cartesian) + np.asarray(log.orientation)
     best = np.minimum.accumulate(error)
     changed = np.flatnonzero(np.concatenate([[True], best[1:] < best[:-1]]))
@@ -107,7 +118,7 @@ def budget(args: Args, method: str, scenario: str) -> int:
 
 
 def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
-    """The learner of ``method`` for ``scenario``, built from ``context`` alone."""
+    """The learner of ``method`` for ``scenario`` (its config's name), built from ``context`` alone."""
     from ilc_steering.agents import blackbox, rl
     from ilc_steering.agents.ilc import make_ilc
 
@@ -123,10 +134,11 @@ def make_learner(args: Args, method: str, scenario: str, context: LearnerContext
 
 def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any]:
     """One (method, scenario, seed) cell: the method's run within its budget, and what it reached."""
-    trials = budget(args, method, scenario)
     env = gym.make(ENV_ID, config=scenario)
     unwrapped: Any = env.unwrapped
     config = unwrapped.config
+    name = config.name
+    trials = budget(args, method, name)
     context = LearnerContext(
         unwrapped.nominal_model,
         unwrapped.action_space,
@@ -135,7 +147,7 @@ def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any
         config.learning.nu_a,
         config.learning.nu_b,
     )
-    learner = make_learner(args, method, scenario, context)
+    learner = make_learner(args, method, name, context)
     log = TrialLog()
     start = time.perf_counter()
     run_trials(env, learner, trials, seed=seed, callbacks=[log])
@@ -143,10 +155,11 @@ def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any
     curve = best_so_far(log)
     return {
         "method": method,
-        "scenario": scenario,
+        "scenario": name,
         "seed": seed,
         "budget": trials,
         "trials": len(log.cartesian),
+        "left_chart_fraction": float(np.mean(log.left_chart)) if log.left_chart else 0.0,
         "trials_to_loose": first_within(log, LOOSE),
         "trials_to_tight": first_within(log, TIGHT),
         "best_error": curve[-1][1],
@@ -159,10 +172,82 @@ def cell_path(out: Path, method: str, scenario: str, seed: int) -> Path:
     return out / "cells" / f"{method}__{scenario}__{seed}.json"
 
 
-def _write_atomic(path: Path, data: Any) -> None:
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data))
-    tmp.replace(path)  # a cell file is either whole or absent
+def validate(args: Args) -> dict[str, str]:
+    """Check every argument and scenario before the first cell; returns scenario -> config name.
+
+    ``ValueError`` names the argument: unknown or repeated methods, scenarios or seeds, a seed
+    outside ``[0, 2**32)``, a cyclic config (``compare`` runs one-trial tasks), two scenarios of
+    one name, a budget below 1.
+    """
+    from ilc_steering.config import load_config
+
+    for option, values in (("--methods", args.methods), ("--scenarios", args.scenarios), ("--seeds", args.seeds)):
+        if not values:
+            raise ValueError(f"{option}: give at least one")
+        repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
+        if repeated:
+            raise ValueError(f"{option}: {repeated[0]} is given twice; each cell is counted once")
+    unknown = [m for m in args.methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"--methods: unknown method {unknown[0]!r}; choose from {list(METHODS)}")
+    bad = [s for s in args.seeds if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
+    if bad:
+        raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
+    for option, value in (("ilc_trials", args.ilc_trials), ("blackbox_trials", args.blackbox_trials)):
+        if value < 1:
+            raise ValueError(f"{option}: the budget must be >= 1 trial, got {value}")
+    if args.rl_trials is not None and args.rl_trials < 1:
+        raise ValueError(f"rl_trials: the budget must be >= 1 trial, got {args.rl_trials}")
+    names: dict[str, str] = {}
+    for scenario in args.scenarios:
+        config = load_config(scenario)
+        if config.is_cyclic:
+            raise ValueError(
+                f"--scenarios {scenario}: a cyclic config; compare runs one-trial tasks "
+                "(use ilc-steering run for cycles)"
+            )
+        if config.name in names.values():
+            raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
+        names[scenario] = config.name
+    for method in args.methods:
+        for name in names.values():
+            budget(args, method, name)  # RL: its hyperparameters exist
+    return names
+
+
+CELL_KEYS = {
+    "method": str,
+    "scenario": str,
+    "seed": int,
+    "budget": int,
+    "trials": int,
+    "best_error": float,
+    "wall_s": float,
+    "curve": list,
+}
+
+
+def read_cell(path: Path, method: str, scenario: str, seed: int, budget: int) -> dict[str, Any]:
+    """A finished cell, checked against its key and the run's budget; ``ValueError`` names the file."""
+    hint = "delete it to have the cell computed again"
+    try:
+        cell = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path}: not a readable cell ({type(error).__name__}: {error}); {hint}") from None
+    if not isinstance(cell, dict):
+        raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
+    for key, kind in CELL_KEYS.items():
+        value = cell.get(key)
+        ok = isinstance(value, (int, float)) if kind is float else isinstance(value, kind)
+        if not ok or isinstance(value, bool):
+            raise ValueError(f"{path}: {key!r} is missing or not a {kind.__name__}; {hint}")
+    expected = {"method": method, "scenario": scenario, "seed": seed, "budget": budget}
+    for key, value in expected.items():
+        if cell[key] != value:
+            raise ValueError(f"{path}: holds {key} {cell[key]!r}, not {value!r}; {hint}")
+    if not 1 <= cell["trials"] <= budget:
+        raise ValueError(f"{path}: {cell['trials']} trials for a budget of {budget}; {hint}")
+    return cell
 
 
 def _check_run_folder(args: Args) -> None:
@@ -170,35 +255,65 @@ def _check_run_folder(args: Args) -> None:
     settings = {k: v for k, v in asdict(args).items() if k not in ("out", "progress_bar", "methods", "scenarios")}
     settings["seeds"] = list(settings["seeds"])
     stored_path = args.out / "run.json"
+    cells = args.out / "cells"
+    check_output_dir(args.out, "--out")
+    if cells.exists() and not cells.is_dir():
+        raise ValueError(f"{cells}: exists and is not a folder; this is not a compare run folder")
     if stored_path.exists():
-        stored = json.loads(stored_path.read_text())
+        try:
+            stored = json.loads(stored_path.read_bytes().decode("utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+            raise ValueError(f"{stored_path}: not readable ({error}); use another --out folder") from None
         if stored != settings:
             raise ValueError(f"{stored_path} was written with {stored}, not {settings}: use another --out folder")
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "cells").mkdir(exist_ok=True)
-    _write_atomic(stored_path, settings)
+    elif cells.is_dir() and any(cells.glob("*.json")):
+        raise ValueError(
+            f"{args.out}: has cells but no run.json, so their settings cannot be checked: use another --out folder"
+        )
+    cells.mkdir(exist_ok=True)
+    write_json(stored_path, settings)
+
+
+@contextmanager
+def _locked(folder: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the run folder: two ``compare`` processes never share one."""
+    with open(folder / ".lock", "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ValueError(f"{folder}: another compare is running on this folder") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def run_cells(args: Args, runner: Callable[[Args, str, str, int], dict[str, Any]] = run_cell) -> list[dict[str, Any]]:
-    """Every cell of the run, computing only those not yet in the run folder."""
+    """Every cell of the run, computing only those not yet in the run folder.
+
+    Everything is validated before the first cell; each finished cell is written at once.
+    """
+    names = validate(args)
     _check_run_folder(args)
     cells = []
-    for scenario in args.scenarios:
-        for method in args.methods:
-            for seed in args.seeds:
-                path = cell_path(args.out, method, scenario, seed)
-                if path.exists():
-                    cells.append(json.loads(path.read_text()))
-                    continue
-                cell = runner(args, method, scenario, seed)
-                _write_atomic(path, cell)
-                cells.append(cell)
-                reached = cell["trials_to_tight"] or "-"
-                print(
-                    f"{scenario:26s} {method:13s} seed {seed}: best {cell['best_error']:.2e} "
-                    f"(tight at {reached}) in {cell['wall_s']:.1f} s",
-                    flush=True,
-                )
+    with _locked(args.out):
+        for scenario, name in names.items():
+            for method in args.methods:
+                for seed in args.seeds:
+                    path = cell_path(args.out, method, name, seed)
+                    if path.exists():
+                        cells.append(read_cell(path, method, name, seed, budget(args, method, name)))
+                        continue
+                    cell = runner(args, method, scenario, seed)
+                    write_json(path, cell)
+                    cells.append(cell)
+                    reached = cell["trials_to_tight"] or "-"
+                    print(
+                        f"{name:26s} {method:13s} seed {seed}: best {cell['best_error']:.2e} "
+                        f"(0.5 mm / 0.5 mrad reached at trial {reached}; - for not within the budget) "
+                        f"in {cell['wall_s']:.1f} s",
+                        flush=True,
+                    )
     return cells
 
 
@@ -342,31 +457,44 @@ def main(args: Args) -> list[dict[str, Any]]:
     if args.quick:
         args = Args(**{**asdict(args), **QUICK, "quick": True})
     cells = run_cells(args)
+    names = list(validate(args).values())
     summaries = summarize(cells)
     text = report(summaries)
     rows = [{k: v for k, v in c.items() if k != "curve"} for c in cells]
     write_results(rows, args.out, "compare", text, {"summary": [s.row() for s in summaries], "cells": cells})
-    plot(cells, args.scenarios, args.out / "compare.png")
+    plot(cells, tuple(names), args.out / "compare.png")
     print(text)
+    print(f"wrote {args.out}/compare.{{csv,json,md,png}} and one file per cell in {args.out}/cells")
     return cells
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--quick", action="store_true", help="tiny budgets, two seeds: check that everything runs (CI)")
+    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"tiny budgets ({QUICK['ilc_trials']} ILC, {QUICK['blackbox_trials']} black-box, {QUICK['rl_trials']} RL "
+        f"trials) and, unless --seeds is given, seeds {' '.join(map(str, QUICK_SEEDS))}: checks that everything runs",
+    )
     parser.add_argument("--out", type=Path, default=Args.out, help="run folder; an existing one is resumed")
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
-    parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS))
-    parser.add_argument("--seeds", type=int, nargs="+", default=list(Args.seeds))
-    parser.add_argument("--no-progress-bar", action="store_true", help="no SB3 progress bar")
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), help=f"any of {' '.join(METHODS)}")
+    parser.add_argument(
+        "--scenarios", nargs="+", default=list(SCENARIOS), help="packaged config names or YAML paths (one-trial tasks)"
+    )
+    parser.add_argument(
+        "--seeds", type=int, nargs="+", default=None, help=f"whole numbers in [0, {MAX_SEED}] (default: 0 1 2 3 4)"
+    )
+    parser.add_argument("--no-progress-bar", action="store_true", help="no SB3 progress bar on RL cells")
 
 
 def from_namespace(ns: argparse.Namespace) -> Args:
+    seeds = ns.seeds if ns.seeds is not None else (QUICK_SEEDS if ns.quick else Args.seeds)
     return Args(
         quick=ns.quick,
         out=ns.out,
         methods=tuple(ns.methods),
         scenarios=tuple(ns.scenarios),
-        seeds=tuple(ns.seeds),
+        seeds=tuple(seeds),
         progress_bar=not ns.no_progress_bar,
     )
 

@@ -8,6 +8,8 @@ the packaged YAML files (``configs/``).
 from __future__ import annotations
 
 import dataclasses
+import re
+import reprlib
 import types
 import typing
 from collections.abc import Iterator
@@ -22,6 +24,7 @@ import numpy as np
 
 from ilc_steering.core.car import CarModel, frame_angle, rotate
 from ilc_steering.core.checks import ParameterError, check_gains
+from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
 from ilc_steering.core.profiles import PiecewiseProfile
 
@@ -134,7 +137,11 @@ def _profile(leg: SegmentConfig | TaskConfig) -> PiecewiseProfile:
 def _check_bound(bound: tuple[float, ...] | None, size: int) -> None:
     if bound is not None:
         _require(len(bound) == size, "action_bound", f"needs 1 + v2_terms = {size} values, got {len(bound)}")
-        _require(all(map(_positive, bound)), "action_bound", "values must be finite and > 0")
+        _require(
+            all(_positive(b) and b <= MAX_ACTION_BOUND for b in bound),
+            "action_bound",
+            f"values must be > 0 and at most {MAX_ACTION_BOUND:g} (the action space is float32)",
+        )
 
 
 @dataclass(frozen=True)
@@ -262,42 +269,79 @@ class SteeringConfig:
         return frame
 
     def __post_init__(self) -> None:
+        _require(
+            bool(_NAME.fullmatch(self.name)),
+            "name",
+            f"must be 1-100 letters, digits, '_', '-' or '.', starting with a letter or digit (it names output files), "
+            f"got {_show(self.name)}",
+        )
         n = self.plant.dimension
         points = self.points()
         for key, point in points:
             _require(len(point) == n, key, f"needs {n} values for plant.model {self.plant.model}, got {len(point)}")
-        for i, (key, leg) in enumerate(self.legs()):
-            start, goal = points[i][1], points[(i + 1) % len(points)][1]
-            _require(
-                leg.v2_terms >= n - 1,
-                f"{key}.v2_terms",
-                f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {leg.v2_terms}",
-            )
-            _require(
-                goal[0] != start[0] or any(v != 0 for v in leg.v1_fixed),
-                f"{key}.v1_fixed",
-                "the start and goal share z1, so v1 on the learned piece goes to zero and W is singular (eq. 11): "
-                "add a piece with a nonzero fixed v1, as in the paper's parallel parking",
-            )
         tolerance = self.learning.tolerance
         if self.plant.kind.has_pose:
             _require(
-                tolerance.cartesian is not None and tolerance.orientation is not None,
+                tolerance.cartesian is not None and tolerance.orientation is not None and tolerance.error is None,
                 "learning.tolerance",
-                f"a {self.plant.model} needs {{cartesian: [m], orientation: [rad]}}",
+                f"a {self.plant.model} needs {{cartesian: [m], orientation: [rad]}} "
+                "and no error (that is for chained plants)",
             )
         else:
-            _require(tolerance.error is not None, "learning.tolerance", "a chained plant needs {error: ...}")
+            _require(
+                tolerance.error is not None and tolerance.cartesian is None and tolerance.orientation is None,
+                "learning.tolerance",
+                "a chained plant needs {error: ...} alone (it has no Cartesian or orientation error)",
+            )
         frame = 0.0
         if self.plant.kind.has_pose:
             with _domain(points[-1][0]):
                 frame = frame_angle(*(point[2] for _, point in points))
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         plant = self.plant.plant()
+        task_points = []
         for key, point in points:
-            with _domain(key, {"phi": key}):
+            with _domain(key, {"phi": key, "configuration": key}):
                 q = np.array(point, dtype=np.float64)
-                plant.check_configuration(rotate(q, frame) if self.plant.kind.has_pose else q)
+                task_points.append(rotate(q, frame) if self.plant.kind.has_pose else q)
+                plant.check_configuration(task_points[-1])
+        for i, (key, leg) in enumerate(self.legs()):
+            _require(
+                leg.v2_terms >= n - 1,
+                f"{key}.v2_terms",
+                f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {leg.v2_terms}",
+            )
+            with _domain(f"{key}.pieces", {"max_step": "simulation.max_step"}):
+                check_grid(leg.pieces, self.simulation.max_step)
+            # z1 is x in the task frame (section 2.1): eq. 12 sets the learned v1 from its change.
+            z1_change = task_points[(i + 1) % len(points)][0] - task_points[i][0]
+            fixed = sum(v * d for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            travel = abs(z1_change - fixed) + sum(abs(v) * d for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            _require(
+                travel > MIN_TRAVEL,
+                f"{key}.v1_fixed",
+                f"the start and goal share z1 (x in the task frame): v1 covers only {travel:.3g} along z1, so W is "
+                "singular (eq. 11); add a piece with a nonzero fixed v1, as in the paper's parallel parking",
+            )
+
+
+_EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+_REPR = reprlib.Repr()
+_REPR.maxstring, _REPR.maxother, _REPR.maxlist, _REPR.maxdict, _REPR.maxlevel = 60, 60, 6, 4, 3
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}")
+MIN_TRAVEL = 1e-6
+"""[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``."""
+MAX_ACTION_BOUND = 1e12
+"""The largest ``task.action_bound`` entry."""
+MAX_FILE_BYTES = 1 << 20
+"""Largest config file read [bytes]."""
+MAX_VALUES = 100_000
+"""Most values (mapping entries and list items, aliases expanded) a config may hold."""
+
+
+def _show(value: Any) -> str:
+    """A bounded ``repr`` for messages: a huge value (an alias bomb) must not cost its size."""
+    return _REPR.repr(value)
 
 
 def _is_optional(hint: Any) -> bool:
@@ -318,22 +362,26 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
     if dataclasses.is_dataclass(hint):
         return _build(hint, value, key)
     if origin is tuple:
-        _require(isinstance(value, (list, tuple)), key, f"must be a list, got {value!r}")
+        _require(isinstance(value, (list, tuple)), key, f"must be a list, got {_show(value)}")
         return tuple(_coerce(typing.get_args(hint)[0], v, f"{key}[{i}]") for i, v in enumerate(value))
     if origin is Literal:
         allowed = typing.get_args(hint)
-        _require(value in allowed, key, f"must be one of {list(allowed)}, got {value!r}")
+        _require(value in allowed, key, f"must be one of {list(allowed)}, got {_show(value)}")
         return value
     if hint is float:
+        if isinstance(value, str) and _EXPONENT_NUMBER.fullmatch(value.strip()):
+            value = float(value)  # YAML 1.1 (PyYAML) reads 1e-3 as a string; users mean the number
         _require(
-            isinstance(value, (int, float)) and not isinstance(value, bool), key, f"must be a number, got {value!r}"
+            isinstance(value, (int, float)) and not isinstance(value, bool),
+            key,
+            f"must be a number, got {_show(value)}",
         )
         return float(value)
     if hint is int:
-        _require(isinstance(value, int) and not isinstance(value, bool), key, f"must be an integer, got {value!r}")
+        _require(isinstance(value, int) and not isinstance(value, bool), key, f"must be an integer, got {_show(value)}")
         return value
     if hint is str:
-        _require(isinstance(value, str), key, f"must be a string, got {value!r}")
+        _require(isinstance(value, str), key, f"must be a string, got {_show(value)}")
         return value
     raise TypeError(f"no rule for type {hint} at {key}")
 
@@ -341,19 +389,21 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
 def _build_tagged(options: list[Any], value: Any, key: str) -> Any:
     """Pick the dataclass whose ``model`` literal matches ``value['model']`` or, without a
     ``model`` field, the one whose first field is a key of ``value`` (``start`` or ``waypoints``)."""
-    _require(isinstance(value, dict), key, f"must be a mapping, got {value!r}")
+    _require(isinstance(value, dict), key, f"must be a mapping, got {_show(value)}")
     if not all("model" in typing.get_type_hints(o) for o in options):
         markers = {dataclasses.fields(o)[0].name: o for o in options}
         found = [m for m in markers if m in value]
         _require(len(found) == 1, key, f"needs exactly one of the keys {list(markers)}, got {sorted(value)}")
         return _build(markers[found[0]], value, key)
     tags = {typing.get_args(typing.get_type_hints(o)["model"])[0]: o for o in options}
-    _require(value.get("model") in tags, f"{key}.model", f"must be one of {list(tags)}, got {value.get('model')!r}")
+    _require(
+        value.get("model") in tags, f"{key}.model", f"must be one of {list(tags)}, got {_show(value.get('model'))}"
+    )
     return _build(tags[value["model"]], value, key)
 
 
 def _build(cls: Any, value: Any, key: str) -> Any:
-    _require(isinstance(value, dict), key or "config", f"must be a mapping, got {value!r}")
+    _require(isinstance(value, dict), key or "config", f"must be a mapping, got {_show(value)}")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     prefix = f"{key}." if key else ""
@@ -380,18 +430,72 @@ def packaged_configs() -> list[str]:
     return sorted(p.name.removesuffix(".yaml") for p in root.iterdir() if p.name.endswith(".yaml"))
 
 
-def _read(source: str | Path) -> tuple[Any, str]:
+def _count_values(data: Any) -> int:
+    """The number of values in ``data`` with aliases expanded, counting no further than :data:`MAX_VALUES`."""
+    count, todo = 0, [data]
+    while todo and count <= MAX_VALUES:
+        item = todo.pop()
+        if isinstance(item, dict):
+            count += len(item)
+            todo.extend(item.values())
+        elif isinstance(item, list):
+            count += len(item)
+            todo.extend(item)
+    return count
+
+
+def _yaml(text: str, origin: str) -> Any:
+    """Parse a config's YAML: safe types only, no duplicate keys, at most :data:`MAX_VALUES` values."""
     import yaml
 
+    class Loader(yaml.SafeLoader):
+        def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+            keys = [self.construct_object(k, deep=deep) for k, _ in node.value]
+            duplicated = sorted({str(k) for k in keys if keys.count(k) > 1})
+            if duplicated:
+                line = node.start_mark.line + 1
+                raise ConfigError(f"{origin}: duplicate key {duplicated[0]!r} in the mapping at line {line}")
+            return super().construct_mapping(node, deep=deep)
+
+    try:
+        data = yaml.load(text, Loader=Loader)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        raise ConfigError(f"{origin}: not valid YAML{where}: {problem}") from None
+    if _count_values(data) > MAX_VALUES:
+        raise ConfigError(f"{origin}: more than {MAX_VALUES} values (anchors and aliases expanded); not a config")
+    return data
+
+
+def _text(read: Any, origin: str) -> str:
+    """A config file's text: UTF-8, at most :data:`MAX_FILE_BYTES`."""
+    try:
+        raw: bytes = read()
+    except OSError as error:
+        raise ConfigError(f"{origin}: cannot read it: {error.strerror or error}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ConfigError(f"{origin}: {len(raw)} bytes; a config is at most {MAX_FILE_BYTES} bytes")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ConfigError(f"{origin}: not UTF-8 text (byte {error.start})") from None
+
+
+def _read(source: str | Path) -> tuple[Any, str]:
     path = Path(source)
     if path.suffix in (".yaml", ".yml") or path.exists():
         if not path.is_file():
             raise ConfigError(f"{path}: no such config file")
-        return yaml.safe_load(path.read_text()), str(path)
+        return _yaml(_text(path.read_bytes, str(path)), str(path)), str(path)
+    if not isinstance(source, str) or not re.fullmatch(r"[A-Za-z0-9_\-]+", source):
+        raise ConfigError(f"{source!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
     resource = resources.files("ilc_steering.configs") / f"{source}.yaml"
     if not resource.is_file():
         raise ConfigError(f"{source!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
-    return yaml.safe_load(resource.read_text()), f"{source}.yaml (packaged)"
+    origin = f"{source}.yaml (packaged)"
+    return _yaml(_text(resource.read_bytes, origin), origin), origin
 
 
 def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> SteeringConfig:
@@ -399,7 +503,13 @@ def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> Steerin
     or an already built config (returned as is)."""
     if isinstance(source, SteeringConfig):
         return source
+    if not isinstance(source, (str, Path, dict)):
+        raise ConfigError(
+            f"config must be a YAML path, a packaged config name, a mapping or a SteeringConfig, got {_show(source)}"
+        )
     data, origin = (source, "<mapping>") if isinstance(source, dict) else _read(source)
+    if isinstance(source, dict) and _count_values(data) > MAX_VALUES:
+        raise ConfigError(f"{origin}: more than {MAX_VALUES} values; not a config")
     try:
         config: SteeringConfig = _build(SteeringConfig, data, "")
         return config

@@ -30,6 +30,7 @@ from ilc_steering.core.car import drawn_wheelbase
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
+from ilc_steering.output import safe_name
 
 __all__ = ["Run", "load_run", "write_plots"]
 
@@ -83,28 +84,70 @@ def load_run(source: Path | dict[str, Any]) -> Run:
     """A :class:`Run` from a JSON file or its parsed content; ``ValueError`` names what is missing."""
     origin = str(source) if isinstance(source, Path) else "<run>"
     try:
-        data = json.loads(source.read_text()) if isinstance(source, Path) else source
-    except (OSError, json.JSONDecodeError) as error:
-        raise ValueError(f"{origin}: cannot read a run's JSON: {error}") from None
-    if not isinstance(data, dict) or "config" not in data or data.get("kind") not in ("trials", "cycles"):
+        if isinstance(source, Path):
+            if source.stat().st_size > MAX_RUN_BYTES:
+                raise ValueError(f"{origin}: larger than {MAX_RUN_BYTES} bytes; not a run's JSON")
+            data = json.loads(source.read_bytes().decode("utf-8"))
+        else:
+            data = source
+    except OSError as error:
+        raise ValueError(f"{origin}: cannot read it ({error.strerror or error})") from None
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{origin}: not UTF-8 text (byte {error.start})") from None
+    except json.JSONDecodeError as error:
         raise ValueError(
-            f"{origin}: not a run's JSON (needs 'kind': 'trials' or 'cycles' and 'config'; "
+            f"{origin}: not valid JSON at line {error.lineno}, column {error.colno}: {error.msg}"
+        ) from None
+    if (
+        not isinstance(data, dict)
+        or data.get("kind") not in ("trials", "cycles")
+        or not isinstance(data.get("config"), dict)
+    ):
+        raise ValueError(
+            f"{origin}: not a run's JSON (needs 'kind': 'trials' or 'cycles' and a 'config' mapping; "
             "written by `ilc-steering run --json`)"
         )
     try:
         config = load_config(data["config"])
     except ConfigError as error:
         raise ValueError(f"{origin}: its config: {error}") from None
+    kind = data["kind"]
     try:
-        if data["kind"] == "trials":
+        if kind == "trials":
             records = [dict(r) for r in data["trials"]]
         else:
             records = [{**w, "cycle": c["cycle"]} for c in data["cycles"] for w in c["waypoints"]]
-    except (KeyError, TypeError) as error:
-        raise ValueError(f"{origin}: malformed {data['kind']} list ({error!r})") from None
+    except (KeyError, TypeError, ValueError) as error:
+        raise ValueError(f"{origin}: malformed {kind} list ({error!r})") from None
     if not records:
-        raise ValueError(f"{origin}: the run has no {data['kind']}")
-    return Run(config, records, data["kind"] == "cycles")
+        raise ValueError(f"{origin}: the run has no {kind}")
+    for i, record in enumerate(records):
+        problem = _record_problem(record, kind == "cycles", config)
+        if problem:
+            raise ValueError(f"{origin}: {kind} record {i}: {problem}")
+    return Run(config, records, kind == "cycles")
+
+
+MAX_RUN_BYTES = 1 << 30
+"""The largest run JSON ``plot`` reads [bytes]."""
+
+
+def _record_problem(record: dict[str, Any], cyclic: bool, config: SteeringConfig) -> str | None:
+    """What is wrong with one record of a run, or ``None``."""
+    numbers = ["error_norm", *(["cartesian_error", "orientation_error"] if config.plant.kind.has_pose else [])]
+    integers = ["cycle", "index"] if cyclic else ["trial"]
+    for key in integers:
+        if not isinstance(record.get(key), int) or isinstance(record.get(key), bool) or record[key] < 0:
+            return f"{key!r} must be a whole number >= 0"
+    for key in numbers:
+        value = record.get(key)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            return f"{key!r} must be a number"
+    state = record.get("final_state")
+    size = config.plant.dimension
+    if not isinstance(state, list) or len(state) != size or not all(isinstance(v, (int, float)) for v in state):
+        return f"'final_state' must be a list of {size} numbers"
+    return None
 
 
 def _figure(width: float = 6.4, height: float = 4.8) -> Figure:
@@ -272,7 +315,7 @@ def write_plots(source: Run | Path | dict[str, Any], out: Path) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for kind, figure in figures:
-        path = out / f"{run.name}_{kind}.png"
+        path = out / f"{safe_name(run.name)}_{kind}.png"  # inside out, whatever the run's name
         figure.savefig(path)
         paths.append(path)
     return paths

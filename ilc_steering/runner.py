@@ -38,6 +38,7 @@ class TrialRecord:
     final_state: list[float]
     error: list[float]
     action: list[float]
+    left_chart: bool = False  # the trial stopped where eqs. 4-5 break down (see the env's Episode End)
     trajectory: Trajectory | None = None
 
     def to_json(self) -> dict[str, Any]:
@@ -85,6 +86,7 @@ def _record(index: int, info: dict[str, Any]) -> TrialRecord:
         final_state=info["q_final"].tolist(),
         error=info["error"].tolist(),
         action=info["action"].tolist(),
+        left_chart=bool(info["left_chart"]),
     )
 
 

@@ -32,16 +32,15 @@ from numba import njit, prange
 from ilc_steering.core import dop853
 from ilc_steering.core.plants import CAR_FIELD as CAR
 from ilc_steering.core.plants import CHAINED_FIELD as CHAINED
+from ilc_steering.core.plants import CHART_MARGIN
 
-__all__ = ["DEFAULT_MAX_STEP", "LEFT_CHART", "OK", "closed_loop_velocity", "integrate", "steps_per_piece"]
+__all__ = ["LEFT_CHART", "OK", "closed_loop_velocity", "integrate"]
 
 Array = npt.NDArray[np.float64]
 
 OK = 0
 LEFT_CHART = 1
-CHART_MARGIN = 1e-3  # [rad] closest |theta|, |phi| may come to pi/2 before the trial stops
 _CHART_LIMIT = np.pi / 2 - CHART_MARGIN
-DEFAULT_MAX_STEP = 1.0 / 32.0  # [s]
 _MAX_ITERATIONS = 60  # of the root finder at a steering-limit crossing; it needs about 23
 
 _STAGES = dop853.STAGES
@@ -211,11 +210,6 @@ def _serial(model, params, x0, durations, steps, v1c, v2c, out, status, traj):  
 def _parallel(model, params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
         status[b] = _simulate_one(model, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-def steps_per_piece(durations: Array, max_step: float) -> npt.NDArray[np.int64]:
-    """The number of equal steps on each span so that none is longer than ``max_step`` [s]."""
-    return np.maximum(1, np.ceil(np.asarray(durations) / max_step - 1e-9)).astype(np.int64)
 
 
 def integrate(

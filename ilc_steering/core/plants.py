@@ -24,9 +24,16 @@ import numpy.typing as npt
 from ilc_steering.core.car import CarModel, check_chart
 from ilc_steering.core.checks import require
 
-__all__ = ["CAR_FIELD", "CHAINED_FIELD", "PLANTS", "CarPlant", "ChainedPlant", "Plant", "PlantKind"]
+__all__ = ["CAR_FIELD", "CHAINED_FIELD", "CHART_MARGIN", "PLANTS", "CarPlant", "ChainedPlant", "Plant", "PlantKind"]
 
 Array = npt.NDArray[np.float64]
+
+CHART_MARGIN = 1e-3
+"""[rad] the closest ``|theta|``, ``|phi|`` may come to ``pi/2`` (task frame) before a trial stops."""
+MAX_COORDINATE = 1e6
+"""The largest magnitude of a configuration's entry a task may use [m, rad, or chained units]."""
+MAX_DIMENSION = 12
+"""The largest chained-form dimension ``n`` of a chained plant."""
 
 CAR_FIELD = 0
 """Kernel id of the closed-loop car field (eq. 3 driven through eqs. 4-5)."""
@@ -55,6 +62,11 @@ class PlantKind:
 
 CAR = PlantKind("car", True, ("x [m]", "y [m]", "θ [rad]", "φ [rad]"), ("u1 [rad/s]", "u2 [rad/s]"))
 CHAINED = PlantKind("chained", False, (), ("v1", "v2"))
+
+
+def _check_magnitude(q: Array) -> None:
+    largest = float(np.max(np.abs(q)))
+    require(largest <= MAX_COORDINATE, "configuration", f"entries must be within +-{MAX_COORDINATE:g}, got {largest:g}")
 
 
 @runtime_checkable
@@ -120,6 +132,14 @@ class CarPlant:
     def check_configuration(self, q: Array) -> None:
         """The chart of eq. 4 (``|theta|, |phi| < pi/2`` in the task frame) and the steering limit."""
         check_chart(q)
+        _check_magnitude(q)
+        angles = np.abs(np.asarray(q, dtype=np.float64)[..., 2:4])
+        require(
+            bool(np.all(angles < pi / 2 - CHART_MARGIN)),
+            "configuration",
+            f"|theta| and |phi| must stay {CHART_MARGIN} rad inside pi/2 (where a trial stops), "
+            f"got {np.max(angles):.6g} rad",
+        )
         phi = np.asarray(q, dtype=np.float64)[..., 3]
         limit = self.steering_limit
         require(
@@ -145,7 +165,9 @@ class ChainedPlant:
     v2_gain: float = 1.0
 
     def __post_init__(self) -> None:
-        require(self.dimension >= 3, "dimension", f"must be >= 3, got {self.dimension}")
+        require(
+            3 <= self.dimension <= MAX_DIMENSION, "dimension", f"must be in [3, {MAX_DIMENSION}], got {self.dimension}"
+        )
         for name in ("v1_gain", "v2_gain"):
             value = getattr(self, name)
             require(isfinite(value) and value != 0, name, f"must be finite and nonzero, got {value}")
@@ -162,6 +184,7 @@ class ChainedPlant:
         q = np.asarray(q, dtype=np.float64)
         require(q.shape[-1] == self.dimension, "z", f"needs {self.dimension} values, got shape {q.shape}")
         require(bool(np.all(np.isfinite(q))), "z", f"must be finite, got {q.tolist()}")
+        _check_magnitude(q)
 
     def kernel(self) -> tuple[int, Array]:
         return CHAINED_FIELD, np.array([self.v1_gain, self.v2_gain])

@@ -19,7 +19,10 @@ import numpy.typing as npt
 from ilc_steering.core.chained_form import transition
 from ilc_steering.core.checks import require
 
-__all__ = ["InputProfile", "PiecewiseProfile"]
+__all__ = ["MAX_V2_TERMS", "InputProfile", "PiecewiseProfile"]
+
+MAX_V2_TERMS = 12
+"""The most coefficients of ``v2``: the monomial basis ``tau**(j-1)`` is ill-conditioned well before."""
 
 Array = npt.NDArray[np.float64]
 
@@ -128,7 +131,7 @@ class PiecewiseProfile:
             f"needs one value per piece after the first ({len(durations) - 1}), got {len(fixed)}",
         )
         require(all(isfinite(v) for v in fixed), "v1_fixed", f"values must be finite, got {fixed}")
-        require(self.v2_terms >= 1, "v2_terms", f"needs q >= 1, got {self.v2_terms}")
+        require(1 <= self.v2_terms <= MAX_V2_TERMS, "v2_terms", f"needs 1 <= q <= {MAX_V2_TERMS}, got {self.v2_terms}")
 
     @property
     def num_pieces(self) -> int:

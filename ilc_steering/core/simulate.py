@@ -7,7 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.core.integrate import DEFAULT_MAX_STEP, integrate, steps_per_piece
+from ilc_steering.core.grid import DEFAULT_MAX_STEP, steps_per_span
+from ilc_steering.core.integrate import integrate
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.profiles import InputProfile
 
@@ -41,7 +42,7 @@ def simulate(
     """Run a batch of trials of ``plant`` from states ``x0`` ``(B, nx)`` with coefficients ``c``
     ``(B, 1 + q)``, in steps of at most ``max_step`` [s]; ``record`` keeps every step's state."""
     spans = np.asarray(profile.spans, dtype=np.float64)
-    steps = steps_per_piece(spans, max_step)
+    steps = steps_per_span(spans, max_step)
     v1, v2 = profile.polynomials(c)
     field, params = plant.kernel()
     final, status, states = integrate(field, params, x0, spans, steps, v1, v2, record=record, parallel=parallel)
