@@ -329,8 +329,9 @@ _EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
 _REPR = reprlib.Repr()
 _REPR.maxstring, _REPR.maxother, _REPR.maxlist, _REPR.maxdict, _REPR.maxlevel = 60, 60, 6, 4, 3
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}")
-MIN_TRAVEL = 1e-6
-"""[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``."""
+MIN_TRAVEL = 1e-3
+"""[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``:
+below it ``W`` is all but singular and the ``c11`` box all but zero wide."""
 MAX_ACTION_BOUND = 1e12
 """The largest ``task.action_bound`` entry."""
 MAX_FILE_BYTES = 1 << 20
@@ -366,7 +367,9 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
         return tuple(_coerce(typing.get_args(hint)[0], v, f"{key}[{i}]") for i, v in enumerate(value))
     if origin is Literal:
         allowed = typing.get_args(hint)
-        _require(value in allowed, key, f"must be one of {list(allowed)}, got {_show(value)}")
+        _require(
+            isinstance(value, str) and value in allowed, key, f"must be one of {list(allowed)}, got {_show(value)}"
+        )
         return value
     if hint is float:
         if isinstance(value, str) and _EXPONENT_NUMBER.fullmatch(value.strip()):
@@ -393,11 +396,12 @@ def _build_tagged(options: list[Any], value: Any, key: str) -> Any:
     if not all("model" in typing.get_type_hints(o) for o in options):
         markers = {dataclasses.fields(o)[0].name: o for o in options}
         found = [m for m in markers if m in value]
-        _require(len(found) == 1, key, f"needs exactly one of the keys {list(markers)}, got {sorted(value)}")
+        _require(len(found) == 1, key, f"needs exactly one of the keys {list(markers)}, got {sorted(map(str, value))}")
         return _build(markers[found[0]], value, key)
     tags = {typing.get_args(typing.get_type_hints(o)["model"])[0]: o for o in options}
+    model = value.get("model")
     _require(
-        value.get("model") in tags, f"{key}.model", f"must be one of {list(tags)}, got {_show(value.get('model'))}"
+        isinstance(model, str) and model in tags, f"{key}.model", f"must be one of {list(tags)}, got {_show(model)}"
     )
     return _build(tags[value["model"]], value, key)
 
@@ -407,7 +411,7 @@ def _build(cls: Any, value: Any, key: str) -> Any:
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     prefix = f"{key}." if key else ""
-    unknown = sorted(set(value) - set(fields))
+    unknown = sorted(map(str, set(value) - set(fields)))
     _require(
         not unknown, prefix + str(unknown[0]) if unknown else key, f"unknown key; allowed keys here: {sorted(fields)}"
     )

@@ -25,6 +25,11 @@ and the trial stops with status ``LEFT_CHART``: the robot halts at its last vali
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+from typing import Any
+
+import numba
 import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
@@ -235,5 +240,23 @@ def integrate(
     rows = 1 + int(steps.sum()) if record else 0
     traj = np.empty((batch, rows, n))
     kernel = _parallel if parallel else _serial
+    if not kernel.signatures:
+        _announce_compile(kernel)
     kernel(model, params, x0, durations, steps, v1, v2, out, status, traj)
     return out, status, traj if record else None
+
+
+def _announce_compile(kernel: Any) -> None:
+    """Say so on stderr when the first call will compile (no numba cache of ``kernel`` for this
+    install yet): it takes 10-45 s once, then about 0.2 s per process."""
+    name = kernel.py_func.__name__
+    cache_dir = getattr(numba.config, "CACHE_DIR", "")
+    folder = Path(cache_dir) if cache_dir else Path(__file__).parent / "__pycache__"
+    if folder.is_dir() and any(folder.rglob(f"integrate.{name}-*.nbi")):
+        return
+    what = "parallel " if name == "_parallel" else ""
+    print(
+        f"ilc-steering: compiling the {what}simulator once for this install (numba; 10-45 s), then it is cached ...",
+        file=sys.stderr,
+        flush=True,
+    )
