@@ -176,7 +176,7 @@ def _parser() -> argparse.ArgumentParser:
         help="number of trials, or cycles for a cyclic config (default: the config's)",
     )
     run.add_argument(
-        "--json", type=Path, default=None, help="write the per-trial results and trajectories here (input of `plot`)"
+        "--json", type=Path, default=None, help="write the per-trial results and trajectories here (the input of plot)"
     )
     run.add_argument(
         "--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures of this run here as PNGs"
@@ -192,7 +192,7 @@ def _parser() -> argparse.ArgumentParser:
         help="write the paper's figures (Figs. 3-14, 23-25) here as PNGs",
     )
     reproduce.set_defaults(handler=_reproduce)
-    plot = sub.add_parser("plot", help="draw the paper's figures of a run written by `run --json`")
+    plot = sub.add_parser("plot", help="draw the paper's figures of a run written by run --json")
     plot.add_argument("run", type=Path, help="the run's JSON file")
     plot.add_argument("--out", type=Path, required=True, metavar="DIR", help="write the PNGs here")
     plot.set_defaults(handler=_plot)

@@ -482,13 +482,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--scenarios", nargs="+", default=list(SCENARIOS), help="packaged config names or YAML paths (one-trial tasks)"
     )
     parser.add_argument(
-        "--seeds", type=int, nargs="+", default=None, help=f"whole numbers in [0, {MAX_SEED}] (default: 0 1 2 3 4)"
+        "--seeds",
+        type=int,
+        nargs="+",
+        default=argparse.SUPPRESS,
+        help=f"whole numbers in [0, {MAX_SEED}] (default: 0 1 2 3 4; with --quick: 0 1)",
     )
     parser.add_argument("--no-progress-bar", action="store_true", help="no SB3 progress bar on RL cells")
 
 
 def from_namespace(ns: argparse.Namespace) -> Args:
-    seeds = ns.seeds if ns.seeds is not None else (QUICK_SEEDS if ns.quick else Args.seeds)
+    given = getattr(ns, "seeds", None)
+    seeds = given if given is not None else (QUICK_SEEDS if ns.quick else Args.seeds)
     return Args(
         quick=ns.quick,
         out=ns.out,

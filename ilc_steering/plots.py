@@ -150,6 +150,12 @@ def _record_problem(record: dict[str, Any], cyclic: bool, config: SteeringConfig
     return None
 
 
+def _title(run: Run) -> str:
+    """The scenario's name in words, for titles: ``forward_parking`` -> ``Forward parking``."""
+    words = run.name.replace("_", " ").replace("-", " ").strip()
+    return words[:1].upper() + words[1:]
+
+
 def _figure(width: float = 6.4, height: float = 4.8) -> Figure:
     return Figure(figsize=(width, height), dpi=100)
 
@@ -181,7 +187,9 @@ def trajectory_figure(run: Run) -> Figure:
         label=f"end of trial {first['trial']}",
     )
     setup_workspace(
-        ax, run.dimension, f"{run.name}: trajectory during trial {last['trial']} (end of trial {first['trial']} dotted)"
+        ax,
+        run.dimension,
+        f"{_title(run)}: trajectory during trial {last['trial']} (end of trial {first['trial']} dotted)",
     )
     ax.legend(fontsize=8, loc="best")
     return figure
@@ -196,9 +204,19 @@ def coordinates_figure(run: Run) -> Figure:
     axes = _time_panels(figure, trajectory.t, trajectory.q, labels)
     limit = getattr(run.config.plant, "steering_limit", None)
     if limit is not None:
-        for sign in (-1, 1):
-            axes[3].axhline(sign * limit, color="0.4", linestyle="--", linewidth=0.8)
-    figure.suptitle(f"{run.name}: generalized coordinates during trial {last['trial']}", fontsize=10)
+        for sign, name in ((1, "+φ_max"), (-1, "−φ_max")):
+            axes[3].axhline(sign * limit, color="0.4", linestyle="--", linewidth=0.8, label=name)
+            axes[3].annotate(
+                f"{name} = {sign * np.degrees(limit):+.4g}°",
+                (0.01, sign * limit),
+                xycoords=("axes fraction", "data"),
+                xytext=(0, -3 if sign > 0 else 3),
+                textcoords="offset points",
+                va="top" if sign > 0 else "bottom",
+                fontsize=7,
+                color="0.3",
+            )
+    figure.suptitle(f"{_title(run)}: generalized coordinates during trial {last['trial']}", fontsize=10)
     figure.tight_layout()
     return figure
 
@@ -210,7 +228,7 @@ def inputs_figure(run: Run) -> Figure:
     labels = list(run.kind.inputs)
     figure = _figure(6.4, 4.0)
     _time_panels(figure, trajectory.t, trajectory.u, labels)
-    figure.suptitle(f"{run.name}: control inputs during trial {last['trial']}", fontsize=10)
+    figure.suptitle(f"{_title(run)}: control inputs during trial {last['trial']}", fontsize=10)
     figure.tight_layout()
     return figure
 
@@ -238,15 +256,27 @@ def errors_figure(run: Run) -> Figure:
     figure = _figure()
     ax = figure.add_subplot()
     trials = [r["trial"] for r in run.records]
-    for (label, marker, values, tolerance), color in zip(_error_series(run, run.records), ("tab:blue", "tab:orange")):
+    series = _error_series(run, run.records)
+    for (label, marker, values, _), color in zip(series, ("tab:blue", "tab:orange")):
         ax.plot(trials, values, marker=marker, color=color, label=label)
-        if tolerance is not None:
-            ax.axhline(tolerance, color=color, linestyle="--", linewidth=0.8)
+    _tolerance_lines(ax, [(label, tolerance) for label, _, _, tolerance in series])
     _log_axis(ax, "trial", "final error [m], [rad]" if run.has_pose else "final error")
     ax.set_xticks(trials)
-    ax.set_title(f"{run.name}: final errors over the trials (tolerances dashed)", fontsize=10)
+    ax.set_title(f"{_title(run)}: final errors over the trials (tolerances dashed)", fontsize=10)
     ax.legend(fontsize=8)
     return figure
+
+
+def _tolerance_lines(ax: Axes, tolerances: list[tuple[str, float | None]]) -> None:
+    """One dashed line per distinct tolerance, its legend entry naming every error it bounds."""
+    levels: dict[float, list[str]] = {}
+    for label, tolerance in tolerances:
+        if tolerance is not None:
+            levels.setdefault(tolerance, []).append(label.split(" [")[0])
+    for level, names in levels.items():
+        ax.axhline(
+            level, color="0.35", linestyle="--", linewidth=0.8, label=f"tolerance {level:g} ({', '.join(names)})"
+        )
 
 
 def _waypoint_name(index: int, count: int) -> str:
@@ -263,15 +293,27 @@ def path_figure(run: Run, cycles: int = 5) -> Figure:
     draw_waypoints(ax, waypoints, run.wheelbase, ["home", *(f"q{i}" for i in range(1, len(waypoints)))])
     colors = matplotlib.colormaps["viridis"]
     last_cycle = shown[-1]["cycle"]
+    arrivals: dict[int, int] = {}  # waypoint index -> arrivals numbered there so far
     for number, record in enumerate(shown, start=1):
         shade = (record["cycle"] - 1) / max(last_cycle - 1, 1)
         color = colors(0.85 * shade)
         path = plane(run.trajectory(record).q, run.has_pose)
         ax.plot(*path.T, color=color, linewidth=1.0, label=f"cycle {record['cycle']}" if record["index"] == 1 else None)
         end = plane(np.asarray(record["final_state"]), run.has_pose)
-        ax.plot(*end, "k.", markersize=4)
-        ax.annotate(str(number), (float(end[0]), float(end[1])), xytext=(4, 4), textcoords="offset points", fontsize=8)
-    setup_workspace(ax, run.dimension, f"{run.name}: path over cycles 1-{last_cycle}, arrivals numbered in order")
+        ax.plot(*end, ".", color=color, markersize=5)
+        # Arrivals at one waypoint land within millimetres: their numbers go in a row beside it.
+        k = arrivals.get(record["index"], 0)
+        arrivals[record["index"]] = k + 1
+        ax.annotate(
+            str(number),
+            (float(end[0]), float(end[1])),
+            xytext=(8 + 11 * k, 8),
+            textcoords="offset points",
+            fontsize=8,
+            color=color,
+            arrowprops={"arrowstyle": "-", "color": color, "linewidth": 0.4, "alpha": 0.6},
+        )
+    setup_workspace(ax, run.dimension, f"{_title(run)}: path over cycles 1-{last_cycle}, arrivals numbered in order")
     ax.legend(fontsize=8, loc="best")
     return figure
 
@@ -293,7 +335,7 @@ def waypoint_errors_figure(run: Run) -> Figure:
             ax.axhline(tolerance, color="0.4", linestyle="--", linewidth=0.8)
         ax.set_xticks(sorted({r["cycle"] for r in run.records}))
     axes[0].legend(fontsize=8)
-    figure.suptitle(f"{run.name}: errors at each waypoint over the cycles (tolerance dashed)", fontsize=10)
+    figure.suptitle(f"{_title(run)}: errors at each waypoint over the cycles (tolerance dashed)", fontsize=10)
     figure.tight_layout()
     return figure
 
