@@ -42,7 +42,15 @@ def check_output_file(path: Path, option: str) -> Path:
         raise ValueError(f"{option}: a path cannot hold a NUL character")
     if path.is_dir():
         raise ValueError(f"{option} {path}: is a folder, not a file")
-    check_output_dir(path.parent, option)
+    folder = path.parent
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{option} {path}: {folder} is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".write-check-"):
+            pass
+    except OSError as error:
+        raise ValueError(f"{option} {path}: cannot be written ({_problem(error)})") from None
     if path.exists() and not os.access(path, os.W_OK):
         raise ValueError(f"{option} {path}: exists and cannot be written")
     return path
