@@ -1,8 +1,9 @@
 """Learners that drive the steering environments, and the :class:`Learner` protocol they meet.
 
 ``ILCAgent`` and ``CyclicILCAgent`` need only the nominal model (numpy). The baselines are
-imported from their modules: :mod:`ilc_steering.agents.blackbox` (scipy, ``cma``) and
-:mod:`ilc_steering.agents.rl` (Stable-Baselines3).
+imported from their modules: :mod:`ilc_steering.agents.newton` (numpy),
+:mod:`ilc_steering.agents.blackbox` (scipy, ``cma``) and :mod:`ilc_steering.agents.rl`
+(Stable-Baselines3).
 """
 
 from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory

@@ -24,7 +24,7 @@ from gymnasium import spaces
 
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["Learner", "LearnerContext", "LearnerFactory"]
+__all__ = ["PRIORS", "RESIDUAL_SCALE", "START_SPREAD", "Learner", "LearnerContext", "LearnerFactory"]
 
 Array = npt.NDArray[np.float64]
 
@@ -45,9 +45,31 @@ class Learner(Protocol):
     def reset(self) -> None: ...
 
 
+PRIORS = ("nominal", "none")
+"""The conditions of a comparison: what every learner may start from (see :class:`LearnerContext`)."""
+
+RESIDUAL_SCALE = 0.3
+"""Half-width of the residual search box under ``prior="nominal"``, in units of
+``NominalModel.action_scale()``: the true solution of every packaged task lies within 0.21 of it
+(forward parking 0.10, the saturated task 0.21, parallel parking 0.09, the chained plant 0.09)."""
+
+START_SPREAD = 0.02
+"""A seeded start point lies within this fraction of the search box's half-widths of its centre."""
+
+
 @dataclass(frozen=True, eq=False)
 class LearnerContext:
-    """Everything a learner may be built from: the same for every learner in a comparison."""
+    """Everything a learner may be built from: the same for every learner in a comparison.
+
+    ``prior`` is the condition of the comparison:
+
+    - ``"nominal"`` (the default): every learner's first trial is the nominal open-loop solution
+      ``model.solve()``, and black-box and RL methods search the *residual* box
+      ``c = c0 + s * a``, ``a`` in ``[-1, 1]``, with ``c0 = model.solve()`` and
+      ``s = RESIDUAL_SCALE * model.action_scale()``;
+    - ``"none"``: no prior; learners start from a seeded point near ``c = 0`` and search the env's
+      whole action box (10 times the nominal scale).
+    """
 
     model: NominalModel
     """The nominal model (for a cyclic task, the first segment's; see ``models``)."""
@@ -63,6 +85,37 @@ class LearnerContext:
     """The config's gain of eq. 34."""
     models: tuple[NominalModel, ...] = ()
     """A cyclic task's nominal models, one per segment (empty for a one-trial task)."""
+    prior: str = "nominal"
+    """``"nominal"`` or ``"none"``: what the first trial and the search box are built from."""
+
+    def __post_init__(self) -> None:
+        if self.prior not in PRIORS:
+            raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
+
+    def search_box(self) -> tuple[Array, Array]:
+        """Centre and half-widths [physical units] of the box a black-box or RL method searches
+        (the env clips what lies outside its own action box)."""
+        low = np.asarray(self.action_space.low, dtype=np.float64)
+        high = np.asarray(self.action_space.high, dtype=np.float64)
+        if self.prior == "none":
+            return 0.5 * (high + low), 0.5 * (high - low)
+        return np.clip(self.model.solve(), low, high), RESIDUAL_SCALE * self.model.action_scale()
+
+    def start_point(self, restart: int = 0) -> Array:
+        """A start in the search box's ``[-1, 1]`` units: the centre for the first start under the
+        nominal prior, else a seeded point within :data:`START_SPREAD` of it (``restart`` > 0: a
+        learner's later starts, each seeded apart)."""
+        size = self.model.profile.num_coefficients
+        if restart == 0 and self.prior == "nominal":
+            return np.zeros(size)
+        rng = np.random.default_rng([self.seed, restart])
+        return START_SPREAD * rng.uniform(-1.0, 1.0, size)
+
+    def first_action(self) -> Array:
+        """The first trial's coefficients [physical units]: ``model.solve()`` under the nominal
+        prior, a seeded point near ``c = 0`` without one."""
+        centre, half = self.search_box()
+        return centre + half * self.start_point(0)
 
 
 LearnerFactory = Callable[[LearnerContext], Learner]

@@ -3,127 +3,165 @@
 Each one drives a one-trial env through ``env.step`` until it is stopped; as learners
 (:func:`make_learner`) they drive the :class:`~ilc_steering.agents.adapters.TrialPort` of a
 :class:`~ilc_steering.agents.adapters.PullLearner`, so the trial loop runs and counts every
-trial they ask for, probes included. They work in the rescaled ``[-1, 1]`` box of
-``RescaleAction`` and minimise ``-reward`` (for the car: Cartesian error [m] + orientation
-error [rad]):
+trial they ask for, probes included. They search the ``[-1, 1]`` units of
+:class:`~ilc_steering.agents.adapters.SearchBox`: the residual box around the nominal solution
+under ``prior="nominal"``, the env's whole action box under ``prior="none"``
+(:meth:`~ilc_steering.agents.base.LearnerContext.search_box`). Their first trial is the
+context's start (under the nominal prior, the nominal solution itself), and when one stalls it
+restarts from a new seeded start near the centre, until the trial loop stops it at its budget.
 
-- :func:`cma_es`: CMA-ES from the ``cma`` package (the ``rl`` extra);
-- :func:`nelder_mead`: scipy's Nelder-Mead;
-- :func:`gauss_newton`: Gauss-Newton on the final error vector ``info["error"]``
-  (``z^d - z(T)``), with a forward-difference Jacobian (one probe trial per coefficient) and
-  step halving when a step does not shrink it.
+- :func:`least_squares`: ``scipy.optimize.least_squares`` on the residual vector, Levenberg-
+  Marquardt with a 2-point Jacobian (every function evaluation one trial), the residual taken
+  at the point projected onto the box; its restarts use TRF within the box, which LM cannot;
+- :func:`gauss_newton`: Gauss-Newton on the same residual with a forward-difference Jacobian
+  (one probe trial per coefficient) and step halving;
+- :func:`nelder_mead`: scipy's Nelder-Mead (adaptive) on the cost;
+- :func:`cma_es`: CMA-ES from the ``cma`` package (the ``rl`` extra) on the cost.
 
-Every method starts from a seeded point near the centre of the box (near ``c = 0``, the zero
-iteration ILC starts from) and restarts from a new seeded point when it stalls: a trial that
-leaves the chart leaves the car where it was, so the cost has flat plateaus. Each runs until the
-trial loop stops it at its budget.
+The cost is ``-reward``: for the car, Cartesian error [m] + orientation error [rad], plus
+:data:`~ilc_steering.core.score.OFF_CHART_PENALTY` for a trial that left the chart. The residual
+(:func:`residual`) is the measured ``error`` (``z^d - z(T)``) with one more entry, the same
+penalty on a trial that left the chart, so that halting early is no shortcut for them either.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import count
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
-from gymnasium.wrappers import RescaleAction
-from scipy.optimize import minimize
+import scipy.optimize
 
-from ilc_steering.agents.adapters import PullLearner
+from ilc_steering.agents.adapters import PullLearner, SearchBox
 from ilc_steering.agents.base import LearnerContext
+from ilc_steering.core.score import OFF_CHART_PENALTY
 
-__all__ = ["BLACKBOX_METHODS", "cma_es", "gauss_newton", "make_learner", "nelder_mead", "start_point"]
+__all__ = ["BLACKBOX_METHODS", "cma_es", "gauss_newton", "least_squares", "make_learner", "nelder_mead", "residual"]
 
 Array = npt.NDArray[np.float64]
+Optimizer = Callable[[gym.Env[Any, Any], LearnerContext], None]
 
 
-def _box(env: gym.Env[Any, Any]) -> gym.spaces.Box:
-    """The env's action space, which must be a ``Box``."""
-    space = env.action_space
-    if not isinstance(space, gym.spaces.Box):
-        raise TypeError(f"a black-box optimizer needs a Box action space, got {space}")
-    return space
+def residual(info: dict[str, Any]) -> Array:
+    """The residual a least-squares method minimises: ``info["error"]`` and a last entry that is
+    :data:`~ilc_steering.core.score.OFF_CHART_PENALTY` if the trial left the chart, else 0."""
+    penalty = OFF_CHART_PENALTY if info["left_chart"] else 0.0
+    return np.append(np.asarray(info["error"], dtype=np.float64), penalty)
 
 
 def _trial(env: gym.Env[Any, Any], x: Array) -> tuple[float, dict[str, Any]]:
-    """One trial at action ``x``: its cost ``-reward`` and its ``info``."""
+    """One trial at search point ``x``: its cost ``-reward`` and its ``info``."""
     env.reset()
-    _, reward, _, _, info = env.step(np.asarray(x, dtype=env.action_space.dtype))
+    _, reward, _, _, info = env.step(np.clip(np.asarray(x, dtype=np.float64), -1.0, 1.0))
     return -float(reward), info
 
 
-def start_point(env: gym.Env[Any, Any], seed: int, spread: float = 0.02) -> Array:
-    """A seeded point near the centre of the action box: ``spread`` of its half-widths."""
-    space = _box(env)
-    centre, half = 0.5 * (space.high + space.low), 0.5 * (space.high - space.low)
-    return (centre + spread * half * np.random.default_rng(seed).uniform(-1, 1, size=space.shape)).astype(np.float64)
-
-
-def cma_es(env: gym.Env[Any, Any], seed: int, sigma0: float = 0.1) -> None:
-    """CMA-ES (Hansen's ``cma``), step size ``sigma0`` in action units, bounded to the box;
-    restarted from a new seeded point whenever its own termination criteria stop it."""
+def cma_es(env: gym.Env[Any, Any], context: LearnerContext, sigma0: float = 0.1) -> None:
+    """CMA-ES (Hansen's ``cma``) with step size ``sigma0`` in search units, bounded to the box; its
+    start is evaluated first, and it restarts whenever its own termination criteria stop it."""
     import cma
 
-    space = _box(env)
-    options = {"bounds": [space.low.tolist(), space.high.tolist()], "verbose": -9}
-    for restart in range(10**6):
-        strategy = cma.CMAEvolutionStrategy(
-            start_point(env, seed + 1000 * restart), sigma0, {**options, "seed": seed + 1000 * restart + 1}
-        )
+    size = context.model.profile.num_coefficients
+    options = {"bounds": [[-1.0] * size, [1.0] * size], "verbose": -9}
+    for restart in count():
+        start = context.start_point(restart)
+        if restart == 0:
+            _trial(env, start)  # the first trial is the start (the nominal solution, under that prior)
+        strategy = cma.CMAEvolutionStrategy(start, sigma0, {**options, "seed": context.seed + 1000 * restart + 1})
         while not strategy.stop():
             candidates = strategy.ask()
             strategy.tell(candidates, [_trial(env, x)[0] for x in candidates])
 
 
-def nelder_mead(env: gym.Env[Any, Any], seed: int) -> None:
-    """scipy's Nelder-Mead (adaptive), restarted from a new seeded point whenever it converges."""
-    space = _box(env)
-    for restart in range(10**6):
-        minimize(
-            lambda y: _trial(env, np.clip(y, space.low, space.high))[0],
-            start_point(env, seed + 1000 * restart),
+def nelder_mead(env: gym.Env[Any, Any], context: LearnerContext, step: float = 0.1) -> None:
+    """scipy's Nelder-Mead (adaptive) from a simplex of edge ``step`` [search units] at its start
+    (evaluated first), restarted whenever it converges."""
+    for restart in count():
+        start = context.start_point(restart)
+        simplex = np.vstack([start, start + step * np.eye(start.size)])
+        scipy.optimize.minimize(
+            lambda y: _trial(env, y)[0],
+            start,
             method="Nelder-Mead",
-            options={"xatol": 1e-12, "fatol": 1e-14, "maxfev": 10**9, "adaptive": True},
+            options={
+                "xatol": 1e-12,
+                "fatol": 1e-14,
+                "maxfev": 10**9,
+                "adaptive": True,
+                "initial_simplex": simplex,
+            },
         )
 
 
-def gauss_newton(env: gym.Env[Any, Any], seed: int, probe: float = 1e-6) -> None:
-    """Gauss-Newton on ``r = info["error"]`` with a forward-difference Jacobian (``probe`` in
-    action units, one trial per coefficient); a step that does not lower ``||r||`` is halved,
-    and after 30 halvings the method restarts from a new seeded point."""
-    space = _box(env)
-    for restart in range(10**6):
-        x = start_point(env, seed + 1000 * restart)
-        residual = np.asarray(_trial(env, x)[1]["error"], dtype=np.float64)
+def gauss_newton(env: gym.Env[Any, Any], context: LearnerContext, probe: float = 1e-6) -> None:
+    """Gauss-Newton on :func:`residual` with a forward-difference Jacobian (``probe`` in search
+    units, one trial per coefficient); a step that does not lower the residual is halved, and
+    after 30 halvings the method restarts."""
+    for restart in count():
+        x = context.start_point(restart)
+        r = residual(_trial(env, x)[1])
         improved = True
         while improved:
-            jacobian = np.empty((residual.size, x.size))
+            jacobian = np.empty((r.size, x.size))
             for j in range(x.size):
-                h = probe if x[j] + probe <= space.high[j] else -probe
+                h = probe if x[j] + probe <= 1.0 else -probe
                 shifted = x.copy()
                 shifted[j] += h
-                jacobian[:, j] = (np.asarray(_trial(env, shifted)[1]["error"]) - residual) / h
-            step = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
+                jacobian[:, j] = (residual(_trial(env, shifted)[1]) - r) / h
+            step = np.linalg.lstsq(jacobian, -r, rcond=None)[0]
             improved = False
             for _ in range(30):
-                candidate = np.clip(x + step, space.low, space.high)
-                new = np.asarray(_trial(env, candidate)[1]["error"], dtype=np.float64)
-                if np.linalg.norm(new) < np.linalg.norm(residual):
-                    x, residual, improved = candidate, new, True
+                candidate = np.clip(x + step, -1.0, 1.0)
+                new = residual(_trial(env, candidate)[1])
+                if np.linalg.norm(new) < np.linalg.norm(r):
+                    x, r, improved = candidate, new, True
                     break
                 step *= 0.5
 
 
-BLACKBOX_METHODS = {"cma_es": cma_es, "nelder_mead": nelder_mead, "gauss_newton": gauss_newton}
+def least_squares(env: gym.Env[Any, Any], context: LearnerContext) -> None:
+    """``scipy.optimize.least_squares`` on :func:`residual`, 2-point Jacobian: LM from the start
+    (the residual taken at the point projected onto the box), then TRF within the box from each
+    new start whenever it stops. LM needs at least as many residuals as coefficients; where there
+    are fewer (``v2_terms > n``), every run is TRF."""
+    size = context.model.profile.num_coefficients
+    lm_fits = context.model.dimension + 1 >= size
+    tolerances = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}
+    for restart in count():
+        start = context.start_point(restart)
+        if restart == 0 and lm_fits:
+            scipy.optimize.least_squares(
+                lambda y: residual(_trial(env, y)[1]), start, method="lm", max_nfev=10**9, **tolerances
+            )
+        else:
+            scipy.optimize.least_squares(
+                lambda y: residual(_trial(env, y)[1]),
+                start,
+                method="trf",
+                bounds=(-1.0, 1.0),
+                x_scale="jac",  # with unit scales TRF stalls at the centre of the box (measured)
+                max_nfev=10**9,
+                **tolerances,
+            )
+
+
+BLACKBOX_METHODS: dict[str, Optimizer] = {
+    "least_squares": least_squares,
+    "gauss_newton": gauss_newton,
+    "nelder_mead": nelder_mead,
+    "cma_es": cma_es,
+}
 
 
 def make_learner(method: str, context: LearnerContext) -> PullLearner:
     """Black-box ``method`` (a key of :data:`BLACKBOX_METHODS`) as a learner, seeded with
-    ``context.seed``, in the ``[-1, 1]`` rescaling of the context's action box."""
-    optimizer: Callable[[gym.Env[Any, Any], int], None] = BLACKBOX_METHODS[method]
+    ``context.seed``, in the search box of the context's prior."""
+    optimizer = BLACKBOX_METHODS[method]
 
     def run(env: gym.Env[Any, Any]) -> None:
-        optimizer(RescaleAction(env, np.float32(-1), np.float32(1)), context.seed)
+        optimizer(SearchBox(env, *context.search_box()), context)
 
     return PullLearner(run, context.action_space, context.observation_space)

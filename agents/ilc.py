@@ -13,10 +13,11 @@ where ``V`` and ``W`` (eqs. 24-25) are built from ``v1`` of each trial. The last
 eq. 34 are the feedforward that cancels the change of ``v1`` between trials, so that on the
 nominal system :math:`\varepsilon_b^{[k+1]} = (1 - \nu_b)\varepsilon_b^{[k]}` (eq. 36).
 
-The first trial follows the fictitious zero iteration of section 4: ``c1`` and ``c2`` entirely
-null (the fixed pieces of ``v1`` included), so that its error is ``z^d - z^0`` and its ``V`` is the
-identity. For a task with a fixed ``v1`` piece the first real trial then drives only that piece,
-which is what makes the paper's parallel parking take five iterations.
+By default the first trial follows the fictitious zero iteration of section 4: ``c1`` and ``c2``
+entirely null (the fixed pieces of ``v1`` included), so that its error is ``z^d - z^0`` and its
+``V`` is the identity. For a task with a fixed ``v1`` piece the first real trial then drives only
+that piece, which is what makes the paper's parallel parking take five iterations. Given a
+``start`` (the nominal solution ``model.solve()``, say), the first trial applies it instead.
 
 The inverse of ``W`` is the Moore-Penrose pseudo-inverse. It is the inverse when ``W`` is square
 and regular; it also covers ``q > n - 1`` coefficients, and the singular ``W`` of a symmetric
@@ -37,7 +38,7 @@ from ilc_steering.agents.base import LearnerContext
 from ilc_steering.core.checks import check_gains
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["ILCAgent", "make_ilc"]
+__all__ = ["ILCAgent", "make_ilc", "make_ilc_paper"]
 
 Array = npt.NDArray[np.float64]
 
@@ -55,19 +56,29 @@ class ILCAgent:
         Gain of eq. 34 on the ``z_b`` error, in ``(0, 2)``; the nominal error contracts by
         ``1 - nu_b`` per trial.
 
+    start
+        The first trial's coefficients; ``None`` (the default) for the paper's fictitious zero
+        iteration.
+
     The loop is ``action = agent.act()``, run the trial, ``agent.learn(info)``; ``reset()``
-    restarts learning from the zero iteration.
+    restarts learning from the first trial.
     """
 
-    def __init__(self, model: NominalModel, nu_a: float = 1.0, nu_b: float = 1.0) -> None:
+    def __init__(self, model: NominalModel, nu_a: float = 1.0, nu_b: float = 1.0, start: Array | None = None) -> None:
         check_gains(nu_a, nu_b)
         self.model = model
         self.nu_a = float(nu_a)
         self.nu_b = float(nu_b)
+        self.start = None if start is None else np.array(start, dtype=np.float64)
+        if self.start is not None and self.start.shape != (model.profile.num_coefficients,):
+            raise ValueError(f"start must have shape ({model.profile.num_coefficients},), got {self.start.shape}")
         self.reset()
 
     def reset(self) -> None:
-        """Back to the fictitious zero iteration: the next action is its eq. 33-34 update."""
+        """Back to the first trial: ``start``, or the eq. 33-34 update of the fictitious zero iteration."""
+        if self.start is not None:
+            self._action = self.start.copy()
+            return
         n, q = self.model.dimension, self.model.profile.v2_terms
         c11 = self.nu_a * (self.model.z_goal[0] - self.model.z_start[0]) / self.model.profile.learned_area
         error_b = self.model.z_goal[1:] - self.model.z_start[1:]
@@ -94,5 +105,12 @@ class ILCAgent:
 
 
 def make_ilc(context: LearnerContext) -> ILCAgent:
-    """The paper's learner with the config's gains (``compare`` method ``ilc``)."""
+    """Eqs. 33-34 with the config's gains from the context's first trial (``compare`` method
+    ``ilc``: under ``prior="nominal"`` the nominal solution)."""
+    return ILCAgent(context.model, context.nu_a, context.nu_b, start=context.first_action())
+
+
+def make_ilc_paper(context: LearnerContext) -> ILCAgent:
+    """The paper's learner exactly, fictitious zero iteration included, whatever the prior
+    (``compare`` method ``ilc_paper``)."""
     return ILCAgent(context.model, context.nu_a, context.nu_b)

@@ -1,4 +1,4 @@
-"""Trials to tolerance of ILC, RL (PPO, SAC, TD3) and black-box optimizers, across seeds.
+"""Trials to tolerance of ILC, RL (PPO, SAC, TD3), black-box and users' learners, across seeds and priors.
 
 The benchmark lives in the package (:mod:`ilc_steering.compare`) so that the installed command
 ``ilc-steering compare`` runs it too; this script is the same entry point:
@@ -6,7 +6,7 @@ The benchmark lives in the package (:mod:`ilc_steering.compare`) so that the ins
     python benchmarks/compare.py [--quick] [--out DIR] [--methods ...] [--scenarios ...] [--seeds ...]
 
 ``Args`` holds every knob, ``main(args)`` runs (or resumes) the run folder and writes
-``compare.{csv,json,md,png}`` there.
+``compare.{csv,json,md}`` and ``compare_<scenario>.png`` there.
 """
 
 from __future__ import annotations

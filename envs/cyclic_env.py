@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +69,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     index ``l`` of the waypoint reached, ``r`` being home again, as in the paper), ``cycle``
     (from 1), ``waypoint_error`` and ``error`` (``z_l^d - z_l``, eq. 40's epsilon), ``error_norm``,
     ``q_final``, ``z_final``, ``left_chart``, ``action``, ``clipped`` and, for the car,
-    ``cartesian_error`` [m] and ``orientation_error`` [rad]; with ``record_trajectory=True``,
+    ``cartesian_error`` [m] and ``orientation_error`` [rad], all measured, and the true errors
+    (``true_error_norm``, ``true_cartesian_error``, ``true_orientation_error``); with ``record_trajectory=True``,
     ``trajectory``, the segment's :class:`~ilc_steering.core.trajectory.Trajectory` (time from
     the segment's start).
 
@@ -83,7 +85,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     ``config``: a cyclic config (``task.waypoints``), as a YAML path, a packaged name
     (``"cyclic_home_goal"``, ``"cyclic_pickup_dropoff"``) or a :class:`SteeringConfig`.
     ``render_mode``: ``None`` or ``"rgb_array"``. ``record_trajectory``: put each segment's
-    trajectory in ``info`` (off by default).
+    trajectory in ``info`` (off by default). ``measurement_noise``: as for ``ChainedSteeringEnv``;
+    the observation is then the noisy measurement, while the robot goes on from its true state.
     ``env.unwrapped.nominal_models`` is the learner's view, one model per segment.
 
     ## Version History
@@ -113,6 +116,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         config: str | Path | SteeringConfig = "cyclic_home_goal",
         render_mode: str | None = None,
         record_trajectory: bool = False,
+        measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.record_trajectory = record_trajectory
@@ -121,7 +125,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
             raise ValueError(
                 f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal"
             )
-        self._scenario = Scenario.from_config(self.config)
+        self._scenario = Scenario.from_config(self.config, measurement_noise)
         models = self._scenario.nominals
         size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
         high = self._high = self._scenario.action_high.astype(np.float32)
@@ -176,7 +180,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         record = self.record_trajectory or self.render_mode is not None
         trial = self._scenario.run(applied[None], x0=self._x[None], record=record, leg=leg)
         self._x = trial.final[0]
-        info = trial_info(self._scenario.measure(trial.final, trial.status, leg=leg), applied, c)
+        noise = self._scenario.draw_noise(self.np_random, 1)
+        info = trial_info(self._scenario.measure(trial.final, trial.status, leg=leg, noise=noise), applied, c)
         info.update(waypoint_error=info["error"], segment=leg, waypoint=leg + 1, cycle=self._cycle)
         if record:
             trajectory = self._scenario.trajectory(trial, applied[None], leg=leg)
@@ -207,11 +212,12 @@ def make_cyclic_env(
     cycles: int | None = None,
     render_mode: str | None = None,
     record_trajectory: bool = False,
+    measurement_noise: float | Sequence[float] | None = None,
 ) -> gym.Env[Array, npt.NDArray[np.float32]]:
     """The registered entry point: a :class:`CyclicSteeringEnv` truncated after ``cycles`` cycles
     (default: the config's ``learning.trials``) through ``TimeLimit``."""
     if cycles is not None and (isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1):
         raise ValueError(f"cycles must be a whole number >= 1 or None, got {cycles!r}")
-    env = CyclicSteeringEnv(config, render_mode, record_trajectory)
+    env = CyclicSteeringEnv(config, render_mode, record_trajectory, measurement_noise)
     count = env.config.learning.trials if cycles is None else int(cycles)
     return TimeLimit(env, max_episode_steps=count * env.num_segments)

@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.car import rotate
+from ilc_steering.core.checks import check_noise
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -54,6 +55,9 @@ class Scenario:
         ``NominalModel.action_scale()`` over the legs.
     max_step
         Longest integrator step [s].
+    measurement_noise
+        Standard deviations of the final configuration's measurement (world frame; one per
+        coordinate [m, rad]), or ``None`` to measure exactly.
     """
 
     def __init__(
@@ -65,12 +69,14 @@ class Scenario:
         frame: float = 0.0,
         action_bound: Sequence[float] | None = None,
         max_step: float = DEFAULT_MAX_STEP,
+        measurement_noise: Sequence[float] | None = None,
     ) -> None:
         self.plant = plant
         self.kind = plant.kind
         self.frame = frame
         self.max_step = max_step
         self.waypoints = np.array(waypoints, dtype=np.float64)
+        self.noise = None if measurement_noise is None else check_noise(measurement_noise, self.waypoints.shape[1])
         self.x_start = self.to_task(self.waypoints[0]).copy()
         task_points = self.to_task(self.waypoints)
         self.z_waypoints = task_points.copy() if chained_map is None else chained_map.to_chained(task_points)
@@ -85,9 +91,14 @@ class Scenario:
             self.action_high = np.asarray(action_bound, dtype=np.float64)
 
     @classmethod
-    def from_config(cls, config: SteeringConfig) -> Scenario:
-        """Every domain object of ``config``, built once (the config checked each rule on loading)."""
+    def from_config(cls, config: SteeringConfig, measurement_noise: float | Sequence[float] | None = None) -> Scenario:
+        """Every domain object of ``config``, built once (the config checked each rule on loading);
+        ``measurement_noise`` (one sigma, or one per coordinate) replaces the config's if given."""
         points = np.array([point for _, point in config.points()], dtype=np.float64)
+        noise = config.simulation.measurement_noise
+        if measurement_noise is not None:  # it wins over the config's, 0 included
+            checked = check_noise(measurement_noise, points.shape[1])  # a scalar: every coordinate
+            noise = None if checked is None else tuple(checked.tolist())
         return cls(
             config.plant.plant(),
             config.plant.nominal_map(),
@@ -96,7 +107,15 @@ class Scenario:
             config.frame(),
             config.task.action_bound,
             config.simulation.max_step,
+            noise,
         )
+
+    def draw_noise(self, rng: np.random.Generator, count: int) -> Array | None:
+        """Measurement errors of ``count`` trials ``(count, nq)`` drawn from ``rng``, or ``None``
+        (and nothing drawn) when the scenario measures exactly."""
+        if self.noise is None:
+            return None
+        return rng.standard_normal((count, self.noise.size)) * self.noise
 
     @property
     def nominal(self) -> NominalModel:
@@ -161,28 +180,40 @@ class Scenario:
         u = np.stack([v1, v2] if chained_map is None else chained_map.inputs(q, v1, v2), axis=-1)
         return Trajectory(t.copy(), self.to_world(q), u, left_chart)
 
-    def measure(self, final: Array, status: npt.NDArray[np.int64], leg: int = 0) -> dict[str, Array]:
+    def measure(
+        self, final: Array, status: npt.NDArray[np.int64], leg: int = 0, noise: Array | None = None
+    ) -> dict[str, Array]:
         """Errors of a batch of final plant states ``(B, nx)`` against the end of leg ``leg``.
 
-        Returns arrays with a leading batch axis: ``q_final`` (world), ``z_final``, ``error``
-        (``z^d - z(T)``, the epsilon of eqs. 33-34 and 40), ``error_norm``, ``left_chart`` and,
-        for a robot with a pose, ``cartesian_error`` [m] and ``orientation_error`` [rad].
+        ``noise`` ``(B, nq)`` is added to the true final configuration (world frame) to give the
+        measured one; ``None`` measures exactly. Returns arrays with a leading batch axis, all of
+        the *measured* configuration: ``q_final`` (world), ``z_final``, ``error`` (``z^d - z(T)``, the
+        epsilon of eqs. 33-34 and 40), ``error_norm``, ``left_chart`` and, for a robot with a
+        pose, ``cartesian_error`` [m] and ``orientation_error`` [rad]; and the same errors of the
+        true configuration as ``true_error_norm``, ``true_cartesian_error``, ``true_orientation_error``.
         """
         target = (leg + 1) % len(self.waypoints)
-        goal_world = self.waypoints[target]
-        q_final = self.plant.configuration(final)
-        z_final = self.to_chained(q_final)
-        error = self.z_waypoints[target] - z_final
-        out = {
-            "q_final": self.to_world(q_final),
-            "z_final": z_final,
-            "error": error,
-            "error_norm": np.linalg.norm(error, axis=-1),
-            "left_chart": status != OK,
-        }
+        q_task = self.plant.configuration(final)
+        q_world = self.to_world(q_task)
+        out = self._errors(q_task, q_world, target, "true_")
+        if noise is not None:
+            q_world = q_world + noise
+            q_task = self.to_task(q_world)
+        out.update(self._errors(q_task, q_world, target, ""))
+        out["q_final"] = q_world
+        out["z_final"] = self.to_chained(q_task)
+        out["error"] = self.z_waypoints[target] - out["z_final"]
+        out["left_chart"] = status != OK
+        return out
+
+    def _errors(self, q_task: Array, q_world: Array, target: int, prefix: str) -> dict[str, Array]:
+        """The error norm (chained coordinates) and, with a pose, the Cartesian [m] and orientation
+        [rad] errors of a configuration (given in the task and the world frame) at waypoint ``target``."""
+        goal = self.waypoints[target]
+        out = {prefix + "error_norm": np.linalg.norm(self.z_waypoints[target] - self.to_chained(q_task), axis=-1)}
         if self.kind.has_pose:
-            out["cartesian_error"] = np.linalg.norm(out["q_final"][..., :2] - goal_world[:2], axis=-1)
-            out["orientation_error"] = np.abs(out["q_final"][..., 2] - goal_world[2])
+            out[prefix + "cartesian_error"] = np.linalg.norm(q_world[..., :2] - goal[:2], axis=-1)
+            out[prefix + "orientation_error"] = np.abs(q_world[..., 2] - goal[2])
         return out
 
     def check_start(self, q: Array) -> None:

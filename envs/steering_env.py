@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import reprlib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +14,7 @@ import numpy.typing as npt
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.car import drawn_wheelbase
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.score import trial_cost
+from ilc_steering.core.score import TRUE_KEYS, trial_cost
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.scenario import Scenario
 
@@ -78,7 +79,7 @@ def trial_infos(measured: dict[str, Array], applied: Array, requested: Array) ->
 def trial_info(measured: dict[str, Array], applied: Array, requested: Array) -> dict[str, Any]:
     """The ``info`` of one trial from a batch-of-one measurement, with Python scalars."""
     info: dict[str, Any] = {k: v[0] for k, v in trial_infos(measured, applied[None], requested[None]).items()}
-    for key in ("error_norm", "cartesian_error", "orientation_error"):
+    for key in ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS):
         if key in info:
             info[key] = float(info[key])
     for key in ("left_chart", "clipped"):
@@ -140,8 +141,10 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     ## Rewards
 
-    Minus the weighted final error. Car: ``-(cartesian_error / 1 m + orientation_error / 1 rad)``.
-    Chained plant: ``-||z^d - z(T)||``.
+    Minus the weighted final error, as measured. Car: ``-(cartesian_error / 1 m +
+    orientation_error / 1 rad)``. Chained plant: ``-||z^d - z(T)||``. A trial that left the chart
+    (see Episode End) scores minus its error where it halted plus a penalty,
+    ``ilc_steering.core.score.OFF_CHART_PENALTY`` (1000), so that halting early never pays.
 
     ## Starting State
 
@@ -158,7 +161,12 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     ``step`` returns ``q_final`` (world frame), ``z_final``, ``error`` (``z^d - z(T)``, the
     learning error of eqs. 33-34), ``error_norm``, ``left_chart``, ``action`` (as applied, after
     clipping), ``clipped`` and, for the car, ``cartesian_error`` [m] and ``orientation_error``
-    [rad]. With ``record_trajectory=True`` it also holds ``trajectory``, the trial's
+    [rad]. These are *measured*: with ``measurement_noise``, the final configuration is measured
+    with Gaussian errors of that standard deviation, drawn from ``self.np_random`` (seeded by
+    ``reset(seed=...)``). The same errors of the true configuration are in ``true_error_norm``
+    and, for the car, ``true_cartesian_error`` and ``true_orientation_error``: for scoring, not
+    for learning (:func:`~ilc_steering.loop.run_trials` keeps them from the learner).
+    With ``record_trajectory=True`` it also holds ``trajectory``, the trial's
     :class:`~ilc_steering.core.trajectory.Trajectory` (``t``, ``q(t)``, ``u1(t)``, ``u2(t)`` at
     every integrator step). ``reset`` returns ``q_start`` and ``q_goal``.
 
@@ -174,6 +182,9 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     ``"forward_parking_saturated"``, ``"parallel_parking"``, ...), or a :class:`SteeringConfig`.
     ``render_mode``: ``None`` or ``"rgb_array"``. ``record_trajectory``: put each trial's
     trajectory in ``info`` (off by default: recording costs memory and time on the fast path).
+    ``measurement_noise``: the standard deviation of the final configuration's measurement, one
+    number for every coordinate or one per coordinate (car: x [m], y [m], theta [rad], phi [rad];
+    chained: z); ``None`` (the default) takes the config's ``simulation.measurement_noise``.
 
     The learner's view of the system is ``env.unwrapped.nominal_model``
     (:class:`~ilc_steering.core.nominal.NominalModel`); the true plant stays inside the env.
@@ -201,6 +212,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         config: str | Path | SteeringConfig = "forward_parking",
         render_mode: str | None = None,
         record_trajectory: bool = False,
+        measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.record_trajectory = record_trajectory
@@ -209,7 +221,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
             raise ValueError(
                 f"{self.config.name}: a cyclic config (task.waypoints); use ilc_steering/CyclicSteering-v0 for it"
             )
-        self._scenario = Scenario.from_config(self.config)
+        self._scenario = Scenario.from_config(self.config, measurement_noise)
         action_space, observation_space, self._observation = task_spaces(self._scenario)
         self.observation_space = observation_space  # type: ignore[assignment]
         self.action_space = action_space  # type: ignore[assignment]  # Box is Gymnasium's Space of arrays
@@ -234,7 +246,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         applied = np.clip(c, self._low, self._high)
         record = self.record_trajectory or self.render_mode is not None
         trials = self._scenario.run(applied[None], record=record)
-        info = trial_info(self._scenario.measure(trials.final, trials.status), applied, c)
+        noise = self._scenario.draw_noise(self.np_random, 1)
+        info = trial_info(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
         if record:
             trajectory = self._scenario.trajectory(trials, applied[None])
             self._view.add(trajectory, info, keep=1)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +38,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     Made by ``gym.make_vec("ilc_steering/ChainedSteering-v0", num_envs=N,
     vectorization_mode="vector_entry_point", config=...)``. Each ``step`` takes actions of shape
     ``(N, 1 + q)`` and runs ``N`` whole trials in one call of the compiled integrator, on all
-    cores from :data:`PARALLEL_FROM` trials up.
+    cores from :data:`PARALLEL_FROM` trials up. ``measurement_noise`` is the scalar env's; the
+    noise of a step's trials is drawn in one call from the vector env's ``np_random``.
 
     Every episode is one step long, so the env resets in the same step
     (``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``) and every step is a trial: the
@@ -66,13 +68,14 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         config: str | Path | SteeringConfig = "forward_parking",
         render_mode: str | None = None,
         parallel: bool | None = None,
+        measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.num_envs = int(num_envs)
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
-        self._scenario = Scenario.from_config(self.config)
+        self._scenario = Scenario.from_config(self.config, measurement_noise)
         single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
         self.single_action_space = single_action_space
         self._low, self._high = single_action_space.low, single_action_space.high
@@ -105,7 +108,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")
         applied = np.clip(c, self._low, self._high)
         trials = self._scenario.run(applied, parallel=self.parallel)
-        final_info = trial_infos(self._scenario.measure(trials.final, trials.status), applied, c)
+        noise = self._scenario.draw_noise(self.np_random, self.num_envs)
+        final_info = trial_infos(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
         rewards = np.asarray(reward(final_info), dtype=np.float64)
         everyone = np.ones(self.num_envs, dtype=np.bool_)
         final_obs = np.empty(self.num_envs, dtype=object)

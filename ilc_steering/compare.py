@@ -1,19 +1,24 @@
-"""Trials to tolerance: ILC against RL (SB3) and black-box optimizers, across seeds.
+"""Trials to tolerance: ILC against RL (SB3), black-box and users' learners, across seeds and priors.
 
 Every method is a :class:`~ilc_steering.agents.base.Learner` built from the same
-:class:`~ilc_steering.agents.base.LearnerContext` (the nominal model and the env's spaces), run
-on ``ilc_steering/ChainedSteering-v0`` by the one trial loop,
-:func:`~ilc_steering.loop.run_trials`, which runs and counts every trial it asks for (probes
-and random exploration included) up to the budget; a :class:`TrialLog` records the errors.
-ILC acts in physical units; the black-box and RL methods, through
-:class:`~ilc_steering.agents.adapters.PullLearner`, in the ``[-1, 1]`` box of ``RescaleAction``.
+:class:`~ilc_steering.agents.base.LearnerContext` (the nominal model, the env's spaces, a seed and
+the prior), run on ``ilc_steering/ChainedSteering-v0`` by the one trial loop,
+:func:`~ilc_steering.loop.run_trials`, which runs and counts every trial it asks for (probes,
+random exploration and RL's deterministic trials included) up to the budget; a
+:class:`TrialLog` records the *true* errors (the env may measure with noise).
 
-A run folder holds ``run.json`` (the arguments), ``cells/<method>__<scenario>__<seed>.json`` (one
-per finished cell, written when it finishes) and, at the end, ``compare.{csv,json,md,png}``.
-Running again on the same folder skips the finished cells: an interrupted run resumes and never
-recomputes or loses a finished cell.
+Two conditions, ``--priors``: ``nominal`` (every method's first trial is the nominal open-loop
+solution, and black-box and RL methods search a residual box around it) and ``none`` (no prior:
+a seeded start near ``c = 0`` in the env's whole action box). ``ilc_paper`` is the paper's
+learner exactly, whose fictitious zero iteration is its own first trial under both.
 
-    ilc-steering compare [--quick] [--out DIR]
+A run folder holds ``run.json`` (the settings), ``cells/<prior>__<method>__<scenario>__<seed>.json``
+(one per finished cell, written when it finishes) and, at the end, ``compare.{csv,json,md}`` and
+``compare_<scenario>.png``. Running again on the same folder skips the finished cells: an
+interrupted run resumes and never recomputes or loses a finished cell. Cells run in
+``--workers`` processes (one per core by default), with the same results as one process.
+
+    ilc-steering compare [--quick] [--out DIR] [--methods ilc least_squares mypkg.mod:make ...]
     python benchmarks/compare.py [--quick] [--out DIR]
 """
 
@@ -22,30 +27,46 @@ from __future__ import annotations
 import argparse
 import fcntl
 import json
-import math
+import multiprocessing
+import os
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, replace
+from importlib import import_module
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from ilc_steering.agents.base import Learner, LearnerContext
+from ilc_steering.agents.base import PRIORS, Learner, LearnerContext
+from ilc_steering.compare_report import LADDER, write_report
+from ilc_steering.core.score import true_cost
 from ilc_steering.loop import run_trials
-from ilc_steering.output import check_output_dir, write_json
-from ilc_steering.tables import markdown_table, write_results
+from ilc_steering.output import check_output_dir, safe_name, write_json
 
-__all__ = ["Args", "TrialLog", "main", "make_learner", "parse", "run_cell"]
+__all__ = [
+    "LADDER",
+    "Args",
+    "TrialLog",
+    "main",
+    "make_learner",
+    "measure",
+    "parallel_map",
+    "parse",
+    "run_cell",
+    "run_cells",
+]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
-LOOSE = (0.01, 0.01)  # [m], [rad]; a chained plant: 0.01 on ||z^d - z(T)||
-TIGHT = (5e-4, 5e-4)  # [m], [rad]; a chained plant: 5e-4 on ||z^d - z(T)||
 MAX_SEED = 2**32 - 1
-METHODS = ("ilc", "gauss_newton", "nelder_mead", "cma_es", "ppo", "sac", "td3")
-SCENARIOS = ("forward_parking", "forward_parking_saturated", "parallel_parking")
+MODEL_METHODS = ("ilc", "ilc_paper", "newton")
+BLACKBOX = ("least_squares", "gauss_newton", "nelder_mead", "cma_es")
+RL = ("ppo", "sac", "td3")
+METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
+SCENARIOS = ("forward_parking", "forward_parking_saturated", "parallel_parking", "forward_parking_noisy")
 
 
 @dataclass(frozen=True)
@@ -54,91 +75,155 @@ class Args:
     """Tiny budgets and two seeds: checks that everything runs and writes well-formed output (CI)."""
     out: Path = Path("runs/compare")
     """Run folder; an existing one is resumed."""
+    priors: tuple[str, ...] = PRIORS
+    """Conditions: ``nominal`` (start from the nominal solution) and ``none`` (no prior)."""
     methods: tuple[str, ...] = METHODS
-    """Methods to compare."""
+    """Methods: the library's ids, or ``module:attr`` for a user's learner factory."""
     scenarios: tuple[str, ...] = SCENARIOS
-    """Packaged configs (simulations 1-3)."""
-    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
-    """Seeds; each (method, scenario, seed) is one cell."""
-    ilc_trials: int = 30
-    """Budget of the ILC agent [trials]."""
+    """Packaged config names or YAML paths of one-trial tasks."""
+    seeds: tuple[int, ...] = tuple(range(10))
+    """Seeds; each (prior, method, scenario, seed) is one cell."""
+    model_trials: int = 30
+    """Budget of the model-based learners (``ilc``, ``ilc_paper``, ``newton``) [trials]."""
     blackbox_trials: int = 3000
     """Budget of each black-box optimizer [trials]."""
     rl_trials: int | None = None
     """Budget of each RL algorithm [trials]; None: ``n_timesteps`` of its hyperparameter file."""
-    progress_bar: bool = True
-    """SB3's progress bar on RL cells."""
+    custom_trials: int = 300
+    """Budget of a user's learner (``module:attr``) [trials]."""
+    workers: int = 0
+    """Worker processes; 0: one per core."""
+    progress_bar: bool = False
+    """SB3's progress bar on RL cells (with one worker only)."""
 
 
-QUICK = {"ilc_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "progress_bar": False}
+QUICK = {"model_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "custom_trials": 20}
 QUICK_SEEDS = (0, 1)
 
 
 class TrialLog:
-    """A trial-loop callback that keeps every trial's errors: Cartesian [m] and orientation [rad]
-    for a robot with a pose, the chained error norm for a chained plant (``cartesian`` holds it
-    then, ``orientation`` zeros), the cost every learner minimises, and whether it left the chart."""
+    """A trial-loop callback that keeps every trial's *true* errors: Cartesian [m] and orientation
+    [rad] for a robot with a pose, the chained error norm for a chained plant (``cartesian`` holds
+    it then, ``orientation`` zeros), the true cost (:func:`~ilc_steering.core.score.true_cost`,
+    the off-chart penalty included), and whether it left the chart."""
 
     def __init__(self) -> None:
         self.cartesian: list[float] = []
         self.orientation: list[float] = []
+        self.cost: list[float] = []
         self.left_chart: list[bool] = []
 
     def __call__(self, k: int, info: dict[str, Any]) -> None:
-        self.cartesian.append(float(info.get("cartesian_error", info["error_norm"])))
-        self.orientation.append(float(info.get("orientation_error", 0.0)))
+        self.cartesian.append(float(info.get("true_cartesian_error", info["true_error_norm"])))
+        self.orientation.append(float(info.get("true_orientation_error", 0.0)))
+        self.cost.append(float(true_cost(info)))
         self.left_chart.append(bool(info["left_chart"]))
 
 
-def first_within(log: TrialLog, tolerance: tuple[float, float]) -> int | None:
-    """The 1-based index of the first trial within ``tolerance`` (both errors; a chained plant:
-    its error norm within the first), or None."""
-    ok = (np.asarray(log.cartesian) <= tolerance[0]) & (np.asarray(log.orientation) <= tolerance[1])
-    hits = np.flatnonzero(ok)
+def first_within(log: TrialLog, tolerance: float) -> int | None:
+    """The 1-based index of the first trial that stayed in the chart with both errors within
+    ``tolerance`` (a chained plant: its error norm), or None."""
+    ok = (np.asarray(log.cartesian) <= tolerance) & (np.asarray(log.orientation) <= tolerance)
+    hits = np.flatnonzero(ok & ~np.asarray(log.left_chart, dtype=bool))
     return int(hits[0]) + 1 if hits.size else None
 
 
 def best_so_far(log: TrialLog) -> list[list[float]]:
-    """``[trial, best error]`` at every trial that improved the best cost (Cartesian + orientation
-    error, or the chained error norm)."""
-    error = np.asarray(log.cartesian) + np.asarray(log.orientation)
-    best = np.minimum.accumulate(error)
+    """``[trial, best true cost]`` at every trial that improved it."""
+    best = np.minimum.accumulate(np.asarray(log.cost))
     changed = np.flatnonzero(np.concatenate([[True], best[1:] < best[:-1]]))
     return [[int(i) + 1, float(best[i])] for i in changed]
 
 
-def budget(args: Args, method: str, scenario: str) -> int:
-    from ilc_steering.agents.rl import RL_ALGORITHMS, hyperparameters
+def is_custom(method: str) -> bool:
+    """A user's learner factory, ``module:attr``."""
+    return ":" in method
 
-    if method == "ilc":
-        return args.ilc_trials
-    if method in RL_ALGORITHMS:
-        return args.rl_trials if args.rl_trials is not None else int(hyperparameters(method, scenario)["n_timesteps"])
+
+def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
+    """The factory named ``module:attr``; ``ValueError`` if it cannot be imported or called."""
+    module_name, _, attr = method.partition(":")
+    try:
+        factory = getattr(import_module(module_name), attr)
+    except (ImportError, AttributeError) as error:
+        raise ValueError(f"--methods {method}: cannot import it ({type(error).__name__}: {error})") from None
+    if not callable(factory):
+        raise ValueError(f"--methods {method}: not callable; give a factory make(context) -> Learner")
+    return factory  # type: ignore[no-any-return]
+
+
+def budget(args: Args, prior: str, method: str, scenario: str) -> int:
+    if method in MODEL_METHODS:
+        return args.model_trials
+    if is_custom(method):
+        return args.custom_trials
+    if method in RL:
+        from ilc_steering.agents.rl import hyperparameters
+
+        if args.rl_trials is not None:
+            return args.rl_trials
+        return int(hyperparameters(method, scenario, prior)["n_timesteps"])
     return args.blackbox_trials
 
 
 def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
     """The learner of ``method`` for ``scenario`` (its config's name), built from ``context`` alone."""
-    from ilc_steering.agents import blackbox, rl
-    from ilc_steering.agents.ilc import make_ilc
+    from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
+    from ilc_steering.agents.newton import make_newton
 
-    if method == "ilc":
-        return make_ilc(context)
-    if method in rl.RL_ALGORITHMS:
-        params = rl.hyperparameters(method, scenario)
-        return rl.make_learner(method, params, budget(args, method, scenario), args.progress_bar, context)
-    if method in blackbox.BLACKBOX_METHODS:
+    builders: dict[str, Callable[[LearnerContext], Learner]] = {
+        "ilc": make_ilc,
+        "ilc_paper": make_ilc_paper,
+        "newton": make_newton,
+    }
+    if method in builders:
+        return builders[method](context)
+    if method in RL:
+        from ilc_steering.agents import rl
+
+        params = rl.hyperparameters(method, scenario, context.prior)
+        trials = budget(args, context.prior, method, scenario)
+        return rl.make_learner(method, params, trials, args.progress_bar, context)
+    if method in BLACKBOX:
+        from ilc_steering.agents import blackbox
+
         return blackbox.make_learner(method, context)
-    raise ValueError(f"unknown method {method!r}; choose from {METHODS}")
+    if is_custom(method):
+        learner = custom_factory(method)(context)
+        if not isinstance(learner, Learner):
+            raise ValueError(f"--methods {method}: made {type(learner).__name__}, which has no act, learn and reset")
+        return learner
+    raise ValueError(f"unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
 
 
-def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any]:
-    """One (method, scenario, seed) cell: the method's run within its budget, and what it reached."""
+def measure(env: gym.Env[Any, Any], learner: Learner, trials: int, seed: int) -> dict[str, Any]:
+    """Run ``learner`` on ``env`` for ``trials`` trials and return what it reached: the trials to
+    each tolerance of :data:`LADDER`, the best true cost, the off-chart fraction, the wall time
+    [s] and the best-so-far curve."""
+    log = TrialLog()
+    start = time.perf_counter()
+    run_trials(env, learner, trials, seed=seed, callbacks=[log])
+    wall = time.perf_counter() - start
+    curve = best_so_far(log)
+    return {
+        "trials": len(log.cost),
+        "off_chart_fraction": float(np.mean(log.left_chart)),
+        "trials_to": {level: first_within(log, tolerance) for level, tolerance in LADDER.items()},
+        "best_error": curve[-1][1],
+        "wall_s": wall,
+        "curve": curve,
+    }
+
+
+def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> dict[str, Any]:
+    """One (prior, method, scenario, seed) cell: the method's run within its budget, and what it reached."""
+    if method in RL:
+        import torch
+
+        torch.set_num_threads(1)  # as in the worker processes: serial and parallel runs agree
     env = gym.make(ENV_ID, config=scenario)
     unwrapped: Any = env.unwrapped
     config = unwrapped.config
-    name = config.name
-    trials = budget(args, method, name)
     context = LearnerContext(
         unwrapped.nominal_model,
         unwrapped.action_space,
@@ -146,58 +231,53 @@ def run_cell(args: Args, method: str, scenario: str, seed: int) -> dict[str, Any
         seed,
         config.learning.nu_a,
         config.learning.nu_b,
+        prior=prior,
     )
-    learner = make_learner(args, method, name, context)
-    log = TrialLog()
-    start = time.perf_counter()
-    run_trials(env, learner, trials, seed=seed, callbacks=[log])
-    wall = time.perf_counter() - start
-    curve = best_so_far(log)
-    return {
-        "method": method,
-        "scenario": name,
-        "seed": seed,
-        "budget": trials,
-        "trials": len(log.cartesian),
-        "left_chart_fraction": float(np.mean(log.left_chart)) if log.left_chart else 0.0,
-        "trials_to_loose": first_within(log, LOOSE),
-        "trials_to_tight": first_within(log, TIGHT),
-        "best_error": curve[-1][1],
-        "wall_s": wall,
-        "curve": curve,
-    }
+    trials = budget(args, prior, method, config.name)
+    learner = make_learner(args, method, config.name, context)
+    result = measure(env, learner, trials, seed)
+    env.close()
+    return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
 
 
-def cell_path(out: Path, method: str, scenario: str, seed: int) -> Path:
-    return out / "cells" / f"{method}__{scenario}__{seed}.json"
+def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int) -> Path:
+    return out / "cells" / f"{prior}__{safe_name(method)}__{scenario}__{seed}.json"
 
 
 def validate(args: Args) -> dict[str, str]:
     """Check every argument and scenario before the first cell; returns scenario -> config name.
 
-    ``ValueError`` names the argument: unknown or repeated methods, scenarios or seeds, a seed
-    outside ``[0, 2**32)``, a cyclic config (``compare`` runs one-trial tasks), two scenarios of
-    one name, a budget below 1.
+    ``ValueError`` names the argument: unknown or repeated priors, methods, scenarios or seeds, a
+    user's learner that cannot be imported, a seed outside ``[0, 2**32)``, a cyclic config
+    (``compare`` runs one-trial tasks), two scenarios of one name, a budget below 1, a negative
+    worker count.
     """
     from ilc_steering.config import load_config
 
-    for option, values in (("--methods", args.methods), ("--scenarios", args.scenarios), ("--seeds", args.seeds)):
+    options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
+    for option, values in (*options, ("--seeds", args.seeds)):
         if not values:
             raise ValueError(f"{option}: give at least one")
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
             raise ValueError(f"{option}: {repeated[0]} is given twice; each cell is counted once")
-    unknown = [m for m in args.methods if m not in METHODS]
-    if unknown:
-        raise ValueError(f"--methods: unknown method {unknown[0]!r}; choose from {list(METHODS)}")
+    unknown_priors = [p for p in args.priors if p not in PRIORS]
+    if unknown_priors:
+        raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
+    for method in args.methods:
+        if is_custom(method):
+            custom_factory(method)
+        elif method not in METHODS:
+            raise ValueError(f"--methods: unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
     bad = [s for s in args.seeds if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
     if bad:
         raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
-    for option, value in (("ilc_trials", args.ilc_trials), ("blackbox_trials", args.blackbox_trials)):
-        if value < 1:
-            raise ValueError(f"{option}: the budget must be >= 1 trial, got {value}")
-    if args.rl_trials is not None and args.rl_trials < 1:
-        raise ValueError(f"rl_trials: the budget must be >= 1 trial, got {args.rl_trials}")
+    for option in ("model_trials", "blackbox_trials", "rl_trials", "custom_trials"):
+        value = getattr(args, option)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+            raise ValueError(f"--{option.replace('_', '-')}: the budget must be a whole number >= 1, got {value!r}")
+    if isinstance(args.workers, bool) or not isinstance(args.workers, int) or args.workers < 0:
+        raise ValueError(f"--workers: a whole number >= 0 (0: one per core), got {args.workers!r}")
     names: dict[str, str] = {}
     for scenario in args.scenarios:
         config = load_config(scenario)
@@ -209,26 +289,31 @@ def validate(args: Args) -> dict[str, str]:
         if config.name in names.values():
             raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
         names[scenario] = config.name
-    for method in args.methods:
-        for name in names.values():
-            budget(args, method, name)  # RL: its hyperparameters exist
+    for prior in args.priors:
+        for method in args.methods:
+            for name in names.values():
+                budget(args, prior, method, name)  # RL: its hyperparameters exist
     return names
 
 
 CELL_KEYS = {
+    "prior": str,
     "method": str,
     "scenario": str,
     "seed": int,
     "budget": int,
     "trials": int,
+    "off_chart_fraction": float,
+    "trials_to": dict,
     "best_error": float,
     "wall_s": float,
     "curve": list,
 }
 
 
-def read_cell(path: Path, method: str, scenario: str, seed: int, budget: int) -> dict[str, Any]:
-    """A finished cell, checked against its key and the run's budget; ``ValueError`` names the file."""
+def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
+    """A finished cell, checked against its ``key`` (prior, method, scenario, seed, budget);
+    ``ValueError`` names the file."""
     hint = "delete it to have the cell computed again"
     try:
         cell = json.loads(path.read_bytes().decode("utf-8"))
@@ -236,23 +321,28 @@ def read_cell(path: Path, method: str, scenario: str, seed: int, budget: int) ->
         raise ValueError(f"{path}: not a readable cell ({type(error).__name__}: {error}); {hint}") from None
     if not isinstance(cell, dict):
         raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
-    for key, kind in CELL_KEYS.items():
-        value = cell.get(key)
+    for name, kind in CELL_KEYS.items():
+        value = cell.get(name)
         ok = isinstance(value, (int, float)) if kind is float else isinstance(value, kind)
         if not ok or isinstance(value, bool):
-            raise ValueError(f"{path}: {key!r} is missing or not a {kind.__name__}; {hint}")
-    expected = {"method": method, "scenario": scenario, "seed": seed, "budget": budget}
-    for key, value in expected.items():
-        if cell[key] != value:
-            raise ValueError(f"{path}: holds {key} {cell[key]!r}, not {value!r}; {hint}")
-    if not 1 <= cell["trials"] <= budget:
-        raise ValueError(f"{path}: {cell['trials']} trials for a budget of {budget}; {hint}")
+            raise ValueError(f"{path}: {name!r} is missing or not a {kind.__name__}; {hint}")
+    for name, value in key.items():
+        if cell[name] != value:
+            raise ValueError(f"{path}: holds {name} {cell[name]!r}, not {value!r}; {hint}")
+    if not 1 <= cell["trials"] <= cell["budget"]:
+        raise ValueError(f"{path}: {cell['trials']} trials for a budget of {cell['budget']}; {hint}")
+    reached = cell["trials_to"]
+    if sorted(reached) != sorted(LADDER) or not all(
+        v is None or (isinstance(v, int) and 1 <= v <= cell["trials"]) for v in reached.values()
+    ):
+        raise ValueError(f"{path}: 'trials_to' needs {sorted(LADDER)}, each a trial or null; {hint}")
     return cell
 
 
 def _check_run_folder(args: Args) -> None:
-    """Record the arguments; refuse to resume a folder written with different budgets or seeds."""
-    settings = {k: v for k, v in asdict(args).items() if k not in ("out", "progress_bar", "methods", "scenarios")}
+    """Record the settings; refuse to resume a folder written with different budgets or seeds."""
+    skip = ("out", "progress_bar", "priors", "methods", "scenarios", "workers")
+    settings = {k: v for k, v in asdict(args).items() if k not in skip}
     settings["seeds"] = list(settings["seeds"])
     stored_path = args.out / "run.json"
     cells = args.out / "cells"
@@ -288,183 +378,103 @@ def _locked(folder: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def run_cells(args: Args, runner: Callable[[Args, str, str, int], dict[str, Any]] = run_cell) -> list[dict[str, Any]]:
-    """Every cell of the run, computing only those not yet in the run folder.
+def _progress(cell: dict[str, Any]) -> None:
+    reached = cell["trials_to"]
+    print(
+        f"{cell['prior']:7s} {cell['scenario']:26s} {cell['method']:13s} seed {cell['seed']}: "
+        f"best {cell['best_error']:.2e}; 1 cm at trial {reached['1cm'] or '-'}, "
+        f"0.5 mm / 0.5 mrad at {reached['0.5mm'] or '-'} ('-': not within {cell['budget']}); "
+        f"{100 * cell['off_chart_fraction']:.0f}% off the chart; {cell['wall_s']:.1f} s",
+        flush=True,
+    )
+
+
+def workers(args: Args) -> int:
+    return args.workers or os.cpu_count() or 1
+
+
+Runner = Callable[[Args, str, str, str, int], dict[str, Any]]
+
+
+def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
+    """Every cell of the run, computing only those not yet in the run folder, in
+    :func:`workers` processes (one with a custom ``runner``).
 
     Everything is validated before the first cell; each finished cell is written at once.
     """
     names = validate(args)
     _check_run_folder(args)
-    cells = []
-    with _locked(args.out):
-        for scenario, name in names.items():
-            for method in args.methods:
-                for seed in args.seeds:
-                    path = cell_path(args.out, method, name, seed)
-                    if path.exists():
-                        cells.append(read_cell(path, method, name, seed, budget(args, method, name)))
-                        continue
-                    cell = runner(args, method, scenario, seed)
-                    write_json(path, cell)
-                    cells.append(cell)
-                    reached = cell["trials_to_tight"] or "-"
-                    print(
-                        f"{name:26s} {method:13s} seed {seed}: best {cell['best_error']:.2e} "
-                        f"(0.5 mm / 0.5 mrad reached at trial {reached}; - for not within the budget) "
-                        f"in {cell['wall_s']:.1f} s",
-                        flush=True,
-                    )
-    return cells
-
-
-def _quartiles(values: list[float]) -> tuple[float, float, float]:
-    """Quartiles as order statistics (no interpolation), so a seed that never reached the
-    tolerance (``inf``) stays ``inf`` instead of turning the interpolation into NaN."""
-    q1, q2, q3 = np.percentile(np.asarray(values, dtype=np.float64), [25, 50, 75], method="inverted_cdf")
-    return float(q1), float(q2), float(q3)
-
-
-def _count(values: list[float], budget: int) -> str:
-    q1, q2, q3 = _quartiles(values)
-    if math.isinf(q2):
-        return f"> {budget}"
-
-    def text(v: float) -> str:
-        return f"> {budget}" if math.isinf(v) else f"{v:.0f}"
-
-    return f"{q2:.0f} [{text(q1)}, {text(q3)}]"
-
-
-@dataclass
-class Summary:
-    method: str
-    scenario: str
-    budget: int
-    seeds: int
-    loose: list[float] = field(default_factory=list)
-    tight: list[float] = field(default_factory=list)
-    best: list[float] = field(default_factory=list)
-    wall: list[float] = field(default_factory=list)
-
-    def row(self) -> dict[str, Any]:
-        return {
-            "method": self.method,
-            "scenario": self.scenario,
-            "budget": self.budget,
-            "seeds": self.seeds,
-            "reached_loose": int(np.isfinite(self.loose).sum()),
-            "reached_tight": int(np.isfinite(self.tight).sum()),
-            "trials_to_loose_q1_median_q3": _quartiles(self.loose),
-            "trials_to_tight_q1_median_q3": _quartiles(self.tight),
-            "best_error_q1_median_q3": _quartiles(self.best),
-            "wall_s_median": float(np.median(self.wall)),
-        }
-
-
-def summarize(cells: list[dict[str, Any]]) -> list[Summary]:
-    groups: dict[tuple[str, str], Summary] = {}
-    for c in cells:
-        s = groups.setdefault((c["scenario"], c["method"]), Summary(c["method"], c["scenario"], c["budget"], 0))
-        s.seeds += 1
-        s.loose.append(c["trials_to_loose"] if c["trials_to_loose"] is not None else math.inf)
-        s.tight.append(c["trials_to_tight"] if c["trials_to_tight"] is not None else math.inf)
-        s.best.append(c["best_error"])
-        s.wall.append(c["wall_s"])
-    return list(groups.values())
-
-
-def report(summaries: list[Summary]) -> str:
-    header = [
-        "scenario",
-        "method",
-        "budget",
-        "trials to 1 cm / 0.01 rad",
-        "trials to 0.5 mm / 0.5 mrad",
-        "best error [m + rad]",
-        "wall [s]",
+    keys: list[dict[str, Any]] = [
+        {"prior": prior, "method": method, "scenario": name, "seed": seed, "budget": budget(args, prior, method, name)}
+        for prior in args.priors
+        for scenario, name in names.items()
+        for method in args.methods
+        for seed in args.seeds
     ]
-    rows = []
-    for s in summaries:
-        b1, b2, b3 = _quartiles(s.best)
-        rows.append(
-            [
-                s.scenario,
-                s.method,
-                str(s.budget),
-                f"{_count(s.loose, s.budget)} ({int(np.isfinite(s.loose).sum())}/{s.seeds})",
-                f"{_count(s.tight, s.budget)} ({int(np.isfinite(s.tight).sum())}/{s.seeds})",
-                f"{b2:.1e} [{b1:.1e}, {b3:.1e}]",
-                f"{np.median(s.wall):.3g}",
-            ]
-        )
-    note = (
-        "\nMedian [interquartile range] across seeds (order statistics); "
-        "(k/n): seeds that reached the tolerance within the budget. "
-        "Every trial counts, probes and random exploration included. Best error: the lowest Cartesian error [m] "
-        "+ orientation error [rad] of any trial within the budget.\n"
-    )
-    return markdown_table(header, rows, [False, False, True, True, True, True, True]) + note
+    scenario_of = {name: scenario for scenario, name in names.items()}
+    done: dict[int, dict[str, Any]] = {}
+    with _locked(args.out):
+        todo = []
+        for index, key in enumerate(keys):
+            path = cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"])
+            if path.exists():
+                done[index] = read_cell(path, key)
+            else:
+                todo.append(index)
+
+        def finish(index: int, cell: dict[str, Any]) -> None:
+            key = keys[index]
+            write_json(cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"]), cell)
+            done[index] = cell
+            _progress(cell)
+
+        def call(index: int) -> tuple[Args, str, str, str, int]:
+            key = keys[index]
+            return args, key["prior"], key["method"], scenario_of[key["scenario"]], key["seed"]
+
+        count = min(workers(args), len(todo))
+        if count <= 1 or runner is not run_cell:
+            for index in todo:
+                finish(index, runner(*call(index)))
+        else:
+            quiet = replace(args, progress_bar=False)
+            calls = {index: (quiet, *call(index)[1:]) for index in todo}
+            parallel_map(run_cell, calls, count, finish)
+    return [done[index] for index in range(len(keys))]
 
 
-def plot(cells: list[dict[str, Any]], scenarios: tuple[str, ...], path: Path) -> None:
-    """Best error so far against trials, log-log: the median across seeds, the interquartile band shaded."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(scenarios), figsize=(5.5 * len(scenarios), 4.4), squeeze=False)
-    methods = list(dict.fromkeys(c["method"] for c in cells))
-    palette = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]
-    colours = dict(zip(methods, palette))
-    for ax, scenario in zip(axes[0], scenarios):
-        for method in methods:
-            runs = [c for c in cells if c["scenario"] == scenario and c["method"] == method]
-            if not runs:
-                continue
-            grid = np.unique(np.geomspace(1, max(r["trials"] for r in runs), 200).astype(int))
-            values = np.array([_step_curve(r["curve"], r["trials"], grid) for r in runs])
-            q1, q2, q3 = np.nanpercentile(values, [25, 50, 75], axis=0)
-            ax.plot(grid, q2, color=colours[method], label=method)
-            ax.fill_between(grid, q1, q3, color=colours[method], alpha=0.2, linewidth=0)
-        for tol, style in ((sum(LOOSE), ":"), (sum(TIGHT), "--")):
-            ax.axhline(tol, color="grey", linestyle=style, linewidth=0.8)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("trials")
-        ax.set_ylabel("best Cartesian [m] + orientation [rad] error so far")
-        ax.set_title(scenario)
-        ax.grid(True, which="major", alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(
-        "Best error against trials (median and interquartile range across seeds; "
-        "dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)",
-        fontsize=9,
-    )
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _step_curve(curve: list[list[float]], trials: int, grid: np.ndarray) -> np.ndarray:
-    """The best-so-far step function on ``grid`` (NaN past the run's last trial)."""
-    at, best = np.array([p[0] for p in curve]), np.array([p[1] for p in curve])
-    values = best[np.searchsorted(at, grid, side="right") - 1]
-    return np.where(grid <= trials, values, np.nan)
+def parallel_map(
+    function: Callable[..., Any], calls: dict[Any, tuple[Any, ...]], count: int, finish: Callable[[Any, Any], None]
+) -> None:
+    """``finish(key, function(*calls[key]))`` for every key, the calls run in ``count`` spawned
+    processes; ``finish`` runs in this process as each call returns (so results are written as
+    they come). An error or an interrupt cancels what has not started and is raised."""
+    with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("spawn")) as pool:
+        pending: dict[Future[Any], Any] = {}
+        queue = list(calls)
+        try:
+            while queue or pending:
+                while queue and len(pending) < 2 * count:
+                    key = queue.pop(0)
+                    pending[pool.submit(function, *calls[key])] = key
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in finished:
+                    finish(pending.pop(future), future.result())
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            raise
 
 
 def main(args: Args) -> list[dict[str, Any]]:
-    if args.quick:
-        args = Args(**{**asdict(args), **QUICK, "quick": True})
+    if args.quick:  # the quick budgets, where no budget was given
+        quick: dict[str, Any] = {k: v for k, v in QUICK.items() if getattr(args, k) == getattr(Args, k)}
+        args = replace(args, **quick)
     cells = run_cells(args)
     names = list(validate(args).values())
-    summaries = summarize(cells)
-    text = report(summaries)
-    rows = [{k: v for k, v in c.items() if k != "curve"} for c in cells]
-    write_results(rows, args.out, "compare", text, {"summary": [s.row() for s in summaries], "cells": cells})
-    plot(cells, tuple(names), args.out / "compare.png")
+    text = write_report(cells, names, args.out, {"black-box": BLACKBOX, "RL": RL})
     print(text)
-    print(f"wrote {args.out}/compare.{{csv,json,md,png}} and one file per cell in {args.out}/cells")
+    print(f"wrote {args.out}/compare.{{csv,json,md}}, compare_<scenario>.png and one file per cell in {args.out}/cells")
     return cells
 
 
@@ -473,11 +483,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help=f"tiny budgets ({QUICK['ilc_trials']} ILC, {QUICK['blackbox_trials']} black-box, {QUICK['rl_trials']} RL "
-        f"trials) and, unless --seeds is given, seeds {' '.join(map(str, QUICK_SEEDS))}: checks that everything runs",
+        help=f"tiny budgets ({QUICK['model_trials']} model-based, {QUICK['blackbox_trials']} black-box, "
+        f"{QUICK['rl_trials']} RL, {QUICK['custom_trials']} custom trials) and, unless --seeds is given, seeds "
+        f"{' '.join(map(str, QUICK_SEEDS))}: checks that everything runs",
     )
     parser.add_argument("--out", type=Path, default=Args.out, help="run folder; an existing one is resumed")
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), help=f"any of {' '.join(METHODS)}")
+    parser.add_argument(
+        "--priors", nargs="+", default=list(PRIORS), help="nominal: start from the nominal solution; none: no prior"
+    )
+    parser.add_argument(
+        "--methods",
+        nargs="+",
+        default=list(METHODS),
+        help=f"any of {' '.join(METHODS)}, or module:attr, a factory make(LearnerContext) -> Learner",
+    )
     parser.add_argument(
         "--scenarios", nargs="+", default=list(SCENARIOS), help="packaged config names or YAML paths (one-trial tasks)"
     )
@@ -486,25 +505,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         nargs="+",
         default=argparse.SUPPRESS,
-        help=f"whole numbers in [0, {MAX_SEED}] (default: 0 1 2 3 4; with --quick: 0 1)",
+        help=f"whole numbers in [0, {MAX_SEED}] (default: 0 to 9; with --quick: 0 1)",
     )
-    parser.add_argument("--no-progress-bar", action="store_true", help="no SB3 progress bar on RL cells")
+    for option, what in (
+        ("model_trials", "ilc, ilc_paper and newton"),
+        ("blackbox_trials", "each black-box optimizer"),
+        ("rl_trials", "each RL algorithm (default: n_timesteps of configs/rl/*.yaml)"),
+        ("custom_trials", "a user's learner (module:attr)"),
+    ):
+        parser.add_argument(
+            f"--{option.replace('_', '-')}",
+            type=int,
+            default=argparse.SUPPRESS,
+            help=f"budget of {what} [trials] (default: {getattr(Args, option)}; with --quick: {QUICK[option]})",
+        )
+    parser.add_argument("--workers", type=int, default=0, help="worker processes (0: one per core)")
+    bar = parser.add_mutually_exclusive_group()
+    bar.add_argument("--progress-bar", action="store_true", help="SB3's progress bar on RL cells (one worker)")
+    bar.add_argument("--no-progress-bar", action="store_true", help="no progress bar (the default)")
 
 
 def from_namespace(ns: argparse.Namespace) -> Args:
     given = getattr(ns, "seeds", None)
     seeds = given if given is not None else (QUICK_SEEDS if ns.quick else Args.seeds)
-    return Args(
+    budgets = {k: getattr(ns, k) for k in QUICK if hasattr(ns, k)}
+    args = Args(
         quick=ns.quick,
         out=ns.out,
+        priors=tuple(ns.priors),
         methods=tuple(ns.methods),
         scenarios=tuple(ns.scenarios),
         seeds=tuple(seeds),
-        progress_bar=not ns.no_progress_bar,
+        workers=ns.workers,
+        progress_bar=ns.progress_bar,
     )
+    return replace(args, **budgets)
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     add_arguments(parser)
     return from_namespace(parser.parse_args(argv))

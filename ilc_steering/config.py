@@ -23,7 +23,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ilc_steering.core.car import CarModel, frame_angle, rotate
-from ilc_steering.core.checks import ParameterError, check_gains
+from ilc_steering.core.checks import ParameterError, check_gains, check_noise
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
 from ilc_steering.core.profiles import PiecewiseProfile
@@ -230,9 +230,15 @@ class LearningConfig:
 @dataclass(frozen=True)
 class SimulationConfig:
     max_step: float = 1.0 / 32.0  # longest integrator step [s]
+    # sigma of the final configuration's measurement, one per coordinate (car: x [m], y [m], theta [rad],
+    # phi [rad]; chained: z); None: measured exactly
+    measurement_noise: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         _require(_positive(self.max_step), "max_step", f"must be > 0 s, got {self.max_step}")
+        if self.measurement_noise is not None:
+            with _domain("measurement_noise"):
+                check_noise(self.measurement_noise, len(self.measurement_noise))
 
 
 @dataclass(frozen=True)
@@ -276,6 +282,12 @@ class SteeringConfig:
             f"got {_show(self.name)}",
         )
         n = self.plant.dimension
+        noise = self.simulation.measurement_noise
+        _require(
+            noise is None or len(noise) == n,
+            "simulation.measurement_noise",
+            f"needs one sigma per coordinate ({n} for plant.model {self.plant.model}), got {len(noise or ())}",
+        )
         points = self.points()
         for key, point in points:
             _require(len(point) == n, key, f"needs {n} values for plant.model {self.plant.model}, got {len(point)}")

@@ -14,6 +14,7 @@ from typing import Any
 import gymnasium as gym
 
 from ilc_steering.agents.base import Learner
+from ilc_steering.core.score import TRUE_KEYS
 
 __all__ = ["Rollout", "TrialCallback", "run_trials"]
 
@@ -46,6 +47,9 @@ def run_trials(
     """Run ``learner`` on ``env`` for at most ``trials`` trials: act, step, learn, and reset when the
     episode ends (every trial for the one-trial env; at truncation for the cyclic env).
 
+    The learner gets each trial's ``info`` without the true errors (``core.score.TRUE_KEYS``):
+    it learns from measurements only. The rollout and the callbacks get the whole ``info``.
+
     ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method (the
     adapters of pull-style optimizers) is closed when the loop ends, however it ends.
     """
@@ -56,7 +60,7 @@ def run_trials(
     try:
         for k in range(1, trials + 1):
             observation, reward, terminated, truncated, info = env.step(learner.act(observation))
-            learner.learn(info)
+            learner.learn({key: value for key, value in info.items() if key not in TRUE_KEYS})
             rollout.infos.append(info)
             rollout.rewards.append(float(reward))
             if any([bool(callback(k, info)) for callback in callbacks]):

@@ -28,8 +28,9 @@ CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
 
 @dataclass(frozen=True)
 class TrialRecord:
-    """One trial: its errors, final configuration (world frame), chained error, action and,
-    when recorded, its trajectory."""
+    """One trial: its true errors (those of the true final configuration, the measured ones
+    differing by the env's measurement noise), final configuration as measured (world frame),
+    chained error as measured (what the learner used), action and, when recorded, its trajectory."""
 
     trial: int  # for a cyclic run: the index l of the waypoint reached (r is home)
     error_norm: float
@@ -80,9 +81,9 @@ def _record(index: int, info: dict[str, Any]) -> TrialRecord:
     return TrialRecord(
         trajectory=info.get("trajectory"),
         trial=index,
-        error_norm=info["error_norm"],
-        cartesian_error=info.get("cartesian_error"),
-        orientation_error=info.get("orientation_error"),
+        error_norm=info["true_error_norm"],
+        cartesian_error=info.get("true_cartesian_error"),
+        orientation_error=info.get("true_orientation_error"),
         final_state=info["q_final"].tolist(),
         error=info["error"].tolist(),
         action=info["action"].tolist(),

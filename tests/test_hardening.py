@@ -204,6 +204,11 @@ def test_compare_refuses_bad_arguments_before_any_cell(tmp_path, capsys):
         ["--scenarios", "cyclic_home_goal"],
         ["--scenarios", "forward_parking", "no_such_scenario"],
         ["--methods", "ilc", "nope"],
+        ["--priors", "nominal", "nominal"],
+        ["--priors", "optimistic"],
+        ["--methods", "no_such_module:make"],
+        ["--workers", "-1"],
+        ["--rl-trials", "0"],
     ):
         out = tmp_path / "run"
         assert main(["compare", "--quick", "--out", str(out), *argv]) == 2, argv
@@ -211,24 +216,39 @@ def test_compare_refuses_bad_arguments_before_any_cell(tmp_path, capsys):
         assert not (out / "cells").exists() or not list((out / "cells").iterdir()), argv
 
 
-def test_quick_keeps_explicit_seeds():
+def test_quick_keeps_explicit_seeds_and_budgets():
     assert compare.parse(["--quick", "--seeds", "3"]).seeds == (3,)
     assert compare.parse(["--quick"]).seeds == (0, 1)
+    assert compare.parse(["--quick", "--model-trials", "9"]).model_trials == 9
 
 
 def test_compare_runs_chained_plants_and_yaml_paths(tmp_path):
     path = CONFIGS / "parallel_parking.yaml"
-    args = Args(out=tmp_path, methods=("ilc",), scenarios=("chained_perturbed", str(path)), seeds=(0,), ilc_trials=8)
+    args = Args(
+        out=tmp_path,
+        priors=("nominal",),
+        methods=("ilc_paper",),
+        scenarios=("chained_perturbed", str(path)),
+        seeds=(0,),
+        model_trials=8,
+    )
     cells = run_cells(args)
     assert [c["scenario"] for c in cells] == ["chained_perturbed", "parallel_parking"]
-    assert cells[0]["trials_to_tight"] is not None and cells[1]["trials_to_tight"] == 5
+    assert cells[0]["trials_to"]["0.5mm"] is not None and cells[1]["trials_to"]["0.5mm"] == 5
 
 
 def test_resumed_cells_are_checked_against_their_key(tmp_path):
-    args = Args(out=tmp_path, methods=("ilc",), scenarios=("forward_parking",), seeds=(0, 1), ilc_trials=4)
+    args = Args(
+        out=tmp_path,
+        priors=("nominal",),
+        methods=("ilc",),
+        scenarios=("forward_parking",),
+        seeds=(0, 1),
+        model_trials=4,
+    )
     run_cells(args)
     cells = tmp_path / "cells"
-    first, second = cells / "ilc__forward_parking__0.json", cells / "ilc__forward_parking__1.json"
+    first, second = cells / "nominal__ilc__forward_parking__0.json", cells / "nominal__ilc__forward_parking__1.json"
     original = first.read_text()
     for broken, message in (
         (original[:-5], "not a readable cell"),
@@ -236,11 +256,12 @@ def test_resumed_cells_are_checked_against_their_key(tmp_path):
         ("[1, 2]", "not a cell"),
         (json.dumps({**json.loads(original), "trials": "4"}), "'trials' is missing"),
         (second.read_text(), "holds seed 1, not 0"),
+        (json.dumps({**json.loads(original), "trials_to": {"1cm": 2}}), "'trials_to' needs"),
     ):
         first.write_text(broken)
         with pytest.raises(ValueError, match=message) as error:
             run_cells(args)
-        assert "ilc__forward_parking__0.json" in str(error.value)
+        assert "nominal__ilc__forward_parking__0.json" in str(error.value)
     first.write_text(original)
     (tmp_path / "run.json").unlink()
     with pytest.raises(ValueError, match="no run.json"):
@@ -260,12 +281,12 @@ def test_two_compares_cannot_share_a_folder(tmp_path):
     with open(tmp_path / ".lock", "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
         with pytest.raises(ValueError, match="another compare is running"):
-            run_cells(Args(out=tmp_path, methods=("ilc",), scenarios=("forward_parking",), seeds=(0,), ilc_trials=3))
+            run_cells(Args(out=tmp_path, methods=("ilc",), scenarios=("forward_parking",), seeds=(0,), model_trials=3))
 
 
 def test_a_cell_of_a_chained_plant_counts_the_error_norm():
-    cell = run_cell(Args(ilc_trials=10), "ilc", "chained_perturbed", 0)
-    assert cell["trials_to_tight"] == 5 and cell["left_chart_fraction"] == 0.0
+    cell = run_cell(Args(model_trials=10), "nominal", "ilc_paper", "chained_perturbed", 0)
+    assert cell["trials_to"]["0.5mm"] == 5 and cell["off_chart_fraction"] == 0.0
 
 
 # --- actions and envs

@@ -10,6 +10,7 @@ import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContext, blackbox, rl
+from ilc_steering.agents.newton import make_newton
 from ilc_steering.config import load_config, packaged_configs
 from ilc_steering.core.car import rotate
 from ilc_steering.core.integrate import OK
@@ -92,6 +93,9 @@ def context(name="forward_parking", seed=0):
 
 LEARNERS = {
     "ilc": lambda ctx: ILCAgent(ctx.model),
+    "ilc_nominal": lambda ctx: ILCAgent(ctx.model, start=ctx.first_action()),
+    "newton": make_newton,
+    "least_squares": lambda ctx: blackbox.make_learner("least_squares", ctx),
     "gauss_newton": lambda ctx: blackbox.make_learner("gauss_newton", ctx),
     "nelder_mead": lambda ctx: blackbox.make_learner("nelder_mead", ctx),
     "cma_es": lambda ctx: blackbox.make_learner("cma_es", ctx),

@@ -8,9 +8,16 @@ naming the file and the YAML key (:mod:`ilc_steering.config`), so no rule is wri
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from math import isfinite
 
-__all__ = ["ParameterError", "check_gains", "require", "require_positive"]
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["MAX_NOISE", "ParameterError", "check_gains", "check_noise", "require", "require_positive"]
+
+MAX_NOISE = 1e3
+"""The largest measurement noise sigma [m or rad]."""
 
 
 class ParameterError(ValueError):
@@ -37,3 +44,23 @@ def check_gains(nu_a: float, nu_b: float) -> None:
     """Eqs. (33)-(34), (40): both learning gains must lie in ``(0, 2)``, where ``|1 - nu| < 1``."""
     for name, value in (("nu_a", nu_a), ("nu_b", nu_b)):
         require(isfinite(value) and 0 < value < 2, name, f"must be in (0, 2), got {value}")
+
+
+def check_noise(sigma: float | Sequence[float], size: int) -> npt.NDArray[np.float64] | None:
+    """A measurement noise ``sigma`` (one value for every coordinate, or ``size`` values) as an array
+    of ``size`` standard deviations in ``[0, MAX_NOISE]``, or ``None`` when every one is 0."""
+    try:
+        raw = np.asarray(sigma)
+        if raw.dtype.kind not in "iuf":
+            raise TypeError
+        values = np.broadcast_to(raw.astype(np.float64), (size,)).copy()
+    except (TypeError, ValueError):
+        raise ParameterError(
+            "measurement_noise", f"needs one number or {size} numbers (one per coordinate), got {sigma!r:.80}"
+        ) from None
+    require(
+        bool(np.all(np.isfinite(values)) and np.all(values >= 0) and np.all(values <= MAX_NOISE)),
+        "measurement_noise",
+        f"each sigma must be finite and in [0, {MAX_NOISE:g}], got {values.tolist()}",
+    )
+    return values if np.any(values > 0) else None

@@ -1,0 +1,179 @@
+"""The tuning sweep behind the RL hyperparameters of ``configs/rl/*.yaml`` (``prior=nominal``).
+
+A small grid per algorithm around the packaged values, each candidate run on forward parking
+under ``prior=nominal`` for a few seeds with the comparison's own counting
+(:func:`ilc_steering.compare.measure`: every trial counts, deterministic trials included). A
+candidate is ranked by its median trials to 1 cm / 0.01 rad, then by its median best error. The
+sweep's own cost in trials is reported beside its table: the RL rows of the comparison stand on
+that many trials more than their budget shows.
+
+    python benchmarks/tune_rl.py [--quick] [--out DIR] [--workers N]
+
+It writes each run to ``cells-<trials>/`` as it finishes (a rerun resumes), then
+``tuning.{csv,json,md}``; the winners are copied by hand into ``configs/rl/*.yaml``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ilc_steering.output import check_output_dir, write_json
+from ilc_steering.tables import markdown_table, write_results
+
+__all__ = ["GRID", "Args", "main"]
+
+GRID: dict[str, dict[str, list[Any]]] = {
+    "td3": {"gradient_steps": [2, 4], "noise_std": [0.005, 0.01, 0.02]},
+    "sac": {"gradient_steps": [1, 2], "target_entropy": [-12.0, -16.0]},
+    "ppo": {"n_steps": [16, 64], "policy_kwargs.log_std_init": [-3.0, -4.0]},
+}
+"""Per algorithm, the values tried of each hyperparameter (``a.b``: key ``b`` of the dict ``a``)."""
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """Two candidates per algorithm, one seed, 60 trials: checks that the sweep runs (CI)."""
+    out: Path = Path("results/tuning")
+    """Where the tables go."""
+    scenario: str = "forward_parking"
+    """The task tuned on."""
+    seeds: tuple[int, ...] = (100, 101)
+    """Seeds of the sweep, apart from the comparison's 0-9."""
+    trials: int = 3000
+    """Budget of each candidate run [trials]."""
+    workers: int = 0
+    """Worker processes; 0: one per core."""
+
+
+def candidates(algorithm: str) -> list[dict[str, Any]]:
+    """Every combination of :data:`GRID`'s values for ``algorithm``, as overrides."""
+    grid = GRID[algorithm]
+    return [dict(zip(grid, values)) for values in itertools.product(*grid.values())]
+
+
+def with_overrides(params: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in params.items()}
+    for key, value in overrides.items():
+        outer, _, inner = key.partition(".")
+        if inner:
+            out[outer] = {**out.get(outer, {}), inner: value}
+        else:
+            out[key] = value
+    if "n_steps" in overrides:
+        out["batch_size"] = overrides["n_steps"]
+    return out
+
+
+def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed: int, trials: int) -> dict[str, Any]:
+    """One sweep cell, counted as the comparison counts."""
+    import gymnasium as gym
+    import torch
+
+    from ilc_steering.agents import rl
+    from ilc_steering.agents.base import LearnerContext
+    from ilc_steering.compare import ENV_ID, measure
+
+    torch.set_num_threads(1)
+    env = gym.make(ENV_ID, config=scenario)
+    unwrapped: Any = env.unwrapped
+    context = LearnerContext(unwrapped.nominal_model, unwrapped.action_space, unwrapped.observation_space, seed)
+    params = with_overrides(rl.hyperparameters(algorithm, unwrapped.config.name, "nominal"), overrides)
+    result = measure(env, rl.make_learner(algorithm, params, trials, False, context), trials, seed)
+    return {k: v for k, v in result.items() if k != "curve"}
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+
+    from ilc_steering.compare import parallel_map
+
+    grid = {a: candidates(a)[:2] if args.quick else candidates(a) for a in GRID}
+    seeds = args.seeds[:1] if args.quick else args.seeds
+    trials = 60 if args.quick else args.trials
+    calls = {
+        (a, i, seed): (a, overrides, args.scenario, seed, trials)
+        for a, options in grid.items()
+        for i, overrides in enumerate(options)
+        for seed in seeds
+    }
+    cells = check_output_dir(args.out, "--out") / f"cells-{trials}"
+    cells.mkdir(exist_ok=True)
+
+    def path(key: tuple[str, int, int]) -> Path:
+        return cells / f"{key[0]}__{json.dumps(grid[key[0]][key[1]], sort_keys=True)}__{key[2]}.json"
+
+    results = {key: json.loads(path(key).read_text()) for key in calls if path(key).exists()}  # resume
+
+    def finish(key: tuple[str, int, int], result: dict[str, Any]) -> None:
+        write_json(path(key), result)  # as it comes: an interrupted sweep resumes
+        results[key] = result
+        print(f"{key[0]} {grid[key[0]][key[1]]} seed {key[2]}: 1 cm at {result['trials_to']['1cm']}", flush=True)
+
+    todo = {key: call for key, call in calls.items() if key not in results}
+    if todo:
+        parallel_map(run_candidate, todo, min(args.workers or os.cpu_count() or 1, len(todo)), finish)
+    rows = []
+    for algorithm, options in grid.items():
+        for i, overrides in enumerate(options):
+            runs = [results[(algorithm, i, seed)] for seed in seeds]
+            to_cm = [math.inf if r["trials_to"]["1cm"] is None else r["trials_to"]["1cm"] for r in runs]
+            rows.append(
+                {
+                    "algorithm": algorithm,
+                    "overrides": overrides,
+                    "median_trials_to_1cm": float(np.median(to_cm)),
+                    "reached_1cm": int(np.isfinite(to_cm).sum()),
+                    "median_best_error": float(np.median([r["best_error"] for r in runs])),
+                    "trials": sum(r["trials"] for r in runs),
+                    "chosen": False,
+                }
+            )
+    for algorithm in grid:
+        mine = [r for r in rows if r["algorithm"] == algorithm]
+        best = min(mine, key=lambda r: (r["median_trials_to_1cm"], r["median_best_error"]))
+        best["chosen"] = True
+    spent = sum(r["trials"] for r in rows)
+    lines = [
+        [
+            r["algorithm"],
+            ", ".join(f"{k}={v}" for k, v in r["overrides"].items()),
+            "-" if math.isinf(r["median_trials_to_1cm"]) else f"{r['median_trials_to_1cm']:.0f}",
+            f"{r['reached_1cm']}/{len(seeds)}",
+            f"{r['median_best_error']:.2e}",
+            "chosen" if r["chosen"] else "",
+        ]
+        for r in rows
+    ]
+    header = ["algorithm", "candidate", "median trials to 1 cm", "reached", "median best error", ""]
+    text = (
+        f"Tuning sweep on {args.scenario}, prior=nominal, seeds {list(seeds)}, {trials} trials per run "
+        f"(python benchmarks/tune_rl.py). The sweep itself cost {spent} trials.\n\n"
+        + markdown_table(header, lines, [False, False, True, True, True, False])
+    )
+    flat = [{**r, "overrides": str(r["overrides"])} for r in rows]
+    write_results(flat, args.out, "tuning", text, {"spent_trials": spent, "seeds": list(seeds), "trials": trials})
+    print(text)
+    return rows
+
+
+def parse(argv: list[str] | None = None) -> Args:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="two candidates, one seed, 60 trials (CI)")
+    parser.add_argument("--out", type=Path, default=Args.out, help="folder for tuning.{csv,json,md}")
+    parser.add_argument("--trials", type=int, default=Args.trials, help="budget of each candidate run [trials]")
+    parser.add_argument("--workers", type=int, default=0, help="worker processes (0: one per core)")
+    ns = parser.parse_args(argv)
+    return Args(quick=ns.quick, out=ns.out, trials=ns.trials, workers=ns.workers)
+
+
+if __name__ == "__main__":
+    main(parse())

@@ -1,0 +1,279 @@
+"""What ``compare`` reports from its cells: summaries across seeds, tables, ratios and figures.
+
+One summary row per (prior, method, scenario): for each tolerance of
+:data:`~ilc_steering.compare.LADDER`, the median trials to it with the interquartile range (order
+statistics, so a seed that never got there stays ``inf``), a 95 % bootstrap confidence interval
+of the median, and how many seeds got there; the best true cost, the off-chart fraction and the
+wall time. The ratios compare ILC (``ilc``) with the best method of each family (black-box, RL)
+at each tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ilc_steering.tables import markdown_table, write_results
+
+__all__ = ["LADDER", "LADDER_NAMES", "bootstrap_median", "quartiles", "ratios", "summarize", "write_report"]
+
+LADDER = {"10cm": 0.1, "1cm": 0.01, "1mm": 1e-3, "0.5mm": 5e-4}
+"""Tolerances: the Cartesian error [m] and the orientation error [rad] both within the value (a
+chained plant: its error norm ``||z^d - z(T)||``)."""
+LADDER_NAMES = {
+    "10cm": "10 cm / 0.1 rad",
+    "1cm": "1 cm / 0.01 rad",
+    "1mm": "1 mm / 1 mrad",
+    "0.5mm": "0.5 mm / 0.5 mrad",
+}
+
+BOOTSTRAP_RESAMPLES = 2000
+
+
+def quartiles(values: list[float]) -> tuple[float, float, float]:
+    """Quartiles as order statistics (no interpolation): ``inf`` (not reached) stays ``inf``."""
+    q1, q2, q3 = np.percentile(np.asarray(values, dtype=np.float64), [25, 50, 75], method="inverted_cdf")
+    return float(q1), float(q2), float(q3)
+
+
+def bootstrap_median(values: list[float], seed: int = 0) -> tuple[float, float]:
+    """A 95 % percentile-bootstrap confidence interval of the median (order statistics throughout)."""
+    data = np.asarray(values, dtype=np.float64)
+    rng = np.random.default_rng(seed)
+    samples = data[rng.integers(0, data.size, size=(BOOTSTRAP_RESAMPLES, data.size))]
+    medians = np.percentile(samples, 50, axis=1, method="inverted_cdf")
+    low, high = np.percentile(medians, [2.5, 97.5], method="inverted_cdf")
+    return float(low), float(high)
+
+
+def summarize(cells: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One summary row per (prior, method, scenario), in the cells' order."""
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for cell in cells:
+        groups.setdefault((cell["prior"], cell["scenario"], cell["method"]), []).append(cell)
+    rows = []
+    for (prior, scenario, method), group in groups.items():
+        row: dict[str, Any] = {
+            "prior": prior,
+            "scenario": scenario,
+            "method": method,
+            "budget": group[0]["budget"],
+            "seeds": len(group),
+        }
+        for level in LADDER:
+            reached = [math.inf if c["trials_to"][level] is None else c["trials_to"][level] for c in group]
+            row[f"trials_to_{level}"] = {
+                "q1_median_q3": quartiles(reached),
+                "median_ci95": bootstrap_median(reached),
+                "reached": int(np.isfinite(reached).sum()),
+            }
+        row["best_error_q1_median_q3"] = quartiles([c["best_error"] for c in group])
+        row["off_chart_fraction_median"] = float(np.median([c["off_chart_fraction"] for c in group]))
+        row["wall_s_median"] = float(np.median([c["wall_s"] for c in group]))
+        rows.append(row)
+    return rows
+
+
+def _trials(value: float, budget: int) -> str:
+    return f"> {budget}" if math.isinf(value) else f"{value:.0f}"
+
+
+def _reached(entry: dict[str, Any], budget: int, seeds: int) -> str:
+    q1, q2, q3 = entry["q1_median_q3"]
+    if math.isinf(q2):
+        return f"> {budget} ({entry['reached']}/{seeds})"
+    return f"{q2:.0f} [{_trials(q1, budget)}, {_trials(q3, budget)}] ({entry['reached']}/{seeds})"
+
+
+def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
+    header = [
+        "scenario",
+        "method",
+        "budget",
+        *(f"trials to {LADDER_NAMES[level]}" for level in LADDER),
+        "best error",
+        "off chart",
+        "wall [s]",
+    ]
+    lines = []
+    for row in (r for r in rows if r["prior"] == prior):
+        b1, b2, b3 = row["best_error_q1_median_q3"]
+        lines.append(
+            [
+                row["scenario"],
+                row["method"],
+                str(row["budget"]),
+                *(_reached(row[f"trials_to_{level}"], row["budget"], row["seeds"]) for level in LADDER),
+                f"{b2:.1e} [{b1:.1e}, {b3:.1e}]",
+                f"{100 * row['off_chart_fraction_median']:.0f}%",
+                f"{row['wall_s_median']:.3g}",
+            ]
+        )
+    return markdown_table(header, lines, [False, False, *[True] * (len(header) - 2)])
+
+
+def _ci_table(rows: list[dict[str, Any]], prior: str) -> str:
+    header = ["scenario", "method", *(LADDER_NAMES[level] for level in LADDER)]
+    lines = []
+    for row in (r for r in rows if r["prior"] == prior):
+        cells = []
+        for level in LADDER:
+            low, high = row[f"trials_to_{level}"]["median_ci95"]
+            cells.append(f"[{_trials(low, row['budget'])}, {_trials(high, row['budget'])}]")
+        lines.append([row["scenario"], row["method"], *cells])
+    return markdown_table(header, lines, [False, False, *[True] * len(LADDER)])
+
+
+def _median_trials(row: dict[str, Any], level: str) -> float:
+    return float(row[f"trials_to_{level}"]["q1_median_q3"][1])
+
+
+def ratios(rows: list[dict[str, Any]], families: dict[str, tuple[str, ...]]) -> list[dict[str, Any]]:
+    """Per (prior, scenario, tolerance): ILC's median trials and, per family of methods, the best
+    one's median (the fewest; ``inf`` when none got there in half the seeds) with its ratio to ILC."""
+    out = []
+    for prior, scenario in dict.fromkeys((r["prior"], r["scenario"]) for r in rows):
+        group = {r["method"]: r for r in rows if r["prior"] == prior and r["scenario"] == scenario}
+        if "ilc" not in group:
+            continue
+        for level in LADDER:
+            ilc = _median_trials(group["ilc"], level)
+            entry: dict[str, Any] = {"prior": prior, "scenario": scenario, "tolerance": level, "ilc": ilc}
+            for family, methods in families.items():
+                medians = {m: _median_trials(group[m], level) for m in methods if m in group}
+                if medians:
+                    best = min(medians, key=lambda m: medians[m])
+                    entry[family] = {"method": best, "median": medians[best], "ratio": medians[best] / ilc}
+            out.append(entry)
+    return out
+
+
+def _ratio_table(entries: list[dict[str, Any]], families: list[str]) -> str:
+    header = ["prior", "scenario", "tolerance", "ilc"]
+    for family in families:
+        header += [f"best {family}", "x ilc"]
+    lines = []
+    for e in entries:
+        row = [e["prior"], e["scenario"], LADDER_NAMES[e["tolerance"]]]
+        row.append("not within the budget" if math.isinf(e["ilc"]) else f"{e['ilc']:.0f}")
+        for family in families:
+            best = e.get(family)
+            if best is None:
+                row += ["-", "-"]
+            elif math.isinf(best["median"]):
+                row += [f"{best['method']}: not within the budget", "-"]
+            else:
+                row += [f"{best['method']}: {best['median']:.0f}", f"{best['ratio']:.3g}"]
+        lines.append(row)
+    return markdown_table(header, lines, [False, False, False, True, *[False, True] * len(families)])
+
+
+NOTE = (
+    "Median [interquartile range] (k/n) across seeds, order statistics; (k/n): seeds that reached the tolerance "
+    "within the budget. Every trial counts: probes, random exploration and RL's deterministic trials included. "
+    "Errors are those of the true final configuration (the noisy scenario measures with noise). Best error: the "
+    "lowest true Cartesian error [m] + orientation error [rad] (a chained plant: error norm) of any trial, "
+    "1000 added for a trial that left the chart. Off chart: the median fraction of trials that left the chart.\n"
+)
+
+
+def report(rows: list[dict[str, Any]], entries: list[dict[str, Any]], families: list[str]) -> str:
+    priors = list(dict.fromkeys(r["prior"] for r in rows))
+    parts = []
+    for prior in priors:
+        parts += [f"### prior={prior}\n", _main_table(rows, prior)]
+    parts.append(NOTE)
+    if entries:
+        title = f"### Ratios: median trials of the best {' and the best '.join(families)} method over ILC's\n"
+        parts += [title, _ratio_table(entries, families)]
+    for prior in priors:
+        parts += [
+            f"### prior={prior}: 95 % bootstrap confidence interval of the median trials\n",
+            _ci_table(rows, prior),
+        ]
+    return "\n".join(parts)
+
+
+def _step_curve(curve: list[list[float]], trials: int, grid: np.ndarray) -> np.ndarray:
+    """The best-so-far step function on ``grid`` (NaN past the run's last trial)."""
+    at, best = np.array([p[0] for p in curve]), np.array([p[1] for p in curve])
+    values = best[np.searchsorted(at, grid, side="right") - 1]
+    return np.where(grid <= trials, values, np.nan)
+
+
+def plot_scenario(cells: list[dict[str, Any]], scenario: str, path: Path) -> None:
+    """Best error so far against trials, log-log, one panel per prior: the median across seeds,
+    the interquartile band shaded."""
+    from matplotlib.figure import Figure
+
+    priors = list(dict.fromkeys(c["prior"] for c in cells))
+    methods = list(dict.fromkeys(c["method"] for c in cells))
+    figure = Figure(figsize=(5.6 * len(priors), 4.6))
+    axes = figure.subplots(1, len(priors), squeeze=False)[0]
+    import matplotlib
+
+    palette = matplotlib.colormaps["tab10"].colors  # type: ignore[attr-defined]
+    colours = {m: palette[i % len(palette)] for i, m in enumerate(methods)}
+    for ax, prior in zip(axes, priors):
+        for method in methods:
+            runs = [c for c in cells if c["scenario"] == scenario and c["method"] == method and c["prior"] == prior]
+            if not runs:
+                continue
+            grid = np.unique(np.geomspace(1, max(r["trials"] for r in runs), 200).astype(int))
+            values = np.array([_step_curve(r["curve"], r["trials"], grid) for r in runs])
+            q1, q2, q3 = np.nanpercentile(values, [25, 50, 75], axis=0)
+            ax.plot(grid, q2, color=colours[method], label=method)
+            ax.fill_between(grid, q1, q3, color=colours[method], alpha=0.2, linewidth=0)
+        for tolerance, style in ((2 * LADDER["1cm"], ":"), (2 * LADDER["0.5mm"], "--")):
+            ax.axhline(tolerance, color="grey", linestyle=style, linewidth=0.8)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("trials")
+        ax.set_ylabel("best true error so far [m + rad]")
+        ax.set_title(f"{scenario.replace('_', ' ')}, prior {prior}")
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0].legend(fontsize=7, ncol=2)
+    figure.suptitle(
+        "Best error against trials: median and interquartile range across seeds "
+        "(dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)",
+        fontsize=9,
+    )
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+
+
+def _finite(data: Any) -> Any:
+    """``data`` with every infinite float (not reached) as ``None``: strict JSON has no infinity."""
+    if isinstance(data, float) and math.isinf(data):
+        return None
+    if isinstance(data, dict):
+        return {k: _finite(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [_finite(v) for v in data]
+    return data
+
+
+def write_report(
+    cells: list[dict[str, Any]], scenarios: list[str], out: Path, families: dict[str, tuple[str, ...]]
+) -> str:
+    """``compare.{csv,json,md}`` and ``compare_<scenario>.png`` in ``out``, ratios over ``families``
+    of methods (name -> method ids); returns the Markdown."""
+    rows = summarize(cells)
+    entries = ratios(rows, families)
+    text = report(rows, entries, list(families))
+    flat = []
+    for cell in cells:
+        flat.append(
+            {
+                **{k: v for k, v in cell.items() if k not in ("curve", "trials_to")},
+                **{f"trials_to_{level}": cell["trials_to"][level] for level in LADDER},
+            }
+        )
+    extra = {"summary": _finite(rows), "ratios": _finite(entries), "cells": cells}
+    write_results(flat, out, "compare", text, extra)
+    for scenario in scenarios:
+        plot_scenario(cells, scenario, out / f"compare_{scenario}.png")
+    return text

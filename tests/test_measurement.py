@@ -1,0 +1,116 @@
+"""Measurement noise: the learner sees a noisy final configuration, the benchmark scores the true one."""
+
+from importlib import resources
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.config import ConfigError, load_config
+from ilc_steering.core.score import TRUE_KEYS
+from ilc_steering.loop import run_trials
+from ilc_steering.runner import run_ilc
+
+ID = "ilc_steering/ChainedSteering-v0"
+
+
+def step(env, c, seed=0):
+    env.reset(seed=seed)
+    return env.step(c)[-1]
+
+
+def test_without_noise_the_measured_errors_are_the_true_ones():
+    env = gym.make(ID, config="forward_parking")
+    info = step(env, env.unwrapped.nominal_model.solve())
+    for key in TRUE_KEYS:
+        assert info[key] == info[key.removeprefix("true_")]
+
+
+def test_noise_has_the_configured_spread_and_leaves_the_true_errors_alone():
+    sigma = np.array([1e-3, 2e-3, 3e-3, 4e-3])
+    n = 4000
+    kwargs = dict(num_envs=n, vectorization_mode="vector_entry_point", config="forward_parking")
+    noisy, exact = gym.make_vec(ID, measurement_noise=sigma, **kwargs), gym.make_vec(ID, **kwargs)
+    c = np.tile(exact.unwrapped.nominal_model.solve(), (n, 1))
+    infos = []
+    for envs in (noisy, exact):
+        envs.reset(seed=7)
+        infos.append(envs.step(c)[-1]["final_info"])
+    offsets = infos[0]["q_final"] - infos[1]["q_final"]
+    np.testing.assert_allclose(offsets.std(axis=0), sigma, rtol=0.05)
+    assert np.all(np.abs(offsets.mean(axis=0)) < 4 * sigma / np.sqrt(n))
+    for key in TRUE_KEYS:
+        np.testing.assert_array_equal(infos[0][key], infos[1][key])  # the truth does not move
+        np.testing.assert_array_equal(infos[1][key], infos[1][key.removeprefix("true_")])
+    assert np.all(infos[0]["cartesian_error"] != infos[0]["true_cartesian_error"])
+
+
+def test_noise_is_seeded_by_reset():
+    def measured(seed):
+        env = gym.make(ID, config="forward_parking", measurement_noise=1e-3)
+        return step(env, env.unwrapped.nominal_model.solve(), seed)["q_final"]
+
+    np.testing.assert_array_equal(measured(3), measured(3))
+    assert np.all(measured(3) != measured(4))
+
+
+def test_the_noise_key_and_argument_are_checked(tmp_path):
+    assert load_config("forward_parking_noisy").simulation.measurement_noise == (2e-4,) * 4
+    text = (resources.files("ilc_steering.configs") / "forward_parking_noisy.yaml").read_text()
+    for bad, message in (
+        ("[2.0e-4, 2.0e-4]", "simulation.measurement_noise: needs one sigma per coordinate"),
+        ("[-1.0, 0.0, 0.0, 0.0]", "simulation.measurement_noise: each sigma must be finite and in"),
+    ):
+        path = tmp_path / "noisy.yaml"
+        path.write_text(text.replace("[2.0e-4, 2.0e-4, 2.0e-4, 2.0e-4]", bad))
+        with pytest.raises(ConfigError, match=message):
+            load_config(path)
+    for bad in ("0.1", [1e-3, 1e-3], -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="measurement_noise"):
+            gym.make(ID, config="forward_parking", measurement_noise=bad)
+    env = gym.make(ID, config="forward_parking_noisy", measurement_noise=0.0)  # the argument wins
+    info = step(env, env.unwrapped.nominal_model.solve())
+    assert info["cartesian_error"] == info["true_cartesian_error"]
+
+
+def test_the_learner_never_sees_the_true_errors():
+    env = gym.make(ID, config="forward_parking_noisy")
+    seen, logged = [], []
+
+    class Spy:
+        def reset(self):
+            pass
+
+        def act(self, observation):
+            return env.unwrapped.nominal_model.solve()
+
+        def learn(self, info):
+            seen.append(set(info))
+
+    run_trials(env, Spy(), 3, seed=0, callbacks=[lambda k, info: logged.append(set(info))])
+    assert all(not (keys & set(TRUE_KEYS)) for keys in seen)
+    assert all(set(TRUE_KEYS) <= keys for keys in logged)
+
+
+def test_ilc_converges_on_the_true_error_through_the_noise():
+    result = run_ilc("forward_parking_noisy")
+    assert result.converged_at in (4, 5)
+    last = result.trials[-1]
+    assert last.cartesian_error < 5e-4 and last.orientation_error < 5e-4  # the true errors
+
+
+def test_the_cyclic_env_observes_the_noisy_measurement_and_drives_on_from_the_truth():
+    kwargs = dict(config="cyclic_home_goal", cycles=1)
+    noisy = gym.make("ilc_steering/CyclicSteering-v0", measurement_noise=1e-3, **kwargs)
+    exact = gym.make("ilc_steering/CyclicSteering-v0", **kwargs)
+    c = noisy.unwrapped.nominal_models[0].solve()
+    results = []
+    for env in (noisy, exact):
+        env.reset(seed=0)
+        results.append(env.step(c))
+    (obs_noisy, *_, info_noisy), (obs_exact, *_, info_exact) = results
+    np.testing.assert_array_equal(obs_noisy[:4], info_noisy["z_final"])
+    assert np.all(obs_noisy[:4] != obs_exact[:4])
+    assert info_noisy["true_cartesian_error"] == info_exact["true_cartesian_error"]
+    np.testing.assert_array_equal(noisy.unwrapped._x, exact.unwrapped._x)  # the robot itself is where it is
