@@ -131,24 +131,6 @@ def _deterministic_trials(env: gym.Env[Any, Any], every: int) -> Any:
     return DeterministicTrials()
 
 
-def _decaying_noise(size: int, start: float, final: float, trials: int) -> Any:
-    """Gaussian exploration noise whose standard deviation falls geometrically from ``start`` to
-    ``final`` over ``trials`` trials, then stays there (constant when the two are equal)."""
-    from stable_baselines3.common.noise import ActionNoise
-
-    class DecayingNormalNoise(ActionNoise):
-        def __init__(self) -> None:
-            super().__init__()
-            self.calls = 0
-
-        def __call__(self) -> np.ndarray:
-            fraction = min(self.calls / max(trials, 1), 1.0)
-            self.calls += 1
-            return np.random.normal(0.0, start * (final / start) ** fraction, size)
-
-    return DecayingNormalNoise()
-
-
 def _start_at_centre(model: Any, algorithm: str, initial_std: float | None) -> None:
     """Zero the policy's output layer, so that its first deterministic action is the search box's
     centre (under ``prior="nominal"``, the nominal solution); for SAC, ``initial_std`` sets the
@@ -175,13 +157,14 @@ def train(
 ) -> Any:
     """Train ``algorithm`` on ``env`` (actions in ``[-1, 1]``) with the log reward for at most
     ``trials`` training trials, with the deterministic trials of ``eval_every`` between them."""
+    from stable_baselines3.common.noise import NormalActionNoise
+
     cls = _algorithm_class(algorithm)
     env = gym.wrappers.TransformReward(env, log_reward)
     kwargs = {k: v for k, v in params.items() if k not in _OWN_KEYS}
     if "noise_std" in params:
         (size,) = env.action_space.shape or (0,)
-        final = params.get("noise_final", params["noise_std"])
-        kwargs["action_noise"] = _decaying_noise(size, params["noise_std"], final, params.get("noise_trials", 1))
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(size), params["noise_std"] * np.ones(size))
     if "learning_starts" in kwargs:
         kwargs["learning_starts"] = min(kwargs["learning_starts"], trials)
     if "n_steps" in kwargs:

@@ -164,7 +164,7 @@ def _ratio_table(entries: list[dict[str, Any]], families: list[str]) -> str:
             if best is None:
                 row += ["-", "-"]
             elif math.isinf(best["median"]):
-                row += [f"{best['method']}: not within the budget", "-"]
+                row += ["none within the budget", "-"]
             else:
                 row += [f"{best['method']}: {best['median']:.0f}", f"{best['ratio']:.3g}"]
         lines.append(row)
