@@ -4,12 +4,13 @@ learners, parallel workers, and its output."""
 import csv
 import json
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
-import ilc_steering
+import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering import compare, compare_report
 from ilc_steering.agents import rl
 from ilc_steering.agents.adapters import PullLearner
@@ -20,6 +21,7 @@ from ilc_steering.config import ConfigError
 from ilc_steering.core.score import OFF_CHART_PENALTY
 from ilc_steering.loop import run_trials
 
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 TINY = dict(seeds=(0, 1), model_trials=5, blackbox_trials=30, rl_trials=24, workers=1)
 
 
@@ -222,7 +224,7 @@ def test_a_users_learner_and_a_yaml_scenario_from_outside_the_package(tmp_path, 
 
     (tmp_path / "user_learners.py").write_text(USER_LEARNER)
     monkeypatch.syspath_prepend(str(tmp_path))
-    source = (compare_report.Path(ilc_steering.__file__).parents[1] / "configs" / "parallel_parking.yaml").read_text()
+    source = (CONFIGS / "parallel_parking.yaml").read_text()
     scenario = tmp_path / "my_bay.yaml"
     scenario.write_text(source.replace("name: parallel_parking", "name: my_bay"))
     out = tmp_path / "run"
@@ -290,7 +292,7 @@ def test_ratios_name_the_best_of_each_family():
 
 
 def test_least_squares_uses_trf_where_lm_lacks_residuals(tmp_path):
-    source = (compare_report.Path(ilc_steering.__file__).parents[1] / "configs" / "forward_parking.yaml").read_text()
+    source = (CONFIGS / "forward_parking.yaml").read_text()
     path = tmp_path / "five_terms.yaml"
     path.write_text(source.replace("v2_terms: 3 ", "v2_terms: 5 ").replace("name: forward_parking", "name: five"))
     cell = run_cell(Args(**{**TINY, "blackbox_trials": 60}), "nominal", "least_squares", str(path), 0)
