@@ -55,7 +55,7 @@ def residual(info: dict[str, Any]) -> Array:
 def _trial(env: gym.Env[Any, Any], x: Array) -> tuple[float, dict[str, Any]]:
     """One trial at search point ``x``: its cost ``-reward`` and its ``info``."""
     env.reset()
-    _, reward, _, _, info = env.step(np.clip(np.asarray(x, dtype=np.float64), -1.0, 1.0))
+    _, reward, _, _, info = env.step(x)  # the SearchBox projects it onto the box
     return -float(reward), info
 
 

@@ -56,8 +56,6 @@ REWARD_FLOOR = 1e-9
 _OWN_KEYS = {
     "n_timesteps",
     "noise_std",
-    "noise_final",
-    "noise_trials",
     "eval_every",
     "start_at_centre",
     "initial_std",

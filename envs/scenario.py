@@ -56,8 +56,8 @@ class Scenario:
     max_step
         Longest integrator step [s].
     measurement_noise
-        Standard deviations of the final configuration's measurement (world frame; one per
-        coordinate [m, rad]), or ``None`` to measure exactly.
+        Standard deviations of the final configuration's measurement (world frame; one for every
+        coordinate or one per coordinate [m, rad]), or ``None`` to measure exactly.
     """
 
     def __init__(
@@ -69,7 +69,7 @@ class Scenario:
         frame: float = 0.0,
         action_bound: Sequence[float] | None = None,
         max_step: float = DEFAULT_MAX_STEP,
-        measurement_noise: Sequence[float] | None = None,
+        measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
         self.plant = plant
         self.kind = plant.kind
@@ -95,10 +95,8 @@ class Scenario:
         """Every domain object of ``config``, built once (the config checked each rule on loading);
         ``measurement_noise`` (one sigma, or one per coordinate) replaces the config's if given."""
         points = np.array([point for _, point in config.points()], dtype=np.float64)
-        noise = config.simulation.measurement_noise
-        if measurement_noise is not None:  # it wins over the config's, 0 included
-            checked = check_noise(measurement_noise, points.shape[1])  # a scalar: every coordinate
-            noise = None if checked is None else tuple(checked.tolist())
+        # the argument wins over the config's, 0 included
+        noise = config.simulation.measurement_noise if measurement_noise is None else measurement_noise
         return cls(
             config.plant.plant(),
             config.plant.nominal_map(),
