@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from importlib import import_module
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -24,7 +25,7 @@ from gymnasium import spaces
 
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["PRIORS", "RESIDUAL_SCALE", "START_SPREAD", "Learner", "LearnerContext", "LearnerFactory"]
+__all__ = ["PRIORS", "RESIDUAL_SCALE", "START_SPREAD", "Learner", "LearnerContext", "LearnerFactory", "load_factory"]
 
 Array = npt.NDArray[np.float64]
 
@@ -120,3 +121,16 @@ class LearnerContext:
 
 LearnerFactory = Callable[[LearnerContext], Learner]
 """Builds a learner: ``make(context) -> Learner``; ``compare --methods pkg.module:make`` takes one."""
+
+
+def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:
+    """The learner factory named ``module:attr`` (``option`` names where it was given, for the
+    message); ``ValueError`` if it cannot be imported or is not callable."""
+    module_name, _, attr = spec.partition(":")
+    try:
+        factory = getattr(import_module(module_name), attr)
+    except (ImportError, AttributeError, ValueError) as error:
+        raise ValueError(f"{option} {spec}: cannot import it ({type(error).__name__}: {error})") from None
+    if not callable(factory):
+        raise ValueError(f"{option} {spec}: not callable; give a factory make(context) -> Learner")
+    return factory  # type: ignore[no-any-return]

@@ -77,12 +77,13 @@ class Scenario:
         self.max_step = max_step
         self.waypoints = np.array(waypoints, dtype=np.float64)
         self.noise = None if measurement_noise is None else check_noise(measurement_noise, self.waypoints.shape[1])
-        self.x_start = self.to_task(self.waypoints[0]).copy()
+        self.x_start = plant.initial_state(self.to_task(self.waypoints[0]))
         task_points = self.to_task(self.waypoints)
         self.z_waypoints = task_points.copy() if chained_map is None else chained_map.to_chained(task_points)
         m, n = self.z_waypoints.shape
+        limit = getattr(plant, "steering_limit", None)  # a specification of the robot, known to the controller
         self.nominals = [
-            NominalModel(n, profile, self.z_waypoints[leg], self.z_waypoints[(leg + 1) % m], chained_map)
+            NominalModel(n, profile, self.z_waypoints[leg], self.z_waypoints[(leg + 1) % m], chained_map, limit)
             for leg, profile in enumerate(profiles)
         ]
         if action_bound is None:

@@ -116,6 +116,14 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     has the *true*, perturbed geometry. One ``step`` runs the whole trial and the episode ends:
     each episode is one iteration of iterative learning control (Oriolo, Panzieri, Ulivi 1998).
 
+    The car may also carry perturbations outside any geometry the controller could assume, each
+    a config key, off (0) by default (:class:`~ilc_steering.core.plants.CarPlant`):
+    ``plant.steering_offset`` [rad], a misaligned wheel whose true angle exceeds the measured one
+    by this constant; ``plant.steering_lag`` [s], the time constant of a first-order steering
+    servo (the wheel follows the commanded angle, and the controller measures the wheel);
+    ``plant.speed_lag`` [s], the time constant of a first-order drive servo (the wheel speed
+    follows ``u1``, from rest). A lag must be 0 or at least ``simulation.max_step``.
+
     ## Action Space
 
     ``Box(-action_bound, action_bound, (1 + q,), float32)`` in physical units: ``c11`` [m/s for the

@@ -20,7 +20,15 @@ from pathlib import Path
 from ilc_steering.compare import add_arguments as add_compare_arguments
 from ilc_steering.config import ConfigError, SteeringConfig, load_config, packaged_configs
 from ilc_steering.output import check_output_dir, check_output_file, write_json
-from ilc_steering.runner import CycleRecord, CyclicRunResult, RunResult, TrialRecord, run_cyclic_ilc, run_ilc
+from ilc_steering.runner import (
+    CycleRecord,
+    CyclicRunResult,
+    RunResult,
+    TrialRecord,
+    learner_factory,
+    run_cyclic_ilc,
+    run_ilc,
+)
 
 __all__ = ["main"]
 
@@ -73,15 +81,21 @@ def _print_row(record: TrialRecord | CycleRecord) -> None:
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 
-def _learn(config: SteeringConfig, count: int | None, trajectories: bool) -> RunResult | CyclicRunResult:
-    """Run the config's learner with a table row per trial (or cycle) as it finishes."""
+def _learn(
+    config: SteeringConfig, count: int | None, trajectories: bool, learner: str = "ilc"
+) -> RunResult | CyclicRunResult:
+    """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
+    if config.is_cyclic and learner != "ilc":
+        raise ValueError(f"--learner {learner}: a cyclic config runs the cyclic law of eqs. 39-40 (--learner ilc)")
+    if not config.is_cyclic:
+        learner_factory(learner)  # an unknown or unimportable learner is refused before the header
     _print_header(config, config.learning.trials if count is None else count)
     if config.is_cyclic:
         result: RunResult | CyclicRunResult = run_cyclic_ilc(
             config, count, on_cycle=_print_row, trajectories=trajectories
         )
     else:
-        result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories)
+        result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories, learner=learner)
     unit = "cycles" if config.is_cyclic else "trials"
     done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
     if result.converged_at is None:
@@ -112,7 +126,7 @@ def _run(args: argparse.Namespace) -> int:
         check_output_file(args.json, "--json")
     if args.plots is not None:
         check_output_dir(args.plots, "--plots")
-    result = _learn(config, args.trials, trajectories=args.json is not None or args.plots is not None)
+    result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
     _save(result, args.json, args.plots)
     return 0 if result.converged_at is not None else 1
 
@@ -180,6 +194,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures of this run here as PNGs"
+    )
+    run.add_argument(
+        "--learner",
+        default="ilc",
+        metavar="NAME",
+        help="ilc (the paper's eqs. 33-34, the default), newton_ilc (re-identify, then Newton on the refit model), "
+        "or module:attr, a factory make(LearnerContext) -> Learner",
     )
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")

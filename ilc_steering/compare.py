@@ -34,14 +34,13 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, replace
-from importlib import import_module
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from ilc_steering.agents.base import PRIORS, Learner, LearnerContext
+from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, load_factory
 from ilc_steering.compare_report import LADDER, write_report
 from ilc_steering.core.score import true_cost
 from ilc_steering.loop import run_trials
@@ -62,7 +61,7 @@ __all__ = [
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 MAX_SEED = 2**32 - 1
-MODEL_METHODS = ("ilc", "ilc_paper", "newton")
+MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc")
 BLACKBOX = ("least_squares", "gauss_newton", "nelder_mead", "cma_es")
 RL = ("ppo", "sac", "td3")
 METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
@@ -142,14 +141,7 @@ def is_custom(method: str) -> bool:
 
 def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
     """The factory named ``module:attr``; ``ValueError`` if it cannot be imported or called."""
-    module_name, _, attr = method.partition(":")
-    try:
-        factory = getattr(import_module(module_name), attr)
-    except (ImportError, AttributeError) as error:
-        raise ValueError(f"--methods {method}: cannot import it ({type(error).__name__}: {error})") from None
-    if not callable(factory):
-        raise ValueError(f"--methods {method}: not callable; give a factory make(context) -> Learner")
-    return factory  # type: ignore[no-any-return]
+    return load_factory(method, "--methods")
 
 
 def budget(args: Args, prior: str, method: str, scenario: str) -> int:
@@ -170,11 +162,13 @@ def make_learner(args: Args, method: str, scenario: str, context: LearnerContext
     """The learner of ``method`` for ``scenario`` (its config's name), built from ``context`` alone."""
     from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
     from ilc_steering.agents.newton import make_newton
+    from ilc_steering.agents.newton_ilc import make_newton_ilc
 
     builders: dict[str, Callable[[LearnerContext], Learner]] = {
         "ilc": make_ilc,
         "ilc_paper": make_ilc_paper,
         "newton": make_newton,
+        "newton_ilc": make_newton_ilc,
     }
     if method in builders:
         return builders[method](context)

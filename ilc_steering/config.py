@@ -80,6 +80,9 @@ class CarPlantConfig:
     true_wheelbase: float  # the simulated robot's ell [m]
     true_wheel_radius: float  # the simulated robot's rho [m]
     steering_limit: float | None = None  # bound on |phi| [rad]; None for none
+    steering_offset: float = 0.0  # [rad] the wheel's true angle exceeds the measured one by this (misaligned wheel)
+    steering_lag: float = 0.0  # [s] time constant of the steering servo (wheel follows the command); 0: none
+    speed_lag: float = 0.0  # [s] time constant of the drive servo (wheel speed follows u1); 0: none
 
     def __post_init__(self) -> None:
         self.plant()
@@ -103,7 +106,7 @@ class CarPlantConfig:
         with _domain(names={"wheelbase": "true_wheelbase", "wheel_radius": "true_wheel_radius"}):
             true = CarModel(self.true_wheelbase, self.true_wheel_radius)
         with _domain():
-            return CarPlant(true, nominal, self.steering_limit)
+            return CarPlant(true, nominal, self.steering_limit, self.steering_offset, self.steering_lag, self.speed_lag)
 
 
 @dataclass(frozen=True)
@@ -311,6 +314,14 @@ class SteeringConfig:
                 frame = frame_angle(*(point[2] for _, point in points))
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         plant = self.plant.plant()
+        for lag in ("steering_lag", "speed_lag"):
+            value = getattr(self.plant, lag, 0.0)
+            _require(
+                value == 0 or value >= self.simulation.max_step,
+                f"plant.{lag}",
+                f"{value} s is shorter than the integrator step simulation.max_step = {self.simulation.max_step} s, "
+                "which would not resolve it; lower max_step or set the lag to 0",
+            )
         task_points = []
         for key, point in points:
             with _domain(key, {"phi": key, "configuration": key}):

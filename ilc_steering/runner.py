@@ -13,17 +13,44 @@ from typing import Any
 
 import gymnasium as gym
 
+from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
-from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.loop import run_trials
 
-__all__ = ["CycleRecord", "CyclicRunResult", "RunResult", "TrialRecord", "run_cyclic_ilc", "run_ilc"]
+__all__ = [
+    "LEARNERS",
+    "CycleRecord",
+    "CyclicRunResult",
+    "RunResult",
+    "TrialRecord",
+    "learner_factory",
+    "run_cyclic_ilc",
+    "run_ilc",
+]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
+LEARNERS = ("ilc", "newton_ilc")
+"""``run --learner``: the paper's eqs. 33-34 (its fictitious zero iteration first, as ``compare``'s
+``ilc_paper``), or the re-identifying learner of :mod:`ilc_steering.agents.newton_ilc`."""
+
+
+def learner_factory(name: str) -> LearnerFactory:
+    """The factory of ``run --learner name``: one of :data:`LEARNERS`, or ``module:attr``."""
+    if name == "ilc":
+        from ilc_steering.agents.ilc import make_ilc_paper
+
+        return make_ilc_paper
+    if name == "newton_ilc":
+        from ilc_steering.agents.newton_ilc import make_newton_ilc
+
+        return make_newton_ilc
+    if ":" in name:
+        return load_factory(name, "--learner")
+    raise ValueError(f"--learner: unknown learner {name!r}; choose from {list(LEARNERS)} or give module:attr")
 
 
 @dataclass(frozen=True)
@@ -96,16 +123,29 @@ def run_ilc(
     trials: int | None = None,
     on_trial: Callable[[TrialRecord], None] | None = None,
     trajectories: bool = False,
+    learner: str = "ilc",
 ) -> RunResult:
-    """Run the ILC agent of eqs. 33-34 for ``trials`` trials (default: the config's).
+    """Run a learner (default: the paper's eqs. 33-34; see :func:`learner_factory`) for ``trials``
+    trials (default: the config's).
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
     """
     config = load_config(config)
+    make = learner_factory(learner)
     count = config.learning.trials if trials is None else trials
     env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
-    agent = ILCAgent(env.unwrapped.nominal_model, config.learning.nu_a, config.learning.nu_b)  # type: ignore[attr-defined]
+    context = LearnerContext(
+        env.unwrapped.nominal_model,  # type: ignore[attr-defined]
+        env.action_space,  # type: ignore[arg-type]
+        env.observation_space,  # type: ignore[arg-type]
+        seed=1,
+        nu_a=config.learning.nu_a,
+        nu_b=config.learning.nu_b,
+    )
+    agent = make(context)
+    if not isinstance(agent, Learner):
+        raise ValueError(f"--learner {learner}: made {type(agent).__name__}, which has no act, learn and reset")
     records: list[TrialRecord] = []
     converged: list[int] = []
 

@@ -77,8 +77,8 @@ def test_python_dash_m_entry_point(tmp_path):
 def test_compare_quick_runs_every_method(tmp_path, capsys):
     assert main(["compare", "--quick", "--out", str(tmp_path)]) == 0
     table = (tmp_path / "compare.md").read_text()
-    for method in ("ilc", "ilc_paper", "newton", "least_squares", "gauss_newton", "nelder_mead", "cma_es"):
+    for method in ("ilc", "ilc_paper", "newton", "newton_ilc", "least_squares", "gauss_newton", "nelder_mead", "cma_es"):
         assert f"| forward_parking | {method} |" in table
     for method in ("ppo", "sac", "td3"):
         assert f"| forward_parking_noisy | {method} |" in table
-    assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 4 * 10 * 2  # priors, scenarios, methods, seeds
+    assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 4 * 11 * 2  # priors, scenarios, methods, seeds

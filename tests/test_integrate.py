@@ -164,3 +164,50 @@ def test_a_trial_that_leaves_the_chart_stops_with_a_finite_state():
     assert abs(trial.final[0, 2]) < np.pi / 2 - kernel.CHART_MARGIN
     np.testing.assert_array_equal(trial.states[0, -1], trial.final[0])
     assert trial.times.shape == (trial.states.shape[1],) and trial.times[-1] == pytest.approx(5.0)
+
+
+SERVOS = [
+    {"steering_offset": 0.02},
+    {"steering_offset": -0.03, "steering_limit": None},
+    {"steering_lag": 0.05},
+    {"speed_lag": 0.1},
+    {"steering_offset": 0.02, "steering_lag": 0.05, "speed_lag": 0.1},
+]
+
+
+@pytest.mark.parametrize("name", ["forward_parking", "forward_parking_saturated"])
+@pytest.mark.parametrize("servo", SERVOS, ids=lambda s: "+".join(s))
+def test_the_servo_perturbations_within_1e9_of_a_tight_solve_ivp(name, servo):
+    import dataclasses
+
+    from ilc_steering.core.reference import car_trial
+
+    config = load_config(name)
+    config = dataclasses.replace(config, plant=dataclasses.replace(config.plant, **servo))
+    scenario = Scenario.from_config(config)
+    assert scenario.plant.state_dim == 6
+    c = scenario.nominal.solve()
+    trial = scenario.run(c[None])
+    assert trial.status[0] == OK
+    reference = car_trial(scenario.plant, scenario.profile, scenario.x_start, c)
+    np.testing.assert_allclose(trial.final[0], reference, atol=1e-9)
+    # each perturbation moves the final configuration by centimetres: it is not a no-op
+    plain = Scenario.from_config(load_config(name)).run(c[None]).final[0]
+    assert np.abs(scenario.plant.configuration(trial.final[0])[:2] - plain[:2]).max() > 1e-3
+
+
+def test_a_lagging_drive_starts_from_rest_and_a_lagging_wheel_trails_the_command():
+    import dataclasses
+
+    config = load_config("forward_parking")
+    config = dataclasses.replace(config, plant=dataclasses.replace(config.plant, steering_lag=0.2, speed_lag=0.2))
+    scenario = Scenario.from_config(config)
+    trial = scenario.run(scenario.nominal.solve()[None], record=True)
+    states = trial.states[0]
+    assert states[0, 5] == 0.0 and states[1, 5] > 0.0  # omega rises from rest
+    t = trial.times
+    u1 = scenario.nominal.profile.evaluate(scenario.nominal.solve(), t)[0] / (0.02 * np.cos(states[:, 2]))
+    gap = np.abs(states[:, 5] - u1) / np.abs(u1)
+    # far behind u1 at first, then within the lag of a ramping command after 5 time constants
+    assert gap[1] > 0.5 and gap[np.searchsorted(t, 1.0)] < 0.1
+    assert np.abs(states[:, 4] - states[:, 3]).max() > 1e-3  # phi_w trails phi_c

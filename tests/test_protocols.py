@@ -4,6 +4,8 @@ A new plant, profile or learner passes these or is not one. Each check is a numb
 wrong: shapes, a closed form, determinism under a seed.
 """
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -11,6 +13,7 @@ import pytest
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContext, blackbox, rl
 from ilc_steering.agents.newton import make_newton
+from ilc_steering.agents.newton_ilc import make_newton_ilc
 from ilc_steering.config import load_config, packaged_configs
 from ilc_steering.core.car import rotate
 from ilc_steering.core.integrate import OK
@@ -30,18 +33,28 @@ def plants_of_every_kind():
     return out
 
 
-@pytest.mark.parametrize("model", sorted(PLANTS))
+def servo_car():
+    """The car with every unmodeled servo perturbation on: the six-state kernel."""
+    config = CONFIGS["forward_parking_saturated"]
+    plant = dataclasses.replace(config.plant.plant(), steering_offset=0.02, steering_lag=0.05, speed_lag=0.1)
+    return plant, config
+
+
+@pytest.mark.parametrize("model", [*sorted(PLANTS), "car with servos"])
 def test_plant_contract(model):
-    plant, config = plants_of_every_kind()[model]
+    plant, config = servo_car() if model == "car with servos" else plants_of_every_kind()[model]
+    model = model.split()[0]
     assert isinstance(plant, Plant) and isinstance(plant, PLANTS[model])
     assert isinstance(plant.kind, PlantKind) and plant.kind.name == model
     start = np.array(config.points()[0][1])
-    x0 = rotate(start, config.frame()) if plant.kind.has_pose else start
-    plant.check_configuration(x0)
+    q0 = rotate(start, config.frame()) if plant.kind.has_pose else start
+    plant.check_configuration(q0)
     with pytest.raises(ValueError):
-        plant.check_configuration(np.full_like(x0, np.nan))
+        plant.check_configuration(np.full_like(q0, np.nan))
+    x0 = plant.initial_state(q0)
     assert x0.shape == (plant.state_dim,)
-    assert plant.configuration(np.stack([x0, x0])).shape == (2, plant.state_dim)
+    np.testing.assert_array_equal(plant.configuration(x0), q0)
+    assert plant.configuration(np.stack([x0, x0])).shape == (2, q0.size)
     field, params = plant.kernel()
     assert isinstance(field, int) and params.dtype == np.float64 and params.ndim == 1
     profile = config.legs()[0][1].profile()
@@ -49,7 +62,7 @@ def test_plant_contract(model):
     c[0, 0] = 0.1
     trials = simulate(plant, profile, x0[None], c)
     assert trials.status[0] == OK and trials.final.shape == (1, plant.state_dim) and np.all(np.isfinite(trials.final))
-    assert len(plant.kind.coordinate_labels(plant.state_dim)) == plant.state_dim
+    assert len(plant.kind.coordinate_labels(q0.size)) == q0.size
 
 
 def profiles():
@@ -95,6 +108,7 @@ LEARNERS = {
     "ilc": lambda ctx: ILCAgent(ctx.model),
     "ilc_nominal": lambda ctx: ILCAgent(ctx.model, start=ctx.first_action()),
     "newton": make_newton,
+    "newton_ilc": make_newton_ilc,
     "least_squares": lambda ctx: blackbox.make_learner("least_squares", ctx),
     "gauss_newton": lambda ctx: blackbox.make_learner("gauss_newton", ctx),
     "nelder_mead": lambda ctx: blackbox.make_learner("nelder_mead", ctx),

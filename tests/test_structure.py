@@ -152,3 +152,17 @@ def test_lazy_names_resolve():
     assert envs.ChainedSteeringEnv.__name__ == "ChainedSteeringEnv"
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         _ = ilc_steering.nope
+
+
+def test_the_re_identifying_learner_simulates_its_own_family_never_the_env_plant():
+    # newton_ilc simulates plants, but only those its ModelFamily builds from the nominal model:
+    # it reaches the plant classes and the kernel, never an env, the config or the reference.
+    reached = closure("ilc_steering.agents.newton_ilc", parents=True)
+    assert "ilc_steering.core.family" in reached
+    assert not [m for m in reached if m.startswith("ilc_steering.envs")]
+    assert not reached & {"ilc_steering.config", "ilc_steering.core.reference"}
+    import inspect
+
+    from ilc_steering.core.family import ModelFamily
+
+    assert list(inspect.signature(ModelFamily).parameters) == ["model", "max_step"]

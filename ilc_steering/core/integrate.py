@@ -17,6 +17,12 @@ seven iterations (eight to 0.5 mm); a stop that discards the command learns far 
 kink of the vector field where ``|phi_c|`` crosses the limit is located inside the step by
 root finding (Illinois regula falsi), so such a step keeps the method's accuracy.
 
+Servo perturbations (car, :data:`~ilc_steering.core.plants.CAR_SERVO_FIELD`): a misaligned
+wheel and first-order steering and drive servos, in a six-state field of their own, so the
+unperturbed car keeps its four-state kernel. A lag adds a stable linear mode of rate
+``1 / lag``; the fixed step resolves it when ``lag`` is not much below the step (the config
+requires ``lag >= max_step``).
+
 Chart guard: the controller's transform (eqs. 4-5) breaks down as ``|theta|`` or ``|phi|``
 approaches ``pi/2`` in the task frame. A step that ends within ``CHART_MARGIN`` rad of it (or
 beyond: a stiff step can throw ``theta`` far past it), or with a non-finite state, is discarded
@@ -36,6 +42,7 @@ from numba import njit, prange
 
 from ilc_steering.core import dop853
 from ilc_steering.core.plants import CAR_FIELD as CAR
+from ilc_steering.core.plants import CAR_SERVO_FIELD as CAR_SERVO
 from ilc_steering.core.plants import CHAINED_FIELD as CHAINED
 from ilc_steering.core.plants import CHART_MARGIN
 
@@ -92,6 +99,24 @@ def _rhs(model, params, x, v1, v2, out):  # type: ignore[no-untyped-def]
         out[1] = dy
         out[2] = dtheta
         out[3] = dphi
+    elif model == CAR_SERVO:
+        # params as CAR, then the wheel's misalignment [rad] and the steering and drive servo time
+        # constants [s] (0: no lag); state (x, y, theta, phi_c, phi_w, omega)
+        limit, offset, steering_lag, speed_lag = params[4], params[5], params[6], params[7]
+        commanded = min(max(x[3], -limit), limit)
+        phi = x[4] if steering_lag > 0 else commanded  # what the controller measures
+        s, c = np.sin(x[2]), np.cos(x[2])
+        s_phi, c_phi = np.sin(phi), np.cos(phi)
+        u1 = v1 / (params[1] * c)
+        u2 = -3.0 / params[0] * s / (c * c) * s_phi * s_phi * v1 + params[0] * c * c * c * c_phi * c_phi * v2
+        omega = x[5] if speed_lag > 0 else u1
+        speed = params[3] * omega
+        out[0] = c * speed
+        out[1] = s * speed
+        out[2] = np.tan(phi + offset) * speed / params[2]
+        out[3] = u2
+        out[4] = (commanded - x[4]) / steering_lag if steering_lag > 0 else 0.0
+        out[5] = (u1 - x[5]) / speed_lag if speed_lag > 0 else 0.0
     else:
         # params: true gains on v1 and v2 (eq. 37 with eta_1 = (g1 - 1) v1)
         w1 = params[0] * v1
@@ -124,7 +149,7 @@ def _rk(model, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-un
 def _step(model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
     """One step from local time ``tau``, split where ``|phi_c|`` crosses the steering limit."""
     _rk(model, n, params, x, tau, h, v1c, v2c, out, work)
-    if model != CAR:
+    if model != CAR and model != CAR_SERVO:
         return
     limit = params[4]
     beyond = abs(x[3]) > limit
@@ -165,6 +190,9 @@ def _in_chart(model, params, x):  # type: ignore[no-untyped-def]
             return False
     if model == CAR:
         return abs(x[2]) < _CHART_LIMIT and min(abs(x[3]), params[4]) < _CHART_LIMIT
+    if model == CAR_SERVO:
+        phi = x[4] if params[6] > 0 else min(max(x[3], -params[4]), params[4])
+        return abs(x[2]) < _CHART_LIMIT and abs(phi) < _CHART_LIMIT and abs(phi + params[5]) < _CHART_LIMIT
     return True
 
 
@@ -200,6 +228,8 @@ def _drive(model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type
 def _simulate_one(model, params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
     if model == CAR:
         return _drive(CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
+    if model == CAR_SERVO:
+        return _drive(CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
     return _drive(CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
 
 

@@ -46,7 +46,8 @@ class NominalModel:
 
     ``z_start`` and ``z_goal`` are the start and goal in chained coordinates (computed with the
     nominal map, in the task frame). ``chained_map`` is the nominal map of the robot, or ``None``
-    for a plant that is itself in chained form. No true plant parameter is reachable from here.
+    for a plant that is itself in chained form; ``steering_limit`` is the car's steering stop.
+    No true plant parameter is reachable from here.
     """
 
     dimension: int
@@ -54,6 +55,8 @@ class NominalModel:
     z_start: Array
     z_goal: Array
     chained_map: ChainedMap | None = None
+    steering_limit: float | None = None
+    """The robot's bound on ``|phi|`` [rad], a specification the controller knows (``None``: none)."""
 
     def transition(self, c11: float) -> tuple[Array, Array]:
         """Eqs. (24)-(25): ``V`` and ``W`` of ``z_b`` when the learned ``v1`` coefficient is ``c11``."""

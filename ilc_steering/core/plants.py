@@ -24,7 +24,19 @@ import numpy.typing as npt
 from ilc_steering.core.car import CarModel, check_chart
 from ilc_steering.core.checks import require
 
-__all__ = ["CAR_FIELD", "CHAINED_FIELD", "CHART_MARGIN", "PLANTS", "CarPlant", "ChainedPlant", "Plant", "PlantKind"]
+__all__ = [
+    "CAR_FIELD",
+    "CAR_SERVO_FIELD",
+    "CHAINED_FIELD",
+    "CHART_MARGIN",
+    "MAX_LAG",
+    "MAX_STEERING_OFFSET",
+    "PLANTS",
+    "CarPlant",
+    "ChainedPlant",
+    "Plant",
+    "PlantKind",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -39,6 +51,13 @@ CAR_FIELD = 0
 """Kernel id of the closed-loop car field (eq. 3 driven through eqs. 4-5)."""
 CHAINED_FIELD = 1
 """Kernel id of the chained form with input gains (eq. 1, perturbed as eq. 37)."""
+CAR_SERVO_FIELD = 2
+"""Kernel id of the car with its unmodeled servo perturbations (a misaligned wheel, steering and
+drive lags): six states ``(x, y, theta, phi_c, phi_w, omega)``."""
+MAX_STEERING_OFFSET = 0.5
+"""[rad] the largest ``|steering_offset|`` of a car plant."""
+MAX_LAG = 10.0
+"""[s] the largest servo time constant of a car plant."""
 
 
 @dataclass(frozen=True)
@@ -89,6 +108,10 @@ class Plant(Protocol):
         within the plant's limits)."""
         ...
 
+    def initial_state(self, q: Array) -> Array:
+        """The state ``x`` of a plant at rest at configuration ``q`` (``(..., nq)`` -> ``(..., state_dim)``)."""
+        ...
+
     def kernel(self) -> tuple[int, Array]:
         """The compiled vector field's id and its parameter vector (true parameters included)."""
         ...
@@ -102,12 +125,28 @@ class CarPlant:
     fourth entry is then the servo's commanded angle, which may wind past the limit while the
     wheel rests at the stop (see :mod:`ilc_steering.core.integrate`); :meth:`configuration`
     gives the car's ``q``.
+
+    Three perturbations outside any geometry the controller could assume, each 0 (off) by default:
+
+    - ``steering_offset`` [rad]: a misaligned wheel; its true angle is the measured one plus this;
+    - ``steering_lag`` [s]: the wheel follows the (clipped) commanded angle ``phi_c`` through a
+      first-order servo, ``dphi_w/dt = (clip(phi_c) - phi_w) / steering_lag``; the controller
+      measures ``phi_w``;
+    - ``speed_lag`` [s]: the driving wheel's speed follows ``u1`` through a first-order servo,
+      ``domega/dt = (u1 - omega) / speed_lag``, from rest at the start of a trial; the trial is
+      measured at ``T``, before the wheel has spun down.
+
+    With any of them on, the state is ``(x, y, theta, phi_c, phi_w, omega)`` (kernel
+    :data:`CAR_SERVO_FIELD`); without, it is ``(x, y, theta, phi_c)``.
     """
 
     kind: ClassVar[PlantKind] = CAR
     true: CarModel
     nominal: CarModel
     steering_limit: float | None = None
+    steering_offset: float = 0.0
+    steering_lag: float = 0.0
+    speed_lag: float = 0.0
 
     def __post_init__(self) -> None:
         limit = self.steering_limit
@@ -116,17 +155,41 @@ class CarPlant:
             "steering_limit",
             f"must be in (0, pi/2) rad or null, got {limit}",
         )
+        offset = self.steering_offset
+        require(
+            isfinite(offset) and abs(offset) <= MAX_STEERING_OFFSET,
+            "steering_offset",
+            f"must be within +-{MAX_STEERING_OFFSET} rad, got {offset}",
+        )
+        for name in ("steering_lag", "speed_lag"):
+            lag = getattr(self, name)
+            require(isfinite(lag) and 0 <= lag <= MAX_LAG, name, f"must be in [0, {MAX_LAG:g}] s, got {lag}")
+
+    @property
+    def servo(self) -> bool:
+        """Whether a servo perturbation is on (the six-state kernel)."""
+        return bool(self.steering_offset or self.steering_lag or self.speed_lag)
 
     @property
     def state_dim(self) -> int:
-        return 4
+        return 6 if self.servo else 4
+
+    def initial_state(self, q: Array) -> Array:
+        """At rest at ``q``: the commanded and the measured wheel angles are ``phi``, the wheel speed 0."""
+        q = np.asarray(q, dtype=np.float64)
+        if not self.servo:
+            return q.copy()
+        return np.concatenate([q, q[..., 3:4], np.zeros_like(q[..., :1])], axis=-1)
 
     def configuration(self, x: Array) -> Array:
-        """The configurations ``q`` of states ``x`` (``(..., 4)``): the wheel angle is the clipped command."""
-        if self.steering_limit is None:
-            return np.asarray(x)
-        q = np.array(x, dtype=np.float64)
-        q[..., 3] = np.clip(q[..., 3], -self.steering_limit, self.steering_limit)
+        """The measured configurations ``q`` of states ``x``: the wheel angle is the clipped command,
+        or the lagging wheel's ``phi_w``."""
+        x = np.asarray(x, dtype=np.float64)
+        if self.steering_lag:
+            return np.concatenate([x[..., :3], x[..., 4:5]], axis=-1)
+        q = np.array(x[..., :4], dtype=np.float64)
+        if self.steering_limit is not None:
+            q[..., 3] = np.clip(q[..., 3], -self.steering_limit, self.steering_limit)
         return q
 
     def check_configuration(self, q: Array) -> None:
@@ -150,8 +213,10 @@ class CarPlant:
 
     def kernel(self) -> tuple[int, Array]:
         limit = np.inf if self.steering_limit is None else self.steering_limit
-        params = [self.nominal.wheelbase, self.nominal.wheel_radius, self.true.wheelbase, self.true.wheel_radius]
-        return CAR_FIELD, np.array([*params, limit])
+        params = [self.nominal.wheelbase, self.nominal.wheel_radius, self.true.wheelbase, self.true.wheel_radius, limit]
+        if not self.servo:
+            return CAR_FIELD, np.array(params)
+        return CAR_SERVO_FIELD, np.array([*params, self.steering_offset, self.steering_lag, self.speed_lag])
 
 
 @dataclass(frozen=True)
@@ -175,6 +240,10 @@ class ChainedPlant:
     @property
     def state_dim(self) -> int:
         return self.dimension
+
+    def initial_state(self, q: Array) -> Array:
+        """The state is the configuration."""
+        return np.array(q, dtype=np.float64)
 
     def configuration(self, x: Array) -> Array:
         """The state is the configuration."""

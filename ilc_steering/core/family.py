@@ -1,0 +1,98 @@
+r"""The nominal structure with its physical parameters free: what a learner may simulate.
+
+A :class:`ModelFamily` is built from a :class:`~ilc_steering.core.nominal.NominalModel` alone:
+the plant the controller *assumes*, with a vector :math:`\theta` of log-ratios of the parameters
+it is least sure of, and no other knowledge. A learner simulates it (on the compiled kernel, no
+trial spent) to fit :math:`\theta` to the trials it has measured and to invert the refit model.
+
+- a car (a :class:`~ilc_steering.core.car.CarModel` map): :math:`\tilde\ell = \ell e^{\theta_1}`
+  and :math:`\tilde\rho = \rho e^{\theta_2}`, the wheelbase and wheel radius of eq. 3 (the
+  controller keeps the nominal ones in eqs. 4-5), with the robot's known steering limit;
+- the chained form (no map): the input gains :math:`g_1 = e^{\theta_1}` on ``v1`` and
+  :math:`g_2 = e^{\theta_2}` on ``v2`` (eq. 37).
+
+At :math:`\theta = 0` the family is the nominal model itself, its final states those of eq. 23
+(to the integrator's 1e-9), except that it keeps the steering stop, which eq. 23 ignores.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.car import CarModel
+from ilc_steering.core.grid import DEFAULT_MAX_STEP
+from ilc_steering.core.integrate import OK
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.plants import CarPlant, ChainedPlant
+from ilc_steering.core.simulate import simulate
+
+__all__ = ["MAX_LOG_RATIO", "ModelFamily"]
+
+Array = npt.NDArray[np.float64]
+
+MAX_LOG_RATIO = float(np.log(2.0))
+"""The largest ``|theta_i|``: the family's parameters stay within a factor 2 of the nominal ones."""
+
+
+class ModelFamily:
+    """The nominal plant with free parameters ``theta`` (log-ratios to the nominal values).
+
+    Parameters
+    ----------
+    model
+        The nominal model; its map (a car's geometry, or none for the chained form) sets the family.
+    max_step
+        The integrator's longest step [s].
+    """
+
+    def __init__(self, model: NominalModel, max_step: float = DEFAULT_MAX_STEP) -> None:
+        self.model = model
+        self.max_step = max_step
+        chained_map = model.chained_map
+        if chained_map is None:
+            self.names: tuple[str, ...] = ("v1_gain", "v2_gain")
+            z0 = np.asarray(model.z_start, dtype=np.float64)
+        elif isinstance(chained_map, CarModel):
+            self.names = ("wheelbase_ratio", "wheel_radius_ratio")
+            z0 = chained_map.from_chained(model.z_start)
+        else:
+            raise ValueError(f"no model family for a robot mapped by {type(chained_map).__name__}")
+        self._q0 = z0
+
+    @property
+    def size(self) -> int:
+        """The number of free parameters."""
+        return len(self.names)
+
+    def parameters(self, theta: Array) -> dict[str, float]:
+        """The ratios (true over nominal) that ``theta`` stands for, by name."""
+        return {name: float(np.exp(t)) for name, t in zip(self.names, theta)}
+
+    def plant(self, theta: Array) -> CarPlant | ChainedPlant:
+        """The hypothesised plant with parameters ``theta``."""
+        ratio = np.exp(np.clip(np.asarray(theta, dtype=np.float64), -MAX_LOG_RATIO, MAX_LOG_RATIO))
+        chained_map = self.model.chained_map
+        if isinstance(chained_map, CarModel):
+            true = CarModel(chained_map.wheelbase * ratio[0], chained_map.wheel_radius * ratio[1])
+            return CarPlant(true, chained_map, self.model.steering_limit)
+        return ChainedPlant(self.model.dimension, float(ratio[0]), float(ratio[1]))
+
+    def configurations(self, theta: Array, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
+        """Final configurations ``(B, nq)`` (task frame; ``z`` for the chained form) of trials with
+        coefficients ``c`` ``(B, 1 + q)`` on the plant ``theta``, and whether each stayed in the chart."""
+        plant = self.plant(theta)
+        c = np.ascontiguousarray(np.atleast_2d(c), dtype=np.float64)
+        x0 = np.ascontiguousarray(np.broadcast_to(plant.initial_state(self._q0), (c.shape[0], plant.state_dim)))
+        trials = simulate(plant, self.model.profile, x0, c, self.max_step)
+        return plant.configuration(trials.final), trials.status == OK
+
+    def to_configuration(self, z: Array) -> Array:
+        """Chained coordinates ``(..., n)`` to configurations (the nominal map's inverse)."""
+        chained_map = self.model.chained_map
+        return np.asarray(z, dtype=np.float64) if chained_map is None else chained_map.from_chained(z)
+
+    def to_chained(self, q: Array) -> Array:
+        """Configurations to chained coordinates (the nominal map)."""
+        chained_map = self.model.chained_map
+        return np.asarray(q, dtype=np.float64) if chained_map is None else chained_map.to_chained(q)
