@@ -29,11 +29,13 @@ after each one:
        F(c; \hat\theta) + d_k + D (c - c_k) = z^d
 
    by Newton's method on the simulated family (forward-difference Jacobian, one batched kernel
-   call per iteration, backtracking), within a trust region of :data:`TRUST_RADIUS` nominal
+   call per iteration, backtracking), started from whichever of :math:`c_k`, the eq. 33-34 step
+   and the nominal solution the refit model puts nearest the goal, within a trust region of :data:`TRUST_RADIUS` nominal
    action scales of :math:`c_k`, projected onto the action box.
 4. **Fall-back.** When a trial did not reduce the measured error below the best so far, the
    next trial is eqs. 33-34 from the best trial (:class:`~ilc_steering.agents.ilc.ILCAgent`),
-   and :math:`D` is reset.
+   and :math:`D` is reset. When a trial left the chart, the next one halves its step from the
+   best trial (eqs. 33-34 from it if there is no best yet).
 
 On the nominal plant :math:`\hat\theta = 0`, :math:`d = 0` and step 3 is an exact inversion:
 one update lands on the goal to the integrator's accuracy (``tests/test_newton_ilc.py``).
@@ -120,6 +122,7 @@ class NewtonILC:
     def reset(self) -> None:
         self.theta = np.zeros(self.family.size)
         self.update_seconds: list[float] = []
+        """Wall time [s] of each model update (identification and Newton solve; a fall-back costs ~0)."""
         self._trials: list[_Trial] = []
         self._best: _Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
@@ -136,9 +139,12 @@ class NewtonILC:
         z = self.model.z_goal - error
         if bool(info.get("left_chart", False)):
             # A halted trial's error says little about the plant: eqs. 33-34 from the best trial
-            # (from this one if there is none yet), as the paper's law would.
-            self._next = self._fallback(self._best or _Trial(c, z, z, np.inf))
-            self.update_seconds.append(time.perf_counter() - began)
+            # (from this one if there is none yet), as the paper's law would; when the step from the
+            # best trial was what left the chart, half of it, and so on.
+            if self._best is None:
+                self._next = self._fallback(_Trial(c, z, z, np.inf))
+            else:
+                self._next = self._best.c + 0.5 * (c - self._best.c)
             return
         q = self.family.to_configuration(z)
         trial = _Trial(c, z, q, float(np.linalg.norm(q - self._goal_q)))
@@ -147,11 +153,11 @@ class NewtonILC:
             self._next = self._fallback(self._best)
             self._D[:] = 0.0
             self._last_residual = None
-        else:
-            self._best = trial
-            if self.identify:
-                self.theta = self._fit(self.theta)
-            self._next = self._newton(trial)
+            return
+        self._best = trial
+        if self.identify:
+            self.theta = self._fit(self.theta)
+        self._next = self._newton(trial)
         self.update_seconds.append(time.perf_counter() - began)
 
     def _fallback(self, trial: _Trial) -> Array:
@@ -208,9 +214,15 @@ class NewtonILC:
             z, ok = self._final_z(cs)
             return z + (cs - trial.c) @ self._D.T - target, ok
 
-        c = trial.c.copy()
-        g, ok = mismatch(c[None])
-        g = g[0] if ok[0] else np.full_like(target, np.inf)
+        # Newton starts from this trial, the eq. 33-34 step after it or the nominal solution, whichever
+        # the refit model puts nearest the goal (on a nonsmooth saturated field the first two may
+        # lead Newton to a kink, far from any solution).
+        starts = np.stack([trial.c, self._fallback(trial), self._project(trial.c, self.model.solve())])
+        values, ok = mismatch(starts)
+        norms = np.where(ok, np.linalg.norm(values, axis=1), np.inf)
+        pick = int(np.argmin(norms))
+        c = starts[pick].copy()
+        g = values[pick] if ok[pick] else np.full_like(target, np.inf)
         steps = 1e-7 * self._scale
         for _ in range(_SOLVE_ITERATIONS):
             if not np.all(np.isfinite(g)) or np.linalg.norm(g) < 1e-13:
@@ -230,7 +242,7 @@ class NewtonILC:
                 step = 0.5 * step
             else:
                 break
-        return c
+        return np.asarray(c, dtype=np.float64)
 
     def _final_z(self, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
         q, ok = self.family.configurations(self.theta, c)

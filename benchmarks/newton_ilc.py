@@ -90,7 +90,7 @@ class Args:
 
 def perturbed(name: str, **plant: float) -> SteeringConfig:
     config = load_config(name)
-    return dataclasses.replace(config, plant=dataclasses.replace(config.plant, **plant)) if plant else config
+    return dataclasses.replace(config, plant=dataclasses.replace(config.plant, **plant)) if plant else config  # type: ignore[arg-type]
 
 
 def run(config: SteeringConfig, learner: str, trials: int, seed: int = 0, noise: float | None = None) -> dict[str, Any]:
@@ -126,10 +126,21 @@ def main(args: Args) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
 
     def record(experiment: str, task: str, perturbation: str, learner: str, seed: int, result: dict[str, Any]) -> None:
-        rows.append({"experiment": experiment, "task": task, "perturbation": perturbation, "learner": learner,
-                     "seed": seed, **result})  # fmt: skip
-        print(f"{experiment:8s} {task:26s} {perturbation:16s} {learner:14s} seed {seed}: "
-              f"{_count(result['trials_to_tolerance'])}", flush=True)  # fmt: skip
+        rows.append(
+            {
+                "experiment": experiment,
+                "task": task,
+                "perturbation": perturbation,
+                "learner": learner,
+                "seed": seed,
+                **result,
+            }
+        )
+        print(
+            f"{experiment:8s} {task:26s} {perturbation:16s} {learner:14s} seed {seed}: "
+            f"{_count(result['trials_to_tolerance'])}",
+            flush=True,
+        )
 
     for task in tasks:
         for learner in LEARNERS:
@@ -139,15 +150,27 @@ def main(args: Args) -> list[dict[str, Any]]:
         for key, value in list(PERTURBATIONS.items())[: 1 if args.quick else None]:
             config = perturbed(task, **{key: value})
             for learner in LEARNERS:
-                record("unmodeled", task, f"{key}={value:g}", learner, 0, run(config, learner, budget.get(learner, trials)))
+                result = run(config, learner, budget.get(learner, trials))
+                record("unmodeled", task, f"{key}={value:g}", learner, 0, result)
     for task in [t for t in tasks if t != "chained_perturbed"]:
         for seed in seeds:
             for learner in ("ilc_paper", "ilc", "newton_ilc"):
-                record("noise", task, f"sigma={args.noise:g}", learner, seed,
-                       run(load_config(task), learner, trials, seed, args.noise))  # fmt: skip
+                record(
+                    "noise",
+                    task,
+                    f"sigma={args.noise:g}",
+                    learner,
+                    seed,
+                    run(load_config(task), learner, trials, seed, args.noise),
+                )
     markdown = report(rows, seeds)
-    write_results([{k: v for k, v in r.items() if k != "errors"} for r in rows], out, "newton_ilc", markdown,
-                  {"curves": rows, "args": {k: str(v) for k, v in dataclasses.asdict(args).items()}})  # fmt: skip
+    write_results(
+        [{k: v for k, v in r.items() if k != "errors"} for r in rows],
+        out,
+        "newton_ilc",
+        markdown,
+        {"curves": rows, "args": {k: str(v) for k, v in dataclasses.asdict(args).items()}},
+    )
     figure(rows, out / "newton_ilc_errors.png")
     print(markdown)
     return rows
@@ -157,8 +180,12 @@ def report(rows: list[dict[str, Any]], seeds: tuple[int, ...]) -> str:
     """The three tables and the learner's compute per update."""
 
     def cell(experiment: str, task: str, perturbation: str, learner: str) -> list[dict[str, Any]]:
-        return [r for r in rows if (r["experiment"], r["task"], r["perturbation"], r["learner"]) ==
-                (experiment, task, perturbation, learner)]  # fmt: skip
+        return [
+            r
+            for r in rows
+            if (r["experiment"], r["task"], r["perturbation"], r["learner"])
+            == (experiment, task, perturbation, learner)
+        ]
 
     parts = ["## Inside the family (the packaged tasks), trials to 0.5 mm / 0.5 mrad\n"]
     tasks = list(dict.fromkeys(r["task"] for r in rows if r["experiment"] == "family"))
@@ -170,19 +197,30 @@ def report(rows: list[dict[str, Any]], seeds: tuple[int, ...]) -> str:
         [t, p, *(_count(cell("unmodeled", t, p, m)[0]["trials_to_tolerance"]) for m in LEARNERS)] for t, p in cases
     ]
     parts.append(markdown_table(["task", "perturbation", *LEARNERS], table, [False, False] + [True] * len(LEARNERS)))
-    parts.append(f"\n## Measured with noise, {len(seeds)} seeds: median [min, max] trials; seeds where newton_ilc "
-                 "needs no more trials than each law\n")  # fmt: skip
+    parts.append(
+        f"\n## Measured with noise, {len(seeds)} seeds: median [min, max] trials; seeds where newton_ilc "
+        "needs no more trials than each law\n"
+    )
     table = []
     for task, noise in dict.fromkeys((r["task"], r["perturbation"]) for r in rows if r["experiment"] == "noise"):
-        counts = {m: [r["trials_to_tolerance"] for r in cell("noise", task, noise, m)] for m in ("ilc_paper", "ilc", "newton_ilc")}  # fmt: skip
+        laws = ("ilc_paper", "ilc", "newton_ilc")
+        counts = {m: [r["trials_to_tolerance"] for r in cell("noise", task, noise, m)] for m in laws}
         shown = []
-        for m, values in counts.items():
+        for values in counts.values():
             got = [v for v in values if v is not None]
-            shown.append(f"{median(got):g} [{min(got)}, {max(got)}]" if len(got) == len(values) else
-                         f"{len(got)}/{len(values)} converged")  # fmt: skip
+            shown.append(
+                f"{median(got):g} [{min(got)}, {max(got)}]"
+                if len(got) == len(values)
+                else f"{len(got)}/{len(values)} converged"
+            )
         inf = float("inf")
-        wins = [sum((n if n is not None else inf) <= (o if o is not None else inf)
-                    for n, o in zip(counts["newton_ilc"], counts[law])) for law in ("ilc_paper", "ilc")]  # fmt: skip
+        wins = [
+            sum(
+                (n if n is not None else inf) <= (o if o is not None else inf)
+                for n, o in zip(counts["newton_ilc"], counts[law])
+            )
+            for law in ("ilc_paper", "ilc")
+        ]
         table.append([task, noise, *shown, f"{wins[0]}/{len(seeds)}", f"{wins[1]}/{len(seeds)}"])
     header = ["task", "noise", "ilc_paper", "ilc", "newton_ilc", "newton_ilc <= ilc_paper", "newton_ilc <= ilc"]
     parts.append(markdown_table(header, table, [False, False, True, True, True, True, True]))

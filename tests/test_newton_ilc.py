@@ -119,3 +119,24 @@ def test_a_trial_that_left_the_chart_falls_back_to_eqs_33_34():
     law.learn(info)
     np.testing.assert_allclose(learner.act(), law.act(), rtol=1e-12)
     np.testing.assert_allclose(learner.theta, 0.0)  # a halted trial is not fitted
+
+
+def test_after_a_trial_that_left_the_chart_it_halves_the_step_from_the_best_trial():
+    env, context = setup(load_config("forward_parking"))
+    learner = make_newton_ilc(context)
+    run_trials(env, learner, 1, seed=0)  # a best trial now exists
+    best = learner._best.c
+    wild = best + 0.4 * context.model.action_scale()
+    learner.learn({"action": wild, "error": np.ones(4), "left_chart": True})
+    np.testing.assert_allclose(learner.act(), best + 0.2 * context.model.action_scale(), rtol=1e-12)
+
+
+def test_from_a_blind_start_it_still_needs_two_trials():
+    config = load_config("forward_parking_saturated")
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=config)
+    u = env.unwrapped
+    for seed in (0, 1):
+        context = LearnerContext(u.nominal_model, u.action_space, u.observation_space, seed, prior="none")
+        rollout = run_trials(env, make_newton_ilc(context), 3, seed=seed)
+        assert rollout.infos[0]["true_cartesian_error"] > 0.1
+        assert within_tolerance(config.learning.tolerance, rollout.infos[1])
