@@ -77,7 +77,7 @@ def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheel
     return c * speed, s * speed, s_phi / c_phi * speed / true_wheelbase, dphi
 
 
-# The helpers are inlined into one function per plant (see _simulate_one): with the state
+# The helpers are inlined into one function per plant (see _serial_car): with the state
 # dimension a constant and the scratch arrays local, the compiler keeps the stages in registers,
 # twice as fast as calling them.
 @njit(cache=True, inline="always")
@@ -224,27 +224,51 @@ def _drive(model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type
     return OK
 
 
+# One compiled entry point per plant field, serial and parallel: each compiles on its first use
+# and is cached on its own (numba's cache keys on the Python function), so a car run never waits
+# for the chained form's or the servo car's code. Within one, the field is a constant, so the
+# compiler keeps the state in registers.
 @njit(cache=True)
-def _simulate_one(model, params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    if model == CAR:
-        return _drive(CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
-    if model == CAR_SERVO:
-        return _drive(CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
-    return _drive(CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-# Two functions, not one function compiled twice: numba's cache keys on the Python function, so a
-# shared one would load whichever variant was compiled first for both.
-@njit(cache=True)
-def _serial(model, params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+def _serial_car(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _simulate_one(model, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _drive(CAR, 4, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
-def _parallel(model, params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+def _parallel_car(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _simulate_one(model, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _drive(CAR, 4, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True)
+def _serial_car_servo(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in range(x0.shape[0]):
+        status[b] = _drive(CAR_SERVO, 6, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True, parallel=True)
+def _parallel_car_servo(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in prange(x0.shape[0]):
+        status[b] = _drive(CAR_SERVO, 6, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True)
+def _serial_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in range(x0.shape[0]):
+        status[b] = _drive(CHAINED, x0.shape[1], params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True, parallel=True)
+def _parallel_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in prange(x0.shape[0]):
+        status[b] = _drive(CHAINED, x0.shape[1], params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+_KERNELS = {
+    CAR: (_serial_car, _parallel_car),
+    CAR_SERVO: (_serial_car_servo, _parallel_car_servo),
+    CHAINED: (_serial_chained, _parallel_chained),
+}
 
 
 def integrate(
@@ -264,15 +288,19 @@ def integrate(
     profile. Returns the final states ``(B, nx)``, the status of each trial (``OK`` or
     ``LEFT_CHART``) and, with ``record``, the states at every step ``(B, 1 + sum(steps), nx)``.
     """
+    # One layout for every caller (C order, float64, writeable): a read-only or strided view would
+    # compile a second specialization of the kernel, which costs as long as the first.
+    x0, params, durations, v1, v2 = (np.require(a, np.float64, ["C", "W"]) for a in (x0, params, durations, v1, v2))
+    steps = np.require(steps, np.int64, ["C", "W"])
     batch, n = x0.shape
     out = np.empty((batch, n))
     status = np.empty(batch, dtype=np.int64)
     rows = 1 + int(steps.sum()) if record else 0
     traj = np.empty((batch, rows, n))
-    kernel = _parallel if parallel else _serial
+    kernel = _KERNELS[model][1 if parallel else 0]
     if not kernel.signatures:
         _announce_compile(kernel)
-    kernel(model, params, x0, durations, steps, v1, v2, out, status, traj)
+    kernel(params, x0, durations, steps, v1, v2, out, status, traj)
     return out, status, traj if record else None
 
 
@@ -284,9 +312,9 @@ def _announce_compile(kernel: Any) -> None:
     folder = Path(cache_dir) if cache_dir else Path(__file__).parent / "__pycache__"
     if folder.is_dir() and any(folder.rglob(f"integrate.{name}-*.nbi")):
         return
-    what = "parallel " if name == "_parallel" else ""
+    what = name.removeprefix("_").replace("_", " ", 1).replace("_", "-")  # e.g. "serial car-servo"
     print(
-        f"ilc-steering: compiling the {what}simulator once for this install (numba; 10-45 s), then it is cached ...",
+        f"ilc-steering: compiling the {what} simulator once for this install (numba), then it is cached ...",
         file=sys.stderr,
         flush=True,
     )
