@@ -27,6 +27,7 @@ from ilc_steering.core.checks import ParameterError, check_gains, check_noise
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
 from ilc_steering.core.profiles import PiecewiseProfile
+from ilc_steering.core.trapezoid import TrapezoidProfile
 
 __all__ = [
     "CarPlantConfig",
@@ -132,9 +133,14 @@ class ChainedPlantConfig:
             return ChainedPlant(self.dimension, self.v1_gain, self.v2_gain)
 
 
-def _profile(leg: SegmentConfig | TaskConfig) -> PiecewiseProfile:
+def _profile(leg: SegmentConfig | TaskConfig) -> PiecewiseProfile | TrapezoidProfile:
+    if leg.v1_shape == "constant":
+        _require(leg.ramp is None, "ramp", "is for v1_shape: trapezoid; with v1_shape: constant leave it out")
+        with _domain():
+            return PiecewiseProfile(leg.pieces, leg.v1_fixed, leg.v2_terms)
+    _require(leg.ramp is not None, "ramp", "v1_shape: trapezoid needs the ramp time [s] at both ends of every piece")
     with _domain():
-        return PiecewiseProfile(leg.pieces, leg.v1_fixed, leg.v2_terms)
+        return TrapezoidProfile(leg.pieces, leg.v1_fixed, leg.v2_terms, float(leg.ramp or 0.0))
 
 
 def _check_bound(bound: tuple[float, ...] | None, size: int) -> None:
@@ -155,6 +161,8 @@ class TaskConfig:
     v1_fixed: tuple[float, ...]  # c12..c1p: v1 on pieces 2..p [m/s for the car]
     v2_terms: int  # q, the number of basis functions of v2
     action_bound: tuple[float, ...] | None = None  # |c_i| bounds; None: 10x NominalModel.action_scale()
+    v1_shape: Literal["constant", "trapezoid"] = "constant"  # v1 on each piece: a level, or section 5's trapezoid
+    ramp: float | None = None  # [s] trapezoid only: the ramp at both ends of every piece, < half the shortest
 
     def __post_init__(self) -> None:
         for key in ("start", "goal"):
@@ -162,8 +170,8 @@ class TaskConfig:
         _profile(self)
         _check_bound(self.action_bound, 1 + self.v2_terms)
 
-    def profile(self) -> PiecewiseProfile:
-        """The input profile of eqs. 15-17."""
+    def profile(self) -> PiecewiseProfile | TrapezoidProfile:
+        """The input profile of eqs. 15-17 (section 5's with ``v1_shape: trapezoid``)."""
         return _profile(self)
 
 
@@ -172,12 +180,14 @@ class SegmentConfig:
     pieces: tuple[float, ...]  # Delta_i [s] of the segment
     v1_fixed: tuple[float, ...]  # v1 on pieces 2..p [m/s for the car]
     v2_terms: int  # q
+    v1_shape: Literal["constant", "trapezoid"] = "constant"  # as task.v1_shape
+    ramp: float | None = None  # [s] as task.ramp
 
     def __post_init__(self) -> None:
         _profile(self)
 
-    def profile(self) -> PiecewiseProfile:
-        """The input profile of eqs. 15-17."""
+    def profile(self) -> PiecewiseProfile | TrapezoidProfile:
+        """The input profile of eqs. 15-17 (section 5's with ``v1_shape: trapezoid``)."""
         return _profile(self)
 
 
@@ -338,8 +348,9 @@ class SteeringConfig:
                 check_grid(leg.pieces, self.simulation.max_step)
             # z1 is x in the task frame (section 2.1): eq. 12 sets the learned v1 from its change.
             z1_change = task_points[(i + 1) % len(points)][0] - task_points[i][0]
-            fixed = sum(v * d for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
-            travel = abs(z1_change - fixed) + sum(abs(v) * d for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            ramp = leg.ramp or 0.0  # a trapezoid's area is its plateau times (Delta - ramp)
+            fixed = sum(v * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            travel = abs(z1_change - fixed) + sum(abs(v) * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
             _require(
                 travel > MIN_TRAVEL,
                 f"{key}.v1_fixed",

@@ -20,6 +20,7 @@ from ilc_steering.core.integrate import OK
 from ilc_steering.core.plants import PLANTS, ChainedPlant, Plant, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
 from ilc_steering.core.simulate import simulate
+from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.loop import run_trials
 
 CONFIGS = {name: load_config(name) for name in packaged_configs()}
@@ -70,9 +71,12 @@ def profiles():
     yield from {config.legs()[0][1].profile() for config in CONFIGS.values()}
     yield PiecewiseProfile((1.0, 2.0, 1.5), (0.7, -0.4), 4)
     yield PiecewiseProfile(tuple(rng.uniform(0.5, 2.0, size=2)), (rng.normal(),), 6)
+    yield TrapezoidProfile((2.0, 1.5, 3.0), (0.7, -0.4), 4, 0.3)
 
 
-@pytest.mark.parametrize("profile", list(profiles()), ids=lambda p: f"p{len(p.durations)}q{p.v2_terms}")
+@pytest.mark.parametrize(
+    "profile", list(profiles()), ids=lambda p: f"{type(p).__name__}-p{len(p.durations)}q{p.v2_terms}"
+)
 def test_input_profile_contract(profile):
     assert isinstance(profile, InputProfile)
     rng = np.random.default_rng(0)
