@@ -126,6 +126,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
                 f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal"
             )
         self._scenario = Scenario.from_config(self.config, measurement_noise)
+        self._scenario.refuse_disturbances("the cyclic env")
         models = self._scenario.nominals
         size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
         high = self._high = self._scenario.action_high.astype(np.float32)

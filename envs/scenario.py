@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.car import rotate
-from ilc_steering.core.checks import check_noise
+from ilc_steering.core.checks import check_jitter, check_noise
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -58,6 +58,12 @@ class Scenario:
     measurement_noise
         Standard deviations of the final configuration's measurement (world frame; one for every
         coordinate or one per coordinate [m, rad]), or ``None`` to measure exactly.
+    start_error
+        Standard deviations of the start configuration, drawn anew for every trial (imperfect
+        homing; world frame, as ``measurement_noise``), or ``None`` to start exactly.
+    parameter_jitter
+        Relative standard deviation of the true plant's two parameters (a car's wheelbase and wheel
+        radius, the chained form's gains), drawn anew for every trial as log-normal factors, or ``None``.
     """
 
     def __init__(
@@ -70,13 +76,18 @@ class Scenario:
         action_bound: Sequence[float] | None = None,
         max_step: float = DEFAULT_MAX_STEP,
         measurement_noise: float | Sequence[float] | None = None,
+        start_error: float | Sequence[float] | None = None,
+        parameter_jitter: float | None = None,
     ) -> None:
         self.plant = plant
         self.kind = plant.kind
         self.frame = frame
         self.max_step = max_step
         self.waypoints = np.array(waypoints, dtype=np.float64)
-        self.noise = None if measurement_noise is None else check_noise(measurement_noise, self.waypoints.shape[1])
+        size = self.waypoints.shape[1]
+        self.noise = None if measurement_noise is None else check_noise(measurement_noise, size)
+        self.start_error = None if start_error is None else check_noise(start_error, size, "start_error")
+        self.jitter = None if parameter_jitter is None else check_jitter(parameter_jitter)
         self.x_start = plant.initial_state(self.to_task(self.waypoints[0]))
         task_points = self.to_task(self.waypoints)
         self.z_waypoints = task_points.copy() if chained_map is None else chained_map.to_chained(task_points)
@@ -92,12 +103,21 @@ class Scenario:
             self.action_high = np.asarray(action_bound, dtype=np.float64)
 
     @classmethod
-    def from_config(cls, config: SteeringConfig, measurement_noise: float | Sequence[float] | None = None) -> Scenario:
+    def from_config(
+        cls,
+        config: SteeringConfig,
+        measurement_noise: float | Sequence[float] | None = None,
+        start_error: float | Sequence[float] | None = None,
+        parameter_jitter: float | None = None,
+    ) -> Scenario:
         """Every domain object of ``config``, built once (the config checked each rule on loading);
-        ``measurement_noise`` (one sigma, or one per coordinate) replaces the config's if given."""
+        ``measurement_noise``, ``start_error`` and ``parameter_jitter`` replace the config's if given."""
         points = np.array([point for _, point in config.points()], dtype=np.float64)
-        # the argument wins over the config's, 0 included
-        noise = config.simulation.measurement_noise if measurement_noise is None else measurement_noise
+        # the arguments win over the config's, 0 included
+        simulation = config.simulation
+        noise = simulation.measurement_noise if measurement_noise is None else measurement_noise
+        start = simulation.start_error if start_error is None else start_error
+        jitter = simulation.parameter_jitter if parameter_jitter is None else parameter_jitter
         return cls(
             config.plant.plant(),
             config.plant.nominal_map(),
@@ -107,6 +127,8 @@ class Scenario:
             config.task.action_bound,
             config.simulation.max_step,
             noise,
+            start,
+            jitter,
         )
 
     def draw_noise(self, rng: np.random.Generator, count: int) -> Array | None:
@@ -115,6 +137,25 @@ class Scenario:
         if self.noise is None:
             return None
         return rng.standard_normal((count, self.noise.size)) * self.noise
+
+    def refuse_disturbances(self, env: str) -> None:
+        """``ValueError`` if the scenario has non-repetitive disturbances, for an env that cannot draw them."""
+        if self.start_error is not None or self.jitter is not None:
+            raise ValueError(
+                f"{env} does not draw simulation.start_error or simulation.parameter_jitter; "
+                "use ilc_steering/ChainedSteering-v0 for a task with them"
+            )
+
+    def draw_disturbance(self, rng: np.random.Generator) -> tuple[Array | None, Plant | None]:
+        """One trial's non-repetitive disturbances from ``rng``: its start state (task frame) and its
+        true plant, each ``None`` (and nothing drawn) where the scenario has none."""
+        x0 = plant = None
+        if self.start_error is not None:
+            q0 = self.waypoints[0] + rng.standard_normal(self.start_error.size) * self.start_error
+            x0 = self.plant.initial_state(self.to_task(q0))
+        if self.jitter is not None:
+            plant = self.plant.with_true_factors(np.exp(self.jitter * rng.standard_normal(2)))
+        return x0, plant
 
     @property
     def nominal(self) -> NominalModel:
@@ -149,14 +190,21 @@ class Scenario:
         return rotate(q, self.frame) if self.kind.has_pose else np.asarray(q, dtype=np.float64)
 
     def run(
-        self, c: Array, x0: Array | None = None, record: bool = False, parallel: bool = False, leg: int = 0
+        self,
+        c: Array,
+        x0: Array | None = None,
+        record: bool = False,
+        parallel: bool = False,
+        leg: int = 0,
+        plant: Plant | None = None,
     ) -> Trials:
         """Simulate leg ``leg`` with coefficients ``c`` ``(B, 1 + q)`` from plant states ``x0``
-        (task frame; default: the start)."""
+        (task frame; default: the start) on the true plant, or on ``plant`` (a jittered one)."""
         if x0 is None:
             x0 = np.broadcast_to(self.x_start, (c.shape[0], self.x_start.shape[0]))
         profile = self.nominals[leg].profile
-        return simulate(self.plant, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
+        true = self.plant if plant is None else plant
+        return simulate(true, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
 
     def trajectory(self, trials: Trials, c: Array, index: int = 0, leg: int = 0) -> Trajectory:
         """The recorded motion of trial ``index`` of ``trials`` (from ``run(..., record=True)``

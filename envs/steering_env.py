@@ -193,6 +193,12 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     ``measurement_noise``: the standard deviation of the final configuration's measurement, one
     number for every coordinate or one per coordinate (car: x [m], y [m], theta [rad], phi [rad];
     chained: z); ``None`` (the default) takes the config's ``simulation.measurement_noise``.
+    ``start_error`` and ``parameter_jitter``: non-repetitive disturbances, drawn anew for every
+    trial from ``self.np_random``: the standard deviation of the start configuration (imperfect
+    homing; per coordinate as ``measurement_noise``), and the relative standard deviation of the
+    true plant's two parameters (log-normal factors on a car's wheelbase and wheel radius, on the
+    chained form's gains); ``None`` takes the config's ``simulation.start_error`` and
+    ``simulation.parameter_jitter``. The learner sees neither; the true errors are what is scored.
 
     The learner's view of the system is ``env.unwrapped.nominal_model``
     (:class:`~ilc_steering.core.nominal.NominalModel`); the true plant stays inside the env.
@@ -221,6 +227,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         render_mode: str | None = None,
         record_trajectory: bool = False,
         measurement_noise: float | Sequence[float] | None = None,
+        start_error: float | Sequence[float] | None = None,
+        parameter_jitter: float | None = None,
     ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.record_trajectory = record_trajectory
@@ -229,7 +237,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
             raise ValueError(
                 f"{self.config.name}: a cyclic config (task.waypoints); use ilc_steering/CyclicSteering-v0 for it"
             )
-        self._scenario = Scenario.from_config(self.config, measurement_noise)
+        self._scenario = Scenario.from_config(self.config, measurement_noise, start_error, parameter_jitter)
         action_space, observation_space, self._observation = task_spaces(self._scenario)
         self.observation_space = observation_space  # type: ignore[assignment]
         self.action_space = action_space  # type: ignore[assignment]  # Box is Gymnasium's Space of arrays
@@ -253,7 +261,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         c = check_action(action, self._high.shape, self._action_names)
         applied = np.clip(c, self._low, self._high)
         record = self.record_trajectory or self.render_mode is not None
-        trials = self._scenario.run(applied[None], record=record)
+        x0, plant = self._scenario.draw_disturbance(self.np_random)
+        trials = self._scenario.run(applied[None], None if x0 is None else x0[None], record, plant=plant)
         noise = self._scenario.draw_noise(self.np_random, 1)
         info = trial_info(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
         if record:

@@ -76,6 +76,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
         self._scenario = Scenario.from_config(self.config, measurement_noise)
+        self._scenario.refuse_disturbances("the vector env")
         single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
         self.single_action_space = single_action_space
         self._low, self._high = single_action_space.low, single_action_space.high

@@ -23,7 +23,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ilc_steering.core.car import CarModel, frame_angle, rotate
-from ilc_steering.core.checks import ParameterError, check_gains, check_noise
+from ilc_steering.core.checks import ParameterError, check_gains, check_jitter, check_noise
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
 from ilc_steering.core.profiles import PiecewiseProfile
@@ -246,12 +246,20 @@ class SimulationConfig:
     # sigma of the final configuration's measurement, one per coordinate (car: x [m], y [m], theta [rad],
     # phi [rad]; chained: z); None: measured exactly
     measurement_noise: tuple[float, ...] | None = None
+    # sigma of the start configuration, drawn for every trial (imperfect homing), one per coordinate as
+    # measurement_noise; None: the exact start
+    start_error: tuple[float, ...] | None = None
+    parameter_jitter: float = 0.0  # relative sigma of the true geometry (car) or gains (chained), per trial
 
     def __post_init__(self) -> None:
         _require(_positive(self.max_step), "max_step", f"must be > 0 s, got {self.max_step}")
-        if self.measurement_noise is not None:
-            with _domain("measurement_noise"):
-                check_noise(self.measurement_noise, len(self.measurement_noise))
+        for key in ("measurement_noise", "start_error"):
+            value = getattr(self, key)
+            if value is not None:
+                with _domain(key):
+                    check_noise(value, len(value), key)
+        with _domain():
+            check_jitter(self.parameter_jitter)
 
 
 @dataclass(frozen=True)
@@ -295,12 +303,13 @@ class SteeringConfig:
             f"got {_show(self.name)}",
         )
         n = self.plant.dimension
-        noise = self.simulation.measurement_noise
-        _require(
-            noise is None or len(noise) == n,
-            "simulation.measurement_noise",
-            f"needs one sigma per coordinate ({n} for plant.model {self.plant.model}), got {len(noise or ())}",
-        )
+        for key in ("measurement_noise", "start_error"):
+            noise = getattr(self.simulation, key)
+            _require(
+                noise is None or len(noise) == n,
+                f"simulation.{key}",
+                f"needs one sigma per coordinate ({n} for plant.model {self.plant.model}), got {len(noise or ())}",
+            )
         points = self.points()
         for key, point in points:
             _require(len(point) == n, key, f"needs {n} values for plant.model {self.plant.model}, got {len(point)}")
@@ -413,7 +422,10 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
             key,
             f"must be a number, got {_show(value)}",
         )
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:  # an integer beyond the largest float
+            raise ConfigError(f"{key}: must be a number a float can hold, got {_show(value)}") from None
     if hint is int:
         _require(isinstance(value, int) and not isinstance(value, bool), key, f"must be an integer, got {_show(value)}")
         return value

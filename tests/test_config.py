@@ -109,3 +109,9 @@ def test_unknown_names_and_files():
     with pytest.raises(ConfigError, match="no such config file"):
         load_config("missing/dir/scenario.yaml")
     assert issubclass(ConfigError, ValueError)
+
+
+def test_an_integer_too_large_for_a_float_is_a_config_error(tmp_path):
+    path = write(tmp_path, ISSUE_EXAMPLE.replace("start: [-1.0,", "start: [" + "9" * 400 + ","))
+    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a number a float can hold"):
+        load_config(path)

@@ -2,6 +2,7 @@
 and the learning law's contraction by exactly 1 - nu_b (eq. 36) with it."""
 
 from itertools import pairwise
+from math import factorial
 
 import numpy as np
 import pytest
@@ -169,3 +170,36 @@ def test_bad_trapezoid_keys_name_the_key(task, message):
 
     with pytest.raises(ConfigError, match=message):
         trapezoid_config(**task)
+
+
+def test_V_and_W_match_scipy_quad_to_1e12():
+    profile = PROFILES[1]  # experiment 2's shape: two trapezoids, forward then backward
+    from scipy.integrate import quad
+    from scipy.linalg import expm
+
+    n = 4
+    c11 = 0.3
+    c = np.concatenate([[c11], np.zeros(profile.v2_terms)])
+    V, W = profile.transition(c11, n)
+    T = profile.breakpoints[-1]
+
+    def S(t):  # int_0^t v1, by quad
+        return quad(lambda s: float(profile.evaluate(c, np.array(s))[0]), 0.0, t, points=profile.breakpoints[1:-1])[0]
+
+    total = S(T)
+    shift = np.diag(np.ones(n - 2), -1)
+    np.testing.assert_allclose(V, expm(shift * total), atol=1e-12)
+    for j in range(profile.v2_terms):
+        e = np.zeros_like(c)
+        e[1 + j] = 1.0
+        for k in range(n - 1):
+            value = quad(
+                lambda s, k=k, e=e: (total - S(s)) ** k / factorial(k) * float(profile.evaluate(e, np.array(s))[1]),
+                0.0,
+                T,
+                points=profile.breakpoints[1:-1],
+                epsabs=1e-14,
+                epsrel=1e-13,
+                limit=200,
+            )[0]
+            assert W[k, j] == pytest.approx(value, abs=1e-12), (k, j)

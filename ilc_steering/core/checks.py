@@ -14,10 +14,21 @@ from math import isfinite
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["MAX_NOISE", "ParameterError", "check_gains", "check_noise", "require", "require_positive"]
+__all__ = [
+    "MAX_JITTER",
+    "MAX_NOISE",
+    "ParameterError",
+    "check_gains",
+    "check_jitter",
+    "check_noise",
+    "require",
+    "require_positive",
+]
 
 MAX_NOISE = 1e3
 """The largest measurement noise sigma [m or rad]."""
+MAX_JITTER = 0.5
+"""The largest ``parameter_jitter``, a relative sigma [-]."""
 
 
 class ParameterError(ValueError):
@@ -46,7 +57,21 @@ def check_gains(nu_a: float, nu_b: float) -> None:
         require(isfinite(value) and 0 < value < 2, name, f"must be in (0, 2), got {value}")
 
 
-def check_noise(sigma: float | Sequence[float], size: int) -> npt.NDArray[np.float64] | None:
+def check_jitter(sigma: float) -> float | None:
+    """A ``parameter_jitter`` (relative sigma of the true parameters per trial) in ``[0, MAX_JITTER]``,
+    or ``None`` when it is 0."""
+    number = isinstance(sigma, (int, float)) and not isinstance(sigma, bool)
+    require(
+        number and isfinite(sigma) and 0 <= sigma <= MAX_JITTER,
+        "parameter_jitter",
+        f"must be a number in [0, {MAX_JITTER}] (a relative sigma), got {sigma!r:.80}",
+    )
+    return float(sigma) if sigma > 0 else None
+
+
+def check_noise(
+    sigma: float | Sequence[float], size: int, name: str = "measurement_noise"
+) -> npt.NDArray[np.float64] | None:
     """A measurement noise ``sigma`` (one value for every coordinate, or ``size`` values) as an array
     of ``size`` standard deviations in ``[0, MAX_NOISE]``, or ``None`` when every one is 0."""
     try:
@@ -55,12 +80,11 @@ def check_noise(sigma: float | Sequence[float], size: int) -> npt.NDArray[np.flo
             raise TypeError
         values = np.broadcast_to(raw.astype(np.float64), (size,)).copy()
     except (TypeError, ValueError):
-        raise ParameterError(
-            "measurement_noise", f"needs one number or {size} numbers (one per coordinate), got {sigma!r:.80}"
-        ) from None
+        problem = f"needs one number or {size} numbers (one per coordinate), got {sigma!r:.80}"
+        raise ParameterError(name, problem) from None
     require(
         bool(np.all(np.isfinite(values)) and np.all(values >= 0) and np.all(values <= MAX_NOISE)),
-        "measurement_noise",
+        name,
         f"each sigma must be finite and in [0, {MAX_NOISE:g}], got {values.tolist()}",
     )
     return values if np.any(values > 0) else None

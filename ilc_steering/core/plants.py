@@ -14,7 +14,7 @@ kernel (:mod:`ilc_steering.core.integrate`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import isfinite, pi
 from typing import ClassVar, Protocol, runtime_checkable
 
@@ -116,6 +116,11 @@ class Plant(Protocol):
         """The compiled vector field's id and its parameter vector (true parameters included)."""
         ...
 
+    def with_true_factors(self, factors: Array) -> Plant:
+        """The plant with its two true parameters multiplied by ``factors`` (a car's wheelbase and
+        wheel radius, the chained form's gains): a trial's ``parameter_jitter``."""
+        ...
+
 
 @dataclass(frozen=True)
 class CarPlant:
@@ -211,6 +216,10 @@ class CarPlant:
             f"{np.asarray(phi).tolist()} rad exceeds the steering limit of {limit} rad",
         )
 
+    def with_true_factors(self, factors: Array) -> CarPlant:
+        true = CarModel(self.true.wheelbase * float(factors[0]), self.true.wheel_radius * float(factors[1]))
+        return replace(self, true=true)
+
     def kernel(self) -> tuple[int, Array]:
         limit = np.inf if self.steering_limit is None else self.steering_limit
         params = [self.nominal.wheelbase, self.nominal.wheel_radius, self.true.wheelbase, self.true.wheel_radius, limit]
@@ -254,6 +263,9 @@ class ChainedPlant:
         require(q.shape[-1] == self.dimension, "z", f"needs {self.dimension} values, got shape {q.shape}")
         require(bool(np.all(np.isfinite(q))), "z", f"must be finite, got {q.tolist()}")
         _check_magnitude(q)
+
+    def with_true_factors(self, factors: Array) -> ChainedPlant:
+        return replace(self, v1_gain=self.v1_gain * float(factors[0]), v2_gain=self.v2_gain * float(factors[1]))
 
     def kernel(self) -> tuple[int, Array]:
         return CHAINED_FIELD, np.array([self.v1_gain, self.v2_gain])
