@@ -355,7 +355,33 @@ def _check_run_folder(args: Args) -> None:
             f"{args.out}: has cells but no run.json, so their settings cannot be checked: use another --out folder"
         )
     cells.mkdir(exist_ok=True)
+    if stored_path.exists():
+        _restore_cells(args.out)
     write_json(stored_path, settings)
+
+
+def _restore_cells(folder: Path) -> None:
+    """Write back the cells that the folder's ``compare.json`` holds and ``cells/`` lacks (a clone of a
+    run whose cells were not kept): the settings matched, so they are the cells this run would compute.
+    Each is checked like any resumed cell when it is read."""
+    report = folder / "compare.json"
+    if not report.is_file():
+        return
+    try:
+        cells = json.loads(report.read_bytes().decode("utf-8")).get("cells", [])
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError) as error:
+        raise ValueError(f"{report}: not readable ({error}); use another --out folder") from None
+    restored = 0
+    for cell in cells if isinstance(cells, list) else []:
+        try:
+            path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"{report}: holds a cell without its key; use another --out folder") from None
+        if not path.exists():
+            write_json(path, cell)
+            restored += 1
+    if restored:
+        print(f"restored {restored} cells from {report}", flush=True)
 
 
 @contextmanager

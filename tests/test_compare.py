@@ -169,6 +169,22 @@ def test_interrupted_run_resumes_without_recomputing_finished_cells(tmp_path):
         run_cells(Args(**{**args.__dict__, "blackbox_trials": 31}))
 
 
+def test_a_clone_without_cells_resumes_from_compare_json(tmp_path):
+    import shutil
+
+    args = Args(out=tmp_path, priors=("nominal",), methods=("ilc",), scenarios=("forward_parking",), **TINY)
+    compare.main(args)
+    before = json.loads((tmp_path / "compare.json").read_text())["cells"]
+    shutil.rmtree(tmp_path / "cells")  # what a clone of a committed run folder holds: run.json and compare.json
+
+    def never(*call):
+        raise AssertionError(f"recomputed {call[1:]}")
+
+    cells = run_cells(args, never)
+    assert [c["trials_to"] for c in cells] == [c["trials_to"] for c in before]
+    assert len(list((tmp_path / "cells").glob("*.json"))) == len(before)
+
+
 def test_workers_give_the_cells_of_one_process(tmp_path):
     settings = dict(
         priors=("nominal", "none"), methods=("ilc", "least_squares", "td3"), scenarios=("forward_parking_noisy",)

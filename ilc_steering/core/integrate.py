@@ -77,7 +77,7 @@ def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheel
     return c * speed, s * speed, s_phi / c_phi * speed / true_wheelbase, dphi
 
 
-# The helpers are inlined into one function per plant (see _serial_car): with the state
+# The helpers are inlined into one function per plant (see _car_trial): with the state
 # dimension a constant and the scratch arrays local, the compiler keeps the stages in registers,
 # twice as fast as calling them.
 @njit(cache=True, inline="always")
@@ -224,44 +224,59 @@ def _drive(model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type
     return OK
 
 
-# One compiled entry point per plant field, serial and parallel: each compiles on its first use
-# and is cached on its own (numba's cache keys on the Python function), so a car run never waits
-# for the chained form's or the servo car's code. Within one, the field is a constant, so the
-# compiler keeps the state in registers.
+# One compiled trial function per plant field, shared by its serial and parallel loops: each
+# compiles on its first use and is cached on its own (numba's cache keys on the Python function),
+# so a car run never waits for the chained form's or the servo car's code. Within one, the field
+# and the state dimension are constants, so the compiler keeps the state in registers.
+@njit(cache=True)
+def _car_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+    return _drive(CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
+
+
+@njit(cache=True)
+def _car_servo_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+    return _drive(CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
+
+
+@njit(cache=True)
+def _chained_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+    return _drive(CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
+
+
 @njit(cache=True)
 def _serial_car(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _drive(CAR, 4, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_car(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _drive(CAR, 4, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_car_servo(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _drive(CAR_SERVO, 6, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_servo_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_car_servo(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _drive(CAR_SERVO, 6, params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_servo_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _drive(CHAINED, x0.shape[1], params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _chained_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _drive(CHAINED, x0.shape[1], params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _chained_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 _KERNELS = {
