@@ -88,6 +88,8 @@ class LearnerContext:
     """A cyclic task's nominal models, one per segment (empty for a one-trial task)."""
     prior: str = "nominal"
     """``"nominal"`` or ``"none"``: what the first trial and the search box are built from."""
+    cost: str = "none"
+    """The config's ``learning.cost`` (section 7), for learners that use it."""
 
     def __post_init__(self) -> None:
         if self.prior not in PRIORS:

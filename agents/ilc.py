@@ -29,7 +29,7 @@ error is corrected, which for that task is all of it.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -38,9 +38,15 @@ from ilc_steering.agents.base import LearnerContext
 from ilc_steering.core.checks import check_gains
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["ILCAgent", "make_ilc", "make_ilc_paper"]
+__all__ = ["CostStep", "ILCAgent", "make_ilc", "make_ilc_paper"]
 
 Array = npt.NDArray[np.float64]
+
+
+class CostStep(Protocol):
+    """A descent step of a cost that keeps ``W c2`` (``agents/costs.py``)."""
+
+    def step(self, c: Array, W: Array) -> Array: ...
 
 
 class ILCAgent:
@@ -59,14 +65,26 @@ class ILCAgent:
     start
         The first trial's coefficients; ``None`` (the default) for the paper's fictitious zero
         iteration.
+    cost
+        Section 7's cost descent (:class:`~ilc_steering.agents.costs.NullSpaceCost`), applied after
+        every update within the null space of ``W``, so that the error dynamics are eq. 36's; ``None``
+        for none.
 
     The loop is ``action = agent.act()``, run the trial, ``agent.learn(info)``; ``reset()``
     restarts learning from the first trial.
     """
 
-    def __init__(self, model: NominalModel, nu_a: float = 1.0, nu_b: float = 1.0, start: Array | None = None) -> None:
+    def __init__(
+        self,
+        model: NominalModel,
+        nu_a: float = 1.0,
+        nu_b: float = 1.0,
+        start: Array | None = None,
+        cost: CostStep | None = None,
+    ) -> None:
         check_gains(nu_a, nu_b)
         self.model = model
+        self.cost = cost
         self.nu_a = float(nu_a)
         self.nu_b = float(nu_b)
         self.start = None if start is None else np.array(start, dtype=np.float64)
@@ -96,6 +114,8 @@ class ILCAgent:
         c11 = c[0] + self.nu_a * error[0] / self.model.profile.learned_area  # eq. 33
         V, W = self.model.transition(c[0])
         self._action = np.concatenate([[c11], self._update_c2(c11, V, W, c[1:], error[1:])])
+        if self.cost is not None:  # section 7: descend the cost within the null space of the next W
+            self._action = self.cost.step(self._action, self.model.transition(c11)[1])
 
     def _update_c2(self, c11: float, V: Array, W: Array, c2: Array, error_b: Array) -> Array:
         """Eq. (34), given ``V`` and ``W`` of the finished trial and the next ``c11``."""
@@ -106,11 +126,12 @@ class ILCAgent:
 
 def make_ilc(context: LearnerContext) -> ILCAgent:
     """Eqs. 33-34 with the config's gains from the context's first trial (``compare`` method
-    ``ilc``: under ``prior="nominal"`` the nominal solution)."""
+    ``ilc``: under ``prior="nominal"`` the nominal solution). The config's cost is attached by
+    :func:`ilc_steering.agents.costs.with_cost`."""
     return ILCAgent(context.model, context.nu_a, context.nu_b, start=context.first_action())
 
 
 def make_ilc_paper(context: LearnerContext) -> ILCAgent:
     """The paper's learner exactly, fictitious zero iteration included, whatever the prior
-    (``compare`` method ``ilc_paper``)."""
+    (``compare`` method ``ilc_paper``; ``run``'s ``ilc``)."""
     return ILCAgent(context.model, context.nu_a, context.nu_b)

@@ -226,9 +226,14 @@ def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> d
         config.learning.nu_a,
         config.learning.nu_b,
         prior=prior,
+        cost=config.learning.cost,
     )
     trials = budget(args, prior, method, config.name)
     learner = make_learner(args, method, config.name, context)
+    if context.cost != "none":
+        from ilc_steering.agents.costs import with_cost
+
+        learner = with_cost(learner, context)
     result = measure(env, learner, trials, seed)
     env.close()
     return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}

@@ -233,6 +233,8 @@ class LearningConfig:
     nu_b: float  # gain of eq. 34, in (0, 2)
     trials: int  # how many trials (for a cyclic task: cycles) a run makes
     tolerance: ToleranceConfig
+    # section 7: a cost the spare coefficients of v2 (v2_terms > n - 1) minimize in the null space of W
+    cost: Literal["none", "path_length", "curvature", "steering_margin"] = "none"
 
     def __post_init__(self) -> None:
         with _domain():
@@ -347,6 +349,19 @@ class SteeringConfig:
                 q = np.array(point, dtype=np.float64)
                 task_points.append(rotate(q, frame) if self.plant.kind.has_pose else q)
                 plant.check_configuration(task_points[-1])
+        cost = self.learning.cost
+        if cost != "none":
+            _require(not self.is_cyclic, "learning.cost", "is for one-trial tasks (the cyclic law has none)")
+            _require(
+                cost != "steering_margin" or getattr(self.plant, "steering_limit", None) is not None,
+                "learning.cost",
+                "steering_margin needs a car with plant.steering_limit",
+            )
+            _require(
+                self.legs()[0][1].v2_terms > n - 1,
+                "learning.cost",
+                f"{cost} needs task.v2_terms > n - 1 = {n - 1}, spare coefficients for a null space of W",
+            )
         for i, (key, leg) in enumerate(self.legs()):
             _require(
                 leg.v2_terms >= n - 1,

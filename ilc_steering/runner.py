@@ -142,8 +142,13 @@ def run_ilc(
         seed=1,
         nu_a=config.learning.nu_a,
         nu_b=config.learning.nu_b,
+        cost=config.learning.cost,
     )
     agent = make(context)
+    if config.learning.cost != "none":
+        from ilc_steering.agents.costs import with_cost
+
+        agent = with_cost(agent, context)
     if not isinstance(agent, Learner):
         raise ValueError(f"--learner {learner}: made {type(agent).__name__}, which has no act, learn and reset")
     records: list[TrialRecord] = []

@@ -154,10 +154,12 @@ def test_lazy_names_resolve():
         _ = ilc_steering.nope
 
 
-def test_the_re_identifying_learner_simulates_its_own_family_never_the_env_plant():
-    # newton_ilc simulates plants, but only those its ModelFamily builds from the nominal model:
-    # it reaches the plant classes and the kernel, never an env, the config or the reference.
-    reached = closure("ilc_steering.agents.newton_ilc", parents=True)
+@pytest.mark.parametrize("learner", ["ilc_steering.agents.newton_ilc", "ilc_steering.agents.costs"])
+def test_the_learners_that_simulate_use_their_own_family_never_the_env_plant(learner):
+    # newton_ilc and the cost of section 7 simulate plants, but only those a ModelFamily builds from
+    # the nominal model: they reach the plant classes and the kernel, never an env, the config or
+    # the reference.
+    reached = closure(learner, parents=True)
     assert "ilc_steering.core.family" in reached
     assert not [m for m in reached if m.startswith("ilc_steering.envs")]
     assert not reached & {"ilc_steering.config", "ilc_steering.core.reference"}
