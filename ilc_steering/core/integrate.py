@@ -79,7 +79,10 @@ def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheel
 
 # The helpers are inlined into one function per plant (see _car_trial): with the state
 # dimension a constant and the scratch arrays local, the compiler keeps the stages in registers,
-# twice as fast as calling them.
+# twice as fast as calling them. Each plant's field is its own function, handed down to the
+# stepper as an argument, so a plant's trial compiles its own field only (numba does not prune
+# the branches of one field function on a constant plant id: one function of three fields
+# compiled a quarter slower).
 @njit(cache=True, inline="always")
 def _poly(coef, tau):  # type: ignore[no-untyped-def]
     acc = 0.0
@@ -89,45 +92,45 @@ def _poly(coef, tau):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _rhs(model, params, x, v1, v2, out):  # type: ignore[no-untyped-def]
-    if model == CAR:
-        # params: nominal wheelbase, nominal radius (the controller's), true wheelbase, true
-        # radius, steering limit
-        phi = min(max(x[3], -params[4]), params[4])
-        dx, dy, dtheta, dphi = closed_loop_velocity(x[2], phi, v1, v2, params[0], params[1], params[2], params[3])
-        out[0] = dx
-        out[1] = dy
-        out[2] = dtheta
-        out[3] = dphi
-    elif model == CAR_SERVO:
-        # params as CAR, then the wheel's misalignment [rad] and the steering and drive servo time
-        # constants [s] (0: no lag); state (x, y, theta, phi_c, phi_w, omega)
-        limit, offset, steering_lag, speed_lag = params[4], params[5], params[6], params[7]
-        commanded = min(max(x[3], -limit), limit)
-        phi = x[4] if steering_lag > 0 else commanded  # what the controller measures
-        s, c = np.sin(x[2]), np.cos(x[2])
-        s_phi, c_phi = np.sin(phi), np.cos(phi)
-        u1 = v1 / (params[1] * c)
-        u2 = -3.0 / params[0] * s / (c * c) * s_phi * s_phi * v1 + params[0] * c * c * c * c_phi * c_phi * v2
-        omega = x[5] if speed_lag > 0 else u1
-        speed = params[3] * omega
-        out[0] = c * speed
-        out[1] = s * speed
-        out[2] = np.tan(phi + offset) * speed / params[2]
-        out[3] = u2
-        out[4] = (commanded - x[4]) / steering_lag if steering_lag > 0 else 0.0
-        out[5] = (u1 - x[5]) / speed_lag if speed_lag > 0 else 0.0
-    else:
-        # params: true gains on v1 and v2 (eq. 37 with eta_1 = (g1 - 1) v1)
-        w1 = params[0] * v1
-        out[0] = w1
-        out[1] = params[1] * v2
-        for i in range(2, x.shape[0]):
-            out[i] = x[i - 1] * w1
+def _rhs_car(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
+    phi = min(max(x[3], -params[4]), params[4])
+    dx, dy, dtheta, dphi = closed_loop_velocity(x[2], phi, v1, v2, params[0], params[1], params[2], params[3])
+    out[0] = dx
+    out[1] = dy
+    out[2] = dtheta
+    out[3] = dphi
 
 
 @njit(cache=True, inline="always")
-def _rk(model, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-untyped-def]
+def _rhs_car_servo(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
+    limit, offset, steering_lag, speed_lag = params[4], params[5], params[6], params[7]
+    commanded = min(max(x[3], -limit), limit)
+    phi = x[4] if steering_lag > 0 else commanded
+    s, c = np.sin(x[2]), np.cos(x[2])
+    s_phi, c_phi = np.sin(phi), np.cos(phi)
+    u1 = v1 / (params[1] * c)
+    u2 = -3.0 / params[0] * s / (c * c) * s_phi * s_phi * v1 + params[0] * c * c * c * c_phi * c_phi * v2
+    omega = x[5] if speed_lag > 0 else u1
+    speed = params[3] * omega
+    out[0] = c * speed
+    out[1] = s * speed
+    out[2] = np.tan(phi + offset) * speed / params[2]
+    out[3] = u2
+    out[4] = (commanded - x[4]) / steering_lag if steering_lag > 0 else 0.0
+    out[5] = (u1 - x[5]) / speed_lag if speed_lag > 0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _rhs_chained(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
+    w1 = params[0] * v1
+    out[0] = w1
+    out[1] = params[1] * v2
+    for i in range(2, x.shape[0]):
+        out[i] = x[i - 1] * w1
+
+
+@njit(cache=True, inline="always")
+def _rk(rhs, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-untyped-def]
     """One step of length ``h`` from local time ``tau``; ``work`` holds the stages and a scratch row."""
     tmp = work[_STAGES]
     for s in range(_STAGES):
@@ -137,7 +140,7 @@ def _rk(model, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-un
                 acc += _A[s, j] * work[j, i]
             tmp[i] = x[i] + h * acc
         t = tau + _C[s] * h
-        _rhs(model, params, tmp, _poly(v1c, t), _poly(v2c, t), work[s])
+        rhs(params, tmp, _poly(v1c, t), _poly(v2c, t), work[s])
     for i in range(n):
         acc = 0.0
         for s in range(_STAGES):
@@ -146,9 +149,9 @@ def _rk(model, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-un
 
 
 @njit(cache=True, inline="always")
-def _step(model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
+def _step(rhs, model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
     """One step from local time ``tau``, split where ``|phi_c|`` crosses the steering limit."""
-    _rk(model, n, params, x, tau, h, v1c, v2c, out, work)
+    _rk(rhs, n, params, x, tau, h, v1c, v2c, out, work)
     if model != CAR and model != CAR_SERVO:
         return
     limit = params[4]
@@ -167,7 +170,7 @@ def _step(model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ign
         mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
-        _rk(model, n, params, x, tau, mid, v1c, v2c, probe, work)
+        _rk(rhs, n, params, x, tau, mid, v1c, v2c, probe, work)
         g_mid = abs(probe[3]) - limit
         if (g_mid > 0) == beyond:
             lo, g_lo = mid, g_mid
@@ -179,8 +182,8 @@ def _step(model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ign
             if side == 1:
                 g_lo *= 0.5
             side = 1
-    _rk(model, n, params, x, tau, hi, v1c, v2c, probe, work)
-    _rk(model, n, params, probe, tau + hi, h - hi, v1c, v2c, out, work)
+    _rk(rhs, n, params, x, tau, hi, v1c, v2c, probe, work)
+    _rk(rhs, n, params, probe, tau + hi, h - hi, v1c, v2c, out, work)
 
 
 @njit(cache=True, inline="always")
@@ -197,7 +200,7 @@ def _in_chart(model, params, x):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _drive(model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+def _drive(rhs, model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
     x = x0.copy()
     nxt = np.empty(n)
     probe = np.empty(n)
@@ -209,7 +212,7 @@ def _drive(model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type
     for i in range(durations.shape[0]):
         h = durations[i] / steps[i]
         for k in range(steps[i]):
-            _step(model, n, params, x, k * h, h, v1c[i], v2c[i], nxt, work, probe)
+            _step(rhs, model, n, params, x, k * h, h, v1c[i], v2c[i], nxt, work, probe)
             if not _in_chart(model, params, nxt):
                 out[:] = x
                 if record:
@@ -230,17 +233,17 @@ def _drive(model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type
 # and the state dimension are constants, so the compiler keeps the state in registers.
 @njit(cache=True)
 def _car_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return _drive(CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
+    return _drive(_rhs_car, CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
 def _car_servo_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return _drive(CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
+    return _drive(_rhs_car_servo, CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
 def _chained_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return _drive(CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
+    return _drive(_rhs_chained, CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
