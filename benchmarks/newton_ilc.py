@@ -236,6 +236,7 @@ def report(rows: list[dict[str, Any]], seeds: tuple[int, ...]) -> str:
 def figure(rows: list[dict[str, Any]], path: Path) -> None:
     """Error against trial for eqs. 33-34, ``least_squares`` and ``newton_ilc`` on simulations 1-3."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     tasks = [t for t in TASKS[:3] if any(r["task"] == t and r["experiment"] == "family" for r in rows)]
     fig = Figure(figsize=(4.2 * len(tasks), 3.8), dpi=100)
@@ -249,6 +250,7 @@ def figure(rows: list[dict[str, Any]], path: Path) -> None:
         ax.axhline(load_config(task).learning.tolerance.cartesian or 0, color="k", linestyle="--", linewidth=0.8)
         ax.set_title(task.replace("_", " ").capitalize())
         ax.set_xlabel("trial")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(True, linewidth=0.4, alpha=0.5)
     axes[0].set_ylabel("Cartesian error [m] (true)")
     axes[0].legend()
