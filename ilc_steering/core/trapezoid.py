@@ -48,31 +48,21 @@ Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class TrapezoidProfile:
+class TrapezoidProfile(PiecewiseProfile):
     """Section 5: trapezoidal ``v1`` (ramps of ``ramp`` s at both ends of every piece), ``v2`` as in
-    eqs. 15-17. Parameters as :class:`~ilc_steering.core.profiles.PiecewiseProfile`, plus ``ramp`` [s]."""
+    eqs. 15-17. Parameters as :class:`~ilc_steering.core.profiles.PiecewiseProfile`, plus ``ramp`` [s];
+    what is not redefined here (the pieces, their count, the coefficients) is the same."""
 
-    durations: tuple[float, ...]
-    v1_fixed: tuple[float, ...]
-    v2_terms: int
     ramp: float
 
     def __post_init__(self) -> None:
-        PiecewiseProfile(self.durations, self.v1_fixed, self.v2_terms)  # the shared rules
+        super().__post_init__()
         shortest = min(self.durations)
         require(
             isfinite(self.ramp) and 0 < self.ramp < shortest / 2,
             "ramp",
             f"must be > 0 s and less than half the shortest piece ({shortest / 2:g} s), got {self.ramp}",
         )
-
-    @property
-    def num_pieces(self) -> int:
-        return len(self.durations)
-
-    @property
-    def num_coefficients(self) -> int:
-        return 1 + self.v2_terms
 
     @property
     def spans(self) -> tuple[float, ...]:
