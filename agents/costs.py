@@ -35,6 +35,7 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.core.car import drawn_wheelbase
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.simulate import simulate
@@ -119,7 +120,7 @@ class NullSpaceCost:
             v2 = np.diff(q[..., 1], axis=1) / dt
             return np.asarray(np.sum(v2**2 * dt, axis=1), dtype=np.float64)
         ds = np.linalg.norm(np.diff(q[..., :2], axis=1), axis=-1)
-        kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / float(self.model.chained_map.wheelbase)  # type: ignore[attr-defined]
+        kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / float(drawn_wheelbase(self.model.chained_map) or 1.0)
         return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
 
     def _steering_margin(self, q: Array, dt: Array) -> Array:

@@ -126,7 +126,7 @@ class NewtonILC:
         self._trials: list[_Trial] = []
         self._best: _Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
-        self._last_residual: tuple[_Trial, Array] | None = None
+        self._previous: _Trial | None = None  # the last trial of the secant, None after a fall-back
         self._next = self.start.copy()
 
     def act(self, observation: Any = None) -> Array:
@@ -152,7 +152,7 @@ class NewtonILC:
         if self._best is not None and trial.error >= self._best.error:
             self._next = self._fallback(self._best)
             self._D[:] = 0.0
-            self._last_residual = None
+            self._previous = None
             return
         self._best = trial
         if self.identify:
@@ -200,14 +200,14 @@ class NewtonILC:
         """Solve ``F(c; theta) + d + D (c - c_k) = z^d`` for the next ``c`` from ``c_k``."""
         z_model, ok = self._final_z(trial.c[None])
         d = trial.z - z_model[0] if ok[0] else np.zeros_like(trial.z)
-        if self.secant and self._last_residual is not None:
-            previous, _ = self._last_residual
+        previous = self._previous
+        if self.secant and previous is not None:
             z_prev, ok_prev = self._final_z(previous.c[None])
             s = trial.c - previous.c
             if ok_prev[0] and s @ s > 0:
                 r = d - (previous.z - z_prev[0])
                 self._D += np.outer(r - self._D @ s, s) / (s @ s)
-        self._last_residual = (trial, d)
+        self._previous = trial
         target = self.model.z_goal - d
 
         def mismatch(cs: Array) -> tuple[Array, npt.NDArray[np.bool_]]:

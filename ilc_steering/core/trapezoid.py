@@ -83,9 +83,6 @@ class TrapezoidProfile(PiecewiseProfile):
     def fixed_displacement(self) -> float:
         return float(sum(v * (d - self.ramp) for v, d in zip(self.v1_fixed, self.durations[1:])))
 
-    def plateaus(self, c11: float) -> Array:
-        return np.array([c11, *self.v1_fixed], dtype=np.float64)
-
     def _offsets(self) -> Array:
         """The start of each span in its piece's local time [s]."""
         r = self.ramp
@@ -113,7 +110,7 @@ class TrapezoidProfile(PiecewiseProfile):
         nb, q = dimension - 1, self.v2_terms
         nodes, weights = np.polynomial.legendre.leggauss(nb + (q + 1) // 2)
         V, W = np.eye(nb), np.zeros((nb, q))
-        v1 = self._v1_spans(self.plateaus(float(c11)))
+        v1 = self._v1_spans(self.v1_pieces(float(c11)))
         bases = self.bases()
         powers = np.arange(nb)
         for (a0, a1), d, basis in zip(v1, self.spans, bases):
@@ -141,7 +138,7 @@ class TrapezoidProfile(PiecewiseProfile):
         t = np.asarray(t, dtype=np.float64)
         span = np.clip(np.searchsorted(self.breakpoints, t, side="right") - 1, 0, 3 * self.num_pieces - 1)
         tau = t - self.breakpoints[span]
-        v1_spans = self._v1_spans(self.plateaus(float(c[0])))
+        v1_spans = self._v1_spans(self.v1_pieces(float(c[0])))
         v1 = v1_spans[span, 0] + v1_spans[span, 1] * tau
         powers = tau[..., None] ** np.arange(self.v2_terms)
         v2 = np.einsum("...d,...jd,j->...", powers, self.bases()[span], c[1:])
