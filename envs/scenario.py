@@ -21,7 +21,7 @@ from ilc_steering.core.checks import check_jitter, check_noise
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
-from ilc_steering.core.plants import Plant
+from ilc_steering.core.plants import CHART_MARGIN, Plant
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials, simulate
 from ilc_steering.core.trajectory import Trajectory
@@ -211,7 +211,8 @@ class Scenario:
         with coefficients ``c`` ``(B, 1 + q)`` on leg ``leg``), in the world frame.
 
         A robot's inputs are what the controller commands: eqs. 4-5 with the nominal geometry
-        at the measured configuration (the wheel angle at the stop when saturated).
+        at the configuration it acts on (the wheel angle at the stop when saturated; a lab
+        robot's dead-reckoned estimate).
         """
         if trials.times is None or trials.states is None:
             raise ValueError("the trials were run without record=True; nothing to build a trajectory from")
@@ -224,7 +225,8 @@ class Scenario:
         q = self.plant.configuration(states)
         v1, v2 = self.nominals[leg].profile.evaluate(c[index], t)
         chained_map = self.nominal.chained_map
-        u = np.stack([v1, v2] if chained_map is None else chained_map.inputs(q, v1, v2), axis=-1)
+        acted_on = self.plant.estimate(states)
+        u = np.stack([v1, v2] if chained_map is None else chained_map.inputs(acted_on, v1, v2), axis=-1)
         return Trajectory(t.copy(), self.to_world(q), u, left_chart)
 
     def measure(
@@ -248,6 +250,11 @@ class Scenario:
         else:
             q_world = q_world + noise
             q_task = self.to_task(q_world)
+            if self.kind.has_pose:
+                # noise on a trial that halted at the chart's edge may read past it, where z is undefined:
+                # the measurement is taken at the edge
+                edge = np.pi / 2 - CHART_MARGIN
+                q_task[..., 2:4] = np.clip(q_task[..., 2:4], -edge, edge)
             out.update(self._errors(q_task, q_world, target, ""))
         out["q_final"] = q_world
         out["z_final"] = self.to_chained(q_task)

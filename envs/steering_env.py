@@ -122,7 +122,10 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     by this constant; ``plant.steering_lag`` [s], the time constant of a first-order steering
     servo (the wheel follows the commanded angle, and the controller measures the wheel);
     ``plant.speed_lag`` [s], the time constant of a first-order drive servo (the wheel speed
-    follows ``u1``, from rest). A lag must be 0 or at least ``simulation.max_step``.
+    follows ``u1``, from rest). A lag must be 0 or at least ``simulation.max_step``. Section 5's
+    lab robot adds ``plant.steering_backlash`` [rad], play in the steering linkage, and
+    ``plant.encoder_pulses``, pulses per wheel turn from which the controller dead-reckons the
+    pose it uses in eqs. 4-5 (``configs/experiment_forward.yaml``, ``experiment_parallel.yaml``).
 
     ## Action Space
 

@@ -84,6 +84,8 @@ class CarPlantConfig:
     steering_offset: float = 0.0  # [rad] the wheel's true angle exceeds the measured one by this (misaligned wheel)
     steering_lag: float = 0.0  # [s] time constant of the steering servo (wheel follows the command); 0: none
     speed_lag: float = 0.0  # [s] time constant of the drive servo (wheel speed follows u1); 0: none
+    steering_backlash: float = 0.0  # [rad] play in the steering linkage (section 5); 0: none
+    encoder_pulses: int = 0  # pulses per wheel turn; > 0: the heading is dead-reckoned from them; 0: measured
 
     def __post_init__(self) -> None:
         self.plant()
@@ -107,7 +109,16 @@ class CarPlantConfig:
         with _domain(names={"wheelbase": "true_wheelbase", "wheel_radius": "true_wheel_radius"}):
             true = CarModel(self.true_wheelbase, self.true_wheel_radius)
         with _domain():
-            return CarPlant(true, nominal, self.steering_limit, self.steering_offset, self.steering_lag, self.speed_lag)
+            return CarPlant(
+                true,
+                nominal,
+                self.steering_limit,
+                self.steering_offset,
+                self.steering_lag,
+                self.speed_lag,
+                self.steering_backlash,
+                self.encoder_pulses,
+            )
 
 
 @dataclass(frozen=True)
@@ -343,6 +354,12 @@ class SteeringConfig:
                 f"{value} s is shorter than the integrator step simulation.max_step = {self.simulation.max_step} s, "
                 "which would not resolve it; lower max_step or set the lag to 0",
             )
+        _require(
+            not (self.is_cyclic and getattr(plant, "lab", False)),
+            "plant",
+            "steering_backlash and encoder_pulses are for one-trial tasks (a cycle would carry the "
+            "dead-reckoned estimate from trial to trial)",
+        )
         task_points = []
         for key, point in points:
             with _domain(key, {"phi": key, "configuration": key}):

@@ -37,6 +37,7 @@ __all__ = ["Run", "load_run", "write_plots"]
 TRIAL_FIGURES = ("trajectory", "coordinates", "inputs", "errors")
 CYCLIC_FIGURES = ("path", "waypoint_errors")
 FIRST = "tab:red"
+LATER = "tab:orange"
 
 
 @dataclass(frozen=True)
@@ -170,27 +171,31 @@ def _time_panels(figure: Figure, t: np.ndarray, series: np.ndarray, labels: list
     return list(axes)
 
 
+DOTTED = {"experiment_forward": (1, 3), "experiment_parallel": (1, 2)}
+"""The trials whose final configurations the paper's trajectory figure dots (Figs. 16 and 19); the
+first trial's for any other run."""
+
+
 def trajectory_figure(run: Run) -> Figure:
-    """Figs. 3, 7, 11, 16, 19: the last trial, stroboscopic, and the end of the first trial dotted."""
-    first, last = run.records[0], run.records[-1]
+    """Figs. 3, 7, 11, 16, 19: the last trial, stroboscopic, and the ends of earlier trials dotted."""
+    last = run.records[-1]
+    dotted = [r for r in run.records[:-1] if r["trial"] in DOTTED.get(run.name, (1,))] or [run.records[0]]
     figure = _figure(6.4, 5.6)
     ax = figure.add_subplot()
     task = run.config.task
     draw_waypoints(ax, np.array([task.start, task.goal]), run.wheelbase, ["start", "goal"])  # type: ignore[union-attr]
     draw_trial(ax, run.trajectory(last).q, run.wheelbase, snapshots=10, label=f"trial {last['trial']}")
-    draw_pose(
-        ax,
-        np.asarray(first["final_state"]),
-        run.wheelbase,
-        FIRST,
-        linestyle=":",
-        label=f"end of trial {first['trial']}",
-    )
-    setup_workspace(
-        ax,
-        run.dimension,
-        f"{_title(run)}: trajectory during trial {last['trial']} (end of trial {first['trial']} dotted)",
-    )
+    for k, record in enumerate(dotted):
+        draw_pose(
+            ax,
+            np.asarray(record["final_state"]),
+            run.wheelbase,
+            FIRST if k == 0 else LATER,
+            linestyle=":",
+            label=f"end of trial {record['trial']}",
+        )
+    ends = ("end of trials " if len(dotted) > 1 else "end of trial ") + " and ".join(str(r["trial"]) for r in dotted)
+    setup_workspace(ax, run.dimension, f"{_title(run)}: trajectory during trial {last['trial']} ({ends} dotted)")
     ax.legend(fontsize=8, loc="best")
     return figure
 

@@ -124,9 +124,10 @@ def run_ilc(
     on_trial: Callable[[TrialRecord], None] | None = None,
     trajectories: bool = False,
     learner: str = "ilc",
+    seed: int = 1,
 ) -> RunResult:
     """Run a learner (default: the paper's eqs. 33-34; see :func:`learner_factory`) for ``trials``
-    trials (default: the config's).
+    trials (default: the config's), with ``seed`` for the env's noise and the learner.
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
@@ -139,7 +140,7 @@ def run_ilc(
         env.unwrapped.nominal_model,  # type: ignore[attr-defined]
         env.action_space,  # type: ignore[arg-type]
         env.observation_space,  # type: ignore[arg-type]
-        seed=1,
+        seed=seed,
         nu_a=config.learning.nu_a,
         nu_b=config.learning.nu_b,
         cost=config.learning.cost,
@@ -161,7 +162,7 @@ def run_ilc(
         if not converged and within_tolerance(config.learning.tolerance, info):
             converged.append(k)
 
-    run_trials(env, agent, count, seed=1, callbacks=[keep])
+    run_trials(env, agent, count, seed=seed, callbacks=[keep])
     env.close()
     return RunResult(config, records, converged[0] if converged else None)
 

@@ -46,15 +46,25 @@ def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, 
     assert "| parallel_parking | Figs. 11-14 | 5 | 5 |" in out
     assert "| cyclic_home_goal | Figs. 23-25 | not stated | 6 |" in out
     assert "forward_parking_saturated:" in out  # where it differs, it says why
+    assert "| experiment_forward | Figs. 16-18 | 5 |" in out and "| experiment_parallel | Figs. 19-21 | 5 |" in out
+    assert "Over 10 seeds of the localization noise" in out and "10/10 converged" in out
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "cyclic_home_goal.json",
+        "experiment_forward.json",
+        "experiment_parallel.json",
         "forward_parking.json",
         "forward_parking_saturated.json",
         "parallel_parking.json",
     ]
     one_trial = [
         f"{name}_{kind}.png"
-        for name in ("forward_parking", "forward_parking_saturated", "parallel_parking")
+        for name in (
+            "experiment_forward",
+            "experiment_parallel",
+            "forward_parking",
+            "forward_parking_saturated",
+            "parallel_parking",
+        )
         for kind in ("trajectory", "coordinates", "inputs", "errors")
     ]
     cyclic = ["cyclic_home_goal_path.png", "cyclic_home_goal_waypoint_errors.png"]

@@ -161,3 +161,16 @@ def test_disturbances_are_refused_where_they_cannot_be_drawn(tmp_path):
         load_config({**dataclasses.asdict(config), "simulation": {"parameter_jitter": 0.9}})
     with pytest.raises(ConfigError, match=r"simulation\.start_error: needs one sigma per coordinate \(4"):
         load_config({**dataclasses.asdict(config), "simulation": {"start_error": [0.1, 0.1]}})
+
+
+def test_a_noisy_measurement_past_the_charts_edge_is_read_at_the_edge():
+    from ilc_steering.core.integrate import LEFT_CHART
+    from ilc_steering.core.plants import CHART_MARGIN
+    from ilc_steering.envs.scenario import Scenario
+
+    scenario = Scenario.from_config(load_config("forward_parking_noisy"))
+    halted = np.array([[0.3, 0.2, np.pi / 2 - CHART_MARGIN * 1.01, 0.1]])  # stopped at the edge
+    out = scenario.measure(halted, np.array([LEFT_CHART]), noise=np.array([[0.0, 0.0, 0.01, 0.0]]))
+    assert np.all(np.isfinite(out["z_final"])) and np.isfinite(out["error_norm"][0])
+    # the orientation error is the measured one, past the edge; only z is taken at the edge
+    assert out["orientation_error"][0] > out["true_orientation_error"][0]

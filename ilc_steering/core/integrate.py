@@ -23,6 +23,20 @@ unperturbed car keeps its four-state kernel. A lag adds a stable linear mode of 
 ``1 / lag``; the fixed step resolves it when ``lag`` is not much below the step (the config
 requires ``lag >= max_step``).
 
+The lab robot (car, :data:`~ilc_steering.core.plants.CAR_LAB_FIELD`, section 5's MARIO): the
+servo perturbations above plus a steering linkage with play and a controller that dead-reckons
+its heading from quantized wheel encoders. Twelve states ``(x, y, theta, phi_c, phi_s, omega, A,
+psi, x_hat, y_hat, theta_hat, k)``: the servo's output ``phi_s`` (the lag state, or the clipped
+command), the play's anchor ``A``, the wheel's rotation ``psi`` [rad] since the last pulse
+(within one pitch, so a pulse is located to rounding; the total is ``2 pi k / N + psi``), the
+controller's estimate and its pulse count ``k``. The wheel turns to ``phi_w = clip(A, phi_s - b/2, phi_s + b/2)``: on a
+stretch where ``phi_s`` is monotone, that is the play operator exactly, given ``A`` = the wheel
+angle at its start; ``A`` is refreshed at every (sub)step. Eqs. 4-5 use ``theta_hat`` and
+``phi_s``. Events, each located inside the step by Illinois regula falsi and the step split
+there: the steering limit; the play engaging; ``phi_s`` turning back (its rate changes sign, so
+the clip formula restarts); and each encoder pulse, ``psi`` leaving ``[0, 2 pi / N]``,
+which jumps the estimate by the nominal odometry of an arc of ``2 pi rho_nominal / N``.
+
 Chart guard: the controller's transform (eqs. 4-5) breaks down as ``|theta|`` or ``|phi|``
 approaches ``pi/2`` in the task frame. A step that ends within ``CHART_MARGIN`` rad of it (or
 beyond: a stiff step can throw ``theta`` far past it), or with a non-finite state, is discarded
@@ -42,6 +56,7 @@ from numba import njit, prange
 
 from ilc_steering.core import dop853
 from ilc_steering.core.plants import CAR_FIELD as CAR
+from ilc_steering.core.plants import CAR_LAB_FIELD as CAR_LAB
 from ilc_steering.core.plants import CAR_SERVO_FIELD as CAR_SERVO
 from ilc_steering.core.plants import CHAINED_FIELD as CHAINED
 from ilc_steering.core.plants import CHART_MARGIN
@@ -54,6 +69,8 @@ OK = 0
 LEFT_CHART = 1
 _CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 _MAX_ITERATIONS = 60  # of the root finder at a steering-limit crossing; it needs about 23
+_MAX_EVENTS = 10_000  # events within one step of the lab robot before it gives up locating them
+_LAB_EVENT_TIME = 1e-14  # relative to the step: how closely a lab event is located
 
 _STAGES = dop853.STAGES
 _A = np.ascontiguousarray(dop853.A)
@@ -118,6 +135,63 @@ def _rhs_car_servo(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
     out[3] = u2
     out[4] = (commanded - x[4]) / steering_lag if steering_lag > 0 else 0.0
     out[5] = (u1 - x[5]) / speed_lag if speed_lag > 0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _lab_servo(params, x):  # type: ignore[no-untyped-def]
+    """The steering servo's output ``phi_s``: the lag state, or the clipped command."""
+    if params[6] > 0:
+        return x[4]
+    return min(max(x[3], -params[4]), params[4])
+
+
+@njit(cache=True, inline="always")
+def _lab_wheel(params, x, phi_s):  # type: ignore[no-untyped-def]
+    """The wheel angle behind the linkage's play ``b``: ``clip(A, phi_s - b/2, phi_s + b/2)``."""
+    half = 0.5 * params[8]
+    return min(max(x[6], phi_s - half), phi_s + half)
+
+
+@njit(cache=True, inline="always")
+def _lab_inputs(params, x, v1, v2):  # type: ignore[no-untyped-def]
+    """Eqs. 4-5 with the nominal geometry at the controller's estimate: ``(u1, u2)``."""
+    theta = x[10] if params[9] > 0 else x[2]
+    phi = _lab_servo(params, x)
+    s, c = np.sin(theta), np.cos(theta)
+    s_phi, c_phi = np.sin(phi), np.cos(phi)
+    u1 = v1 / (params[1] * c)
+    u2 = -3.0 / params[0] * s / (c * c) * s_phi * s_phi * v1 + params[0] * c * c * c * c_phi * c_phi * v2
+    return u1, u2
+
+
+@njit(cache=True, inline="always")
+def _lab_servo_rate(params, x, v1, v2):  # type: ignore[no-untyped-def]
+    """``d phi_s / dt``."""
+    limit = params[4]
+    if params[6] > 0:
+        return (min(max(x[3], -limit), limit) - x[4]) / params[6]
+    if abs(x[3]) >= limit:
+        return 0.0
+    return _lab_inputs(params, x, v1, v2)[1]
+
+
+@njit(cache=True, inline="always")
+def _rhs_car_lab(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
+    limit, offset, steering_lag, speed_lag = params[4], params[5], params[6], params[7]
+    u1, u2 = _lab_inputs(params, x, v1, v2)
+    phi_w = _lab_wheel(params, x, _lab_servo(params, x))
+    omega = x[5] if speed_lag > 0 else u1
+    speed = params[3] * omega
+    out[0] = np.cos(x[2]) * speed
+    out[1] = np.sin(x[2]) * speed
+    out[2] = np.tan(phi_w + offset) * speed / params[2]
+    out[3] = u2
+    out[4] = (min(max(x[3], -limit), limit) - x[4]) / steering_lag if steering_lag > 0 else 0.0
+    out[5] = (u1 - x[5]) / speed_lag if speed_lag > 0 else 0.0
+    out[6] = 0.0
+    out[7] = omega
+    for i in range(8, 12):
+        out[i] = 0.0
 
 
 @njit(cache=True, inline="always")
@@ -187,6 +261,105 @@ def _step(rhs, model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type
 
 
 @njit(cache=True, inline="always")
+def _lab_event(j, params, x, tau, v1c, v2c, sides):  # type: ignore[no-untyped-def]
+    """Event ``j`` of the lab robot as a value that crosses from <= 0 to > 0 when it fires;
+    ``sides`` holds what is fixed over a substep (the side of the limit, the servo's direction)."""
+    if j == 0:
+        return sides[0] * (abs(x[3]) - params[4])
+    if j == 1 or j == 2:
+        if sides[1] == 0:
+            return -1.0
+        phi_s = _lab_servo(params, x)
+        if j == 1:
+            if sides[2] != 0:  # engaged on the side it moves to: no kink ahead of the next turn
+                return -1.0
+            return sides[1] * (phi_s - x[6]) - 0.5 * params[8]
+        return -sides[1] * _lab_servo_rate(params, x, _poly(v1c, tau), _poly(v2c, tau))
+    if j == 3:
+        return x[7] - 2.0 * np.pi / params[9]
+    return -x[7]
+
+
+@njit(cache=True, inline="always")
+def _lab_jump(j, params, x):  # type: ignore[no-untyped-def]
+    """At pulse ``j`` (3 forward, 4 backward): the estimate moves by the nominal odometry of one
+    encoder pitch of wheel travel, at the servo's steering angle."""
+    if j < 3:
+        return
+    sign = 1.0 if j == 3 else -1.0
+    ds = sign * 2.0 * np.pi * params[1] / params[9]
+    dtheta = ds * np.tan(_lab_servo(params, x)) / params[0]
+    x[8] += ds * np.cos(x[10] + 0.5 * dtheta)
+    x[9] += ds * np.sin(x[10] + 0.5 * dtheta)
+    x[10] += dtheta
+    x[11] += sign
+    x[7] -= sign * 2.0 * np.pi / params[9]
+
+
+@njit(cache=True, inline="always")
+def _lab_step(rhs, model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
+    """One step of the lab robot from local time ``tau``, split at each event (see the module
+    docstring) in the order they happen."""
+    cur = x.copy()
+    sides = np.empty(3)
+    active = 5 if params[9] > 0 else 3
+    t, remaining = tau, h
+    for _ in range(_MAX_EVENTS):
+        phi_s = _lab_servo(params, cur)
+        cur[6] = _lab_wheel(params, cur, phi_s)  # the anchor: the wheel angle now
+        sides[0] = -1.0 if abs(cur[3]) > params[4] else 1.0
+        rate = _lab_servo_rate(params, cur, _poly(v1c, t), _poly(v2c, t))
+        direction = 0.0
+        if params[8] > 0:
+            direction = 1.0 if rate > 0 else (-1.0 if rate < 0 else 0.0)
+        sides[1] = direction
+        gap = direction * (phi_s - cur[6])
+        sides[2] = 1.0 if gap >= 0.5 * params[8] * (1.0 - 1e-12) else 0.0
+        _rk(rhs, n, params, cur, t, remaining, v1c, v2c, out, work)
+        first, which = remaining, -1
+        for j in range(active):
+            g_lo = _lab_event(j, params, cur, t, v1c, v2c, sides)
+            g_hi = _lab_event(j, params, out, t + remaining, v1c, v2c, sides)
+            if not (g_lo <= 0.0 < g_hi):
+                continue
+            # Illinois regula falsi on the event's value after a step of length s.
+            lo, hi, side = 0.0, remaining, 0
+            for _ in range(_MAX_ITERATIONS):
+                if hi - lo <= _LAB_EVENT_TIME * h:
+                    break
+                mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+                if not (lo < mid < hi):
+                    mid = 0.5 * (lo + hi)
+                _rk(rhs, n, params, cur, t, mid, v1c, v2c, probe, work)
+                g_mid = _lab_event(j, params, probe, t + mid, v1c, v2c, sides)
+                if g_mid == 0.0:  # on the event: a hair later it has fired
+                    hi = min(mid + _LAB_EVENT_TIME * h, hi)
+                    break
+                if g_mid < 0.0:
+                    lo, g_lo = mid, g_mid
+                    if side == -1:
+                        g_hi *= 0.5
+                    side = -1
+                else:
+                    hi, g_hi = mid, g_mid
+                    if side == 1:
+                        g_lo *= 0.5
+                    side = 1
+            if hi < first:
+                first, which = hi, j
+        if which < 0:
+            return
+        _rk(rhs, n, params, cur, t, first, v1c, v2c, probe, work)
+        cur[:] = probe
+        _lab_jump(which, params, cur)
+        t += first
+        remaining -= first
+        if remaining <= 0.0:
+            break
+    out[:] = cur
+
+
+@njit(cache=True, inline="always")
 def _in_chart(model, params, x):  # type: ignore[no-untyped-def]
     for value in x:
         if not np.isfinite(value):
@@ -196,11 +369,15 @@ def _in_chart(model, params, x):  # type: ignore[no-untyped-def]
     if model == CAR_SERVO:
         phi = x[4] if params[6] > 0 else min(max(x[3], -params[4]), params[4])
         return abs(x[2]) < _CHART_LIMIT and abs(phi) < _CHART_LIMIT and abs(phi + params[5]) < _CHART_LIMIT
+    if model == CAR_LAB:
+        phi_s = _lab_servo(params, x)
+        wheel = _lab_wheel(params, x, phi_s) + params[5]
+        return max(abs(x[2]), abs(x[10]), abs(phi_s), abs(wheel)) < _CHART_LIMIT
     return True
 
 
 @njit(cache=True, inline="always")
-def _drive(rhs, model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+def _drive(rhs, step, model, n, params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
     x = x0.copy()
     nxt = np.empty(n)
     probe = np.empty(n)
@@ -212,7 +389,7 @@ def _drive(rhs, model, n, params, x0, durations, steps, v1c, v2c, out, traj):  #
     for i in range(durations.shape[0]):
         h = durations[i] / steps[i]
         for k in range(steps[i]):
-            _step(rhs, model, n, params, x, k * h, h, v1c[i], v2c[i], nxt, work, probe)
+            step(rhs, model, n, params, x, k * h, h, v1c[i], v2c[i], nxt, work, probe)
             if not _in_chart(model, params, nxt):
                 out[:] = x
                 if record:
@@ -233,17 +410,22 @@ def _drive(rhs, model, n, params, x0, durations, steps, v1c, v2c, out, traj):  #
 # and the state dimension are constants, so the compiler keeps the state in registers.
 @njit(cache=True)
 def _car_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return _drive(_rhs_car, CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
+    return _drive(_rhs_car, _step, CAR, 4, params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
 def _car_servo_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return _drive(_rhs_car_servo, CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
+    return _drive(_rhs_car_servo, _step, CAR_SERVO, 6, params, x0, durations, steps, v1c, v2c, out, traj)
+
+
+@njit(cache=True)
+def _car_lab_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+    return _drive(_rhs_car_lab, _lab_step, CAR_LAB, 12, params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
 def _chained_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return _drive(_rhs_chained, CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
+    return _drive(_rhs_chained, _step, CHAINED, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
@@ -271,6 +453,18 @@ def _parallel_car_servo(params, x0, durations, steps, v1c, v2c, out, status, tra
 
 
 @njit(cache=True)
+def _serial_car_lab(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in range(x0.shape[0]):
+        status[b] = _car_lab_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True, parallel=True)
+def _parallel_car_lab(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in prange(x0.shape[0]):
+        status[b] = _car_lab_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True)
 def _serial_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
         status[b] = _chained_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
@@ -285,6 +479,7 @@ def _parallel_chained(params, x0, durations, steps, v1c, v2c, out, status, traj)
 _KERNELS = {
     CAR: (_serial_car, _parallel_car),
     CAR_SERVO: (_serial_car_servo, _parallel_car_servo),
+    CAR_LAB: (_serial_car_lab, _parallel_car_lab),
     CHAINED: (_serial_chained, _parallel_chained),
 }
 

@@ -26,10 +26,13 @@ from ilc_steering.core.checks import require
 
 __all__ = [
     "CAR_FIELD",
+    "CAR_LAB_FIELD",
     "CAR_SERVO_FIELD",
     "CHAINED_FIELD",
     "CHART_MARGIN",
+    "MAX_BACKLASH",
     "MAX_LAG",
+    "MAX_PULSES",
     "MAX_STEERING_OFFSET",
     "PLANTS",
     "CarPlant",
@@ -54,6 +57,14 @@ CHAINED_FIELD = 1
 CAR_SERVO_FIELD = 2
 """Kernel id of the car with its unmodeled servo perturbations (a misaligned wheel, steering and
 drive lags): six states ``(x, y, theta, phi_c, phi_w, omega)``."""
+CAR_LAB_FIELD = 3
+"""Kernel id of the lab robot (section 5): the servo perturbations, play in the steering linkage
+and a heading dead-reckoned from wheel encoders: twelve states ``(x, y, theta, phi_c, phi_s,
+omega, A, psi, x_hat, y_hat, theta_hat, k)`` (see :mod:`ilc_steering.core.integrate`)."""
+MAX_BACKLASH = 0.2
+"""[rad] the largest ``steering_backlash`` of a car plant."""
+MAX_PULSES = 100_000
+"""The largest ``encoder_pulses`` (per wheel turn) of a car plant."""
 MAX_STEERING_OFFSET = 0.5
 """[rad] the largest ``|steering_offset|`` of a car plant."""
 MAX_LAG = 10.0
@@ -103,6 +114,11 @@ class Plant(Protocol):
         """The measured configurations of states ``x`` ``(..., state_dim)``."""
         ...
 
+    def estimate(self, x: Array) -> Array:
+        """The configurations the controller's eqs. 4-5 act on at states ``x``: the measured ones,
+        or a lab robot's dead-reckoned estimate."""
+        ...
+
     def check_configuration(self, q: Array) -> None:
         """``ValueError`` unless ``q`` is a configuration a trial may start from (finite, in the chart,
         within the plant's limits)."""
@@ -143,6 +159,18 @@ class CarPlant:
 
     With any of them on, the state is ``(x, y, theta, phi_c, phi_w, omega)`` (kernel
     :data:`CAR_SERVO_FIELD`); without, it is ``(x, y, theta, phi_c)``.
+
+    Two imperfections of section 5's lab robot, each 0 (off) by default:
+
+    - ``steering_backlash`` [rad]: play ``b`` in the steering linkage; the wheel rests while the
+      servo's output ``phi_s`` moves within ``b/2`` of it and is pushed along beyond (the play
+      operator); the controller measures ``phi_s``, not the wheel;
+    - ``encoder_pulses``: pulses per turn of the driving wheel's encoder (0: none); the heading
+      the controller uses in eqs. 4-5 is then dead-reckoned, stepping by the nominal odometry of
+      one pitch of travel at each pulse, from the true one at the start of a trial.
+
+    With either on, the state has twelve entries (kernel :data:`CAR_LAB_FIELD`); the final
+    configuration is measured externally (true pose, the servo's steering angle), as in the paper.
     """
 
     kind: ClassVar[PlantKind] = CAR
@@ -152,6 +180,8 @@ class CarPlant:
     steering_offset: float = 0.0
     steering_lag: float = 0.0
     speed_lag: float = 0.0
+    steering_backlash: float = 0.0
+    encoder_pulses: int = 0
 
     def __post_init__(self) -> None:
         limit = self.steering_limit
@@ -169,32 +199,63 @@ class CarPlant:
         for name in ("steering_lag", "speed_lag"):
             lag = getattr(self, name)
             require(isfinite(lag) and 0 <= lag <= MAX_LAG, name, f"must be in [0, {MAX_LAG:g}] s, got {lag}")
+        backlash = self.steering_backlash
+        require(
+            isfinite(backlash) and 0 <= backlash <= MAX_BACKLASH,
+            "steering_backlash",
+            f"must be in [0, {MAX_BACKLASH}] rad, got {backlash}",
+        )
+        pulses = self.encoder_pulses
+        require(
+            isinstance(pulses, int) and not isinstance(pulses, bool) and 0 <= pulses <= MAX_PULSES,
+            "encoder_pulses",
+            f"must be a whole number of pulses per turn in [0, {MAX_PULSES}] (0: none), got {pulses!r}",
+        )
+
+    @property
+    def lab(self) -> bool:
+        """Whether a lab-robot imperfection is on (the twelve-state kernel)."""
+        return bool(self.steering_backlash or self.encoder_pulses)
 
     @property
     def servo(self) -> bool:
-        """Whether a servo perturbation is on (the six-state kernel)."""
-        return bool(self.steering_offset or self.steering_lag or self.speed_lag)
+        """Whether a servo perturbation is on (the six-state kernel, or the lab's)."""
+        return bool(self.steering_offset or self.steering_lag or self.speed_lag) and not self.lab
 
     @property
     def state_dim(self) -> int:
-        return 6 if self.servo else 4
+        return 12 if self.lab else 6 if self.servo else 4
 
     def initial_state(self, q: Array) -> Array:
-        """At rest at ``q``: the commanded and the measured wheel angles are ``phi``, the wheel speed 0."""
+        """At rest at ``q``: the commanded and the measured wheel angles are ``phi``, the wheel speed 0;
+        on the lab robot also the play's anchor, the wheel's rotation 0, the estimate ``q``, no pulses."""
         q = np.asarray(q, dtype=np.float64)
-        if not self.servo:
+        if not self.servo and not self.lab:
             return q.copy()
-        return np.concatenate([q, q[..., 3:4], np.zeros_like(q[..., :1])], axis=-1)
+        zero = np.zeros_like(q[..., :1])
+        servo = [q, q[..., 3:4], zero]
+        if not self.lab:
+            return np.concatenate(servo, axis=-1)
+        return np.concatenate([*servo, q[..., 3:4], zero, q[..., :3], zero], axis=-1)
 
     def configuration(self, x: Array) -> Array:
         """The measured configurations ``q`` of states ``x``: the wheel angle is the clipped command,
-        or the lagging wheel's ``phi_w``."""
+        or the lagging wheel's ``phi_w`` (the lab robot: its servo's output)."""
         x = np.asarray(x, dtype=np.float64)
         if self.steering_lag:
             return np.concatenate([x[..., :3], x[..., 4:5]], axis=-1)
         q = np.array(x[..., :4], dtype=np.float64)
         if self.steering_limit is not None:
             q[..., 3] = np.clip(q[..., 3], -self.steering_limit, self.steering_limit)
+        return q
+
+    def estimate(self, x: Array) -> Array:
+        """The measured configurations, with the dead-reckoned pose ``(x_hat, y_hat, theta_hat)``
+        in place of the true one when the heading comes from encoders."""
+        q = self.configuration(x)
+        if self.encoder_pulses:
+            q = q.copy()
+            q[..., :3] = np.asarray(x, dtype=np.float64)[..., 8:11]
         return q
 
     def check_configuration(self, q: Array) -> None:
@@ -223,9 +284,12 @@ class CarPlant:
     def kernel(self) -> tuple[int, Array]:
         limit = np.inf if self.steering_limit is None else self.steering_limit
         params = [self.nominal.wheelbase, self.nominal.wheel_radius, self.true.wheelbase, self.true.wheel_radius, limit]
-        if not self.servo:
-            return CAR_FIELD, np.array(params)
-        return CAR_SERVO_FIELD, np.array([*params, self.steering_offset, self.steering_lag, self.speed_lag])
+        servo = [self.steering_offset, self.steering_lag, self.speed_lag]
+        if self.lab:
+            return CAR_LAB_FIELD, np.array([*params, *servo, self.steering_backlash, float(self.encoder_pulses)])
+        if self.servo:
+            return CAR_SERVO_FIELD, np.array([*params, *servo])
+        return CAR_FIELD, np.array(params)
 
 
 @dataclass(frozen=True)
@@ -256,6 +320,10 @@ class ChainedPlant:
 
     def configuration(self, x: Array) -> Array:
         """The state is the configuration."""
+        return np.asarray(x)
+
+    def estimate(self, x: Array) -> Array:
+        """The state is the configuration, known exactly."""
         return np.asarray(x)
 
     def check_configuration(self, q: Array) -> None:

@@ -1,0 +1,112 @@
+"""Section 5's lab robot (MARIO): play in the steering linkage and a dead-reckoned heading from
+quantized wheel encoders, against an independent event-driven ``solve_ivp`` reference."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from ilc_steering.config import ConfigError, load_config
+from ilc_steering.core.integrate import OK
+from ilc_steering.core.plants import CAR_LAB_FIELD
+from ilc_steering.core.reference import lab_car_trial
+from ilc_steering.envs.scenario import Scenario
+
+LAB = [
+    {"encoder_pulses": 40},
+    {"steering_backlash": 0.02},
+    {"steering_backlash": 0.02, "encoder_pulses": 40},
+    {"steering_backlash": 0.02, "encoder_pulses": 40, "steering_lag": 0.05, "speed_lag": 0.1, "steering_offset": 0.01},
+]
+OFF = {"steering_offset": 0.0, "steering_lag": 0.0, "speed_lag": 0.0, "steering_backlash": 0.0, "encoder_pulses": 0}
+
+
+def scenario_with(name, **plant):
+    config = load_config(name)
+    return Scenario.from_config(dataclasses.replace(config, plant=dataclasses.replace(config.plant, **plant)))
+
+
+def comparable(scenario, x):
+    """The kernel's final state in the reference's terms: the wheel angle behind the play in place
+    of the play's anchor, the wheel's total rotation in place of the rotation since the last pulse."""
+    plant, x = scenario.plant, np.array(x)
+    limit = np.inf if plant.steering_limit is None else plant.steering_limit
+    phi_s = x[4] if plant.steering_lag else np.clip(x[3], -limit, limit)
+    half = plant.steering_backlash / 2
+    x[6] = np.clip(x[6], phi_s - half, phi_s + half)
+    if plant.encoder_pulses:
+        x[7] += x[11] * 2 * np.pi / plant.encoder_pulses
+    return x
+
+
+@pytest.mark.parametrize("name", ["forward_parking", "forward_parking_saturated", "experiment_forward"])
+@pytest.mark.parametrize("lab", LAB, ids=lambda s: "+".join(s))
+def test_the_lab_robot_within_1e9_of_an_event_driven_solve_ivp(name, lab):
+    scenario = scenario_with(name, **{**OFF, **lab})
+    assert scenario.plant.kernel()[0] == CAR_LAB_FIELD and scenario.plant.state_dim == 12
+    c = scenario.nominal.solve()
+    trial = scenario.run(c[None])
+    assert trial.status[0] == OK
+    reference = lab_car_trial(scenario.plant, scenario.profile, scenario.x_start, c)
+    np.testing.assert_allclose(comparable(scenario, trial.final[0]), reference, atol=1e-9)
+    if "encoder_pulses" in lab:
+        assert reference[11] > 100  # hundreds of pulses, each located and counted the same
+
+
+def test_without_imperfections_the_lab_kernel_is_the_plain_car():
+    plain = scenario_with("forward_parking_saturated")
+    c = plain.nominal.solve()
+    expected = plain.run(c[None]).final[0]
+    # a play of 1e-300 rad switches the lab kernel on and changes nothing
+    lab = scenario_with("forward_parking_saturated", steering_backlash=1e-300)
+    got = lab.run(c[None]).final[0]
+    np.testing.assert_allclose(got[:4], expected, atol=1e-12)
+
+
+def test_dead_reckoning_lags_with_coarse_encoders_and_vanishes_with_fine_ones():
+    exact = scenario_with("forward_parking")
+    c = exact.nominal.solve()
+    true_final = exact.run(c[None]).final[0]
+    lag, moved = {}, {}
+    for pulses in (40, 4000, 100_000):
+        trial = scenario_with("forward_parking", encoder_pulses=pulses).run(c[None], record=True)
+        states = trial.states[0]
+        lag[pulses] = np.abs(states[:, 10] - states[:, 2]).max()  # the estimate trails by up to a pitch
+        moved[pulses] = np.abs(trial.final[0][:3] - true_final[:3]).max()
+    # the estimated heading's error falls as the pitch (1/N), the final pose's change faster
+    assert lag[40] > 1e-3 and lag[4000] < lag[40] / 50 and lag[100_000] < 1e-5
+    assert moved[40] > 1e-5 and moved[4000] < moved[40] / 1000 and moved[100_000] < 1e-10
+
+
+def test_the_wheel_stays_within_the_play_and_moves_only_when_pushed():
+    half = 0.05
+    scenario = scenario_with("forward_parking", steering_backlash=2 * half)
+    trial = scenario.run(scenario.nominal.solve()[None], record=True)
+    x = trial.states[0]
+    phi_s = x[:, 3]
+    wheel = np.clip(x[:, 6], phi_s - half, phi_s + half)
+    gap = phi_s - wheel
+    assert np.all(np.abs(gap) <= half + 1e-12)
+    moved = np.abs(np.diff(wheel)) > 1e-12
+    # between two records the wheel moves only if the servo pushes it at the edge of the play at
+    # the start or the end of the interval
+    edge = np.abs(np.abs(gap) - half) < 1e-9
+    assert moved.any() and np.all((edge[:-1] | edge[1:])[moved])
+    assert (~moved).sum() > 5  # and it rests for a while after each turn of the servo
+
+
+def _config_path(name):
+    from importlib.resources import files
+
+    return files("ilc_steering.configs") / f"{name}.yaml"
+
+
+def test_a_cyclic_task_refuses_the_lab_robot(tmp_path):
+    import yaml
+
+    raw = yaml.safe_load(open(_config_path("cyclic_home_goal")))
+    raw["plant"]["encoder_pulses"] = 40
+    path = tmp_path / "cyclic.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    with pytest.raises(ConfigError, match="plant: steering_backlash and encoder_pulses are for one-trial tasks"):
+        load_config(path)
