@@ -302,7 +302,7 @@ def _lab_step(rhs, model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # 
     docstring) in the order they happen."""
     cur = x.copy()
     sides = np.empty(3)
-    active = 5 if params[9] > 0 else 3
+    active = 5 if params[9] > 0 else 3  # the two pulse events only with encoders
     t, remaining = tau, h
     for _ in range(_MAX_EVENTS):
         phi_s = _lab_servo(params, cur)
