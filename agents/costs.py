@@ -19,10 +19,11 @@ Costs (per trial, of the nominal motion):
 
 - ``path_length``: the distance the robot's reference point travels [m] (a chained plant: of ``z``);
 - ``curvature``: the integral of the squared curvature along the path, ``int (tan(phi)/ell)^2 ds``
-  [1/m] (a chained plant: ``int v2^2 dt``);
+  [1/m] for the car, ``int (dtheta/ds)^2 ds`` of the reference point's heading for the other
+  robots (a unicycle, a trailer's axle) (a chained plant: ``int v2^2 dt``);
 - ``steering_margin``: the integral of ``max(0, |phi| - (1 - STEERING_MARGIN) * limit)^2`` [rad^2 s]
-  of the commanded wheel angle, which keeps the wheel off its stop by a margin (a car with a
-  steering limit only).
+  of the commanded wheel angle, which keeps the wheel off its stop by a margin (a robot with a
+  steering limit only: a car, a car towing a trailer).
 """
 
 from __future__ import annotations
@@ -35,12 +36,21 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.agents.ilc import ILCAgent
-from ilc_steering.core.car import drawn_wheelbase
+from ilc_steering.core.car import CarModel
 from ilc_steering.core.family import ModelFamily
+from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.simulate import simulate
+from ilc_steering.core.simulate import Trials, simulate
 
-__all__ = ["COSTS", "MAX_EVALUATIONS", "STEERING_MARGIN", "NullSpaceCost", "with_cost"]
+__all__ = [
+    "COSTS",
+    "COST_BOX",
+    "MAX_EVALUATIONS",
+    "PREDICTION_TOLERANCE",
+    "STEERING_MARGIN",
+    "NullSpaceCost",
+    "with_cost",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -48,6 +58,14 @@ COSTS = ("none", "path_length", "curvature", "steering_margin")
 """``learning.cost``."""
 STEERING_MARGIN = 0.1
 """``steering_margin`` keeps ``|phi|`` below ``(1 - STEERING_MARGIN)`` times the steering limit."""
+COST_BOX = 3.0
+"""The search keeps every ``|c2j|`` within this many times its natural magnitude
+(:meth:`~ilc_steering.core.nominal.NominalModel.action_scale`), or the current ``|c2j|`` if larger:
+the least cost of a nominal motion can lie at coefficients so large that the true plant's
+motion, a few per cent off, is no longer near it (path length is least for a car that drives
+straight and then turns on the spot)."""
+PREDICTION_TOLERANCE = 1e-7
+"""The largest relative gap between a simulated nominal motion's final ``z`` and eq. 23's for its cost to count."""
 MAX_EVALUATIONS = 2000
 """The most cost evaluations (simulations of the nominal plant, no trial) of one update."""
 
@@ -60,7 +78,7 @@ class NullSpaceCost:
             raise ValueError(f"learning.cost must be one of {list(COSTS)}, got {name!r}")
         car = model.chained_map is not None
         if name == "steering_margin" and (not car or model.steering_limit is None):
-            raise ValueError("learning.cost steering_margin needs a car with a steering_limit")
+            raise ValueError("learning.cost steering_margin needs a robot with a steering_limit")
         if model.profile.v2_terms <= model.dimension - 1:
             raise ValueError(
                 f"learning.cost {name} needs v2_terms > n - 1 = {model.dimension - 1} (a null space of W), "
@@ -72,6 +90,7 @@ class NullSpaceCost:
         # the steering margin bounds (at the stop itself the cost would have no gradient).
         self._family = ModelFamily(dataclasses.replace(model, steering_limit=None))
         self._plant = self._family.plant(np.zeros(self._family.size))
+        self._box = COST_BOX * model.action_scale()[1:]
         self._per_trial: Callable[[Array, Array], Array] = getattr(self, f"_{name}")
 
     def values(self, c: Array) -> Array:
@@ -82,7 +101,26 @@ class NullSpaceCost:
         trials = simulate(self._plant, self.model.profile, np.ascontiguousarray(x0), c, record=True)
         assert trials.states is not None and trials.times is not None
         q = self._plant.configuration(trials.states)
-        return self._per_trial(q, np.diff(trials.times))
+        return np.where(self._resolved(c, trials), self._per_trial(q, np.diff(trials.times)), np.inf)
+
+    def _resolved(self, c: Array, trials: Trials) -> npt.NDArray[np.bool_]:
+        """Whether each simulated nominal motion is the one eq. 23 predicts: it stayed in the chart and
+        ends within ``PREDICTION_TOLERANCE`` of ``V z0 + W c2``. A motion that halts at the chart's edge,
+        or one the fixed step does not resolve (near the edge the field is stiff), is no solution, but
+        it could pass for a short or straight one."""
+        inside = trials.status == OK
+        ok = np.zeros(len(c), dtype=bool)
+        if np.any(inside):
+            z = self._family.to_chained(self._plant.configuration(trials.final[inside]))
+            predicted = np.array([self.model.final_state(ci) for ci in c[inside]])
+            gap = np.max(np.abs(z - predicted), axis=1) / (1.0 + np.max(np.abs(predicted), axis=1))
+            ok[inside] = gap <= PREDICTION_TOLERANCE
+        return ok
+
+    def of_motion(self, q: Array, t: Array) -> Array:
+        """``J`` of recorded motions: configurations ``(B, S, nq)`` at times ``(S,)`` [s] (any frame:
+        every cost is invariant to a rotation of the plane), e.g. a true trial's trajectory."""
+        return self._per_trial(np.asarray(q, dtype=np.float64), np.diff(np.asarray(t, dtype=np.float64)))
 
     def step(self, c: Array, W: Array) -> Array:
         """``c`` with its ``c2`` moved within the null space of ``W`` to the least ``J`` there:
@@ -95,6 +133,7 @@ class NullSpaceCost:
         if basis.shape[1] == 0:
             return c
         scale = float(np.max(np.abs(c[1:]))) or 1.0
+        bound = np.maximum(self._box, np.abs(c[1:]))
 
         def shifted(y: Array) -> Array:
             out = np.array(c, dtype=np.float64)
@@ -102,7 +141,10 @@ class NullSpaceCost:
             return out
 
         def J(y: Array) -> float:
-            return float(self.values(shifted(y))[0])
+            candidate = shifted(y)
+            if np.any(np.abs(candidate[1:]) > bound):
+                return float("inf")
+            return float(self.values(candidate)[0])
 
         start = np.zeros(basis.shape[1])
         result = minimize(
@@ -120,8 +162,13 @@ class NullSpaceCost:
             v2 = np.diff(q[..., 1], axis=1) / dt
             return np.asarray(np.sum(v2**2 * dt, axis=1), dtype=np.float64)
         ds = np.linalg.norm(np.diff(q[..., :2], axis=1), axis=-1)
-        kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / float(drawn_wheelbase(self.model.chained_map) or 1.0)
-        return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
+        robot = self.model.chained_map
+        if isinstance(robot, CarModel):
+            kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / robot.wheelbase
+            return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
+        turn = np.diff(q[..., 2], axis=1)  # kappa^2 ds = (dtheta / ds)^2 ds
+        squared = np.divide(turn**2, ds, out=np.zeros_like(ds), where=ds > 1e-12)
+        return np.asarray(np.sum(squared, axis=1), dtype=np.float64)
 
     def _steering_margin(self, q: Array, dt: Array) -> Array:
         bound = (1 - STEERING_MARGIN) * float(self.model.steering_limit or 0.0)

@@ -1,9 +1,15 @@
-"""Pictures of a steering task: the car's outline, the workspace scene and an off-screen canvas.
+"""Pictures of a steering task: the robot's outline, the workspace scene and an off-screen canvas.
 
 The envs' ``render`` and the paper's figures (:mod:`ilc_steering.plots`) draw with these, on
-matplotlib's Agg canvas, which needs no display. The car is the bicycle model of Fig. 1: a body,
-the rear wheel at ``(x, y)`` and the front wheel one wheelbase ahead, turned by ``phi``. A chained
-plant has no body; it is drawn in the plane ``(z1, zn)`` as a point.
+matplotlib's Agg canvas, which needs no display. A robot is drawn with its *nominal* map's
+geometry (``robot``, the map, or ``None`` for a chained plant, drawn in the plane ``(z1, zn)`` as
+a point):
+
+- the car is the bicycle model of Fig. 1: a body, the rear wheel at ``(x, y)`` and the front
+  wheel one wheelbase ahead, turned by ``phi``;
+- the unicycle is a round body on its axle, two wheels and a heading mark;
+- the car towing a trailer is the car at the hitch, the trailer's body and axle at ``(x1, y1)``,
+  and the drawbar between them.
 """
 
 from __future__ import annotations
@@ -17,6 +23,10 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ilc_steering.core.car import CarModel
+from ilc_steering.core.trailer import TrailerModel, car_position
+from ilc_steering.core.unicycle import UnicycleModel
+
 __all__ = [
     "Canvas",
     "car_outline",
@@ -25,6 +35,7 @@ __all__ = [
     "draw_waypoints",
     "plane",
     "render_scene",
+    "robot_outline",
     "setup_workspace",
 ]
 
@@ -54,6 +65,40 @@ def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
     )
 
 
+def robot_outline(robot: object, q: Array) -> list[tuple[Array, bool]]:
+    """The polylines ``(k, 2)`` [m] that draw ``robot`` (a nominal map) at configuration ``q``, each
+    with whether it is a wheel (drawn thick) rather than an outline."""
+    if isinstance(robot, CarModel):
+        body, rear, front = car_outline(q, robot.wheelbase)
+        return [(body, False), (rear, True), (front, True)]
+    if isinstance(robot, UnicycleModel):
+        x, y, theta = (float(v) for v in q[:3])
+        centre, b, rho = np.array([x, y]), robot.axle_width, robot.wheel_radius
+        heading = np.array([np.cos(theta), np.sin(theta)])
+        normal = np.array([-heading[1], heading[0]])
+        angles = np.linspace(0.0, 2.0 * np.pi, 33)
+        body = centre + 0.6 * b * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+        wheels = [
+            np.array([c - rho * heading, c + rho * heading])
+            for c in (centre + 0.5 * b * normal, centre - 0.5 * b * normal)
+        ]
+        return [(body, False), (np.array([centre, centre + 0.6 * b * heading]), False), *((w, True) for w in wheels)]
+    if isinstance(robot, TrailerModel):
+        q = np.asarray(q, dtype=np.float64)
+        rear, theta0 = car_position(q[:5], robot.hitch_length)
+        car = robot_outline(CarModel(robot.wheelbase, robot.wheel_radius), np.array([*rear, theta0, q[3]]))
+        axle = q[:2]
+        heading = np.array([np.cos(q[2]), np.sin(q[2])])
+        normal = np.array([-heading[1], heading[0]])
+        size = robot.wheelbase
+        corners = [(-0.35, -1), (0.45, -1), (0.45, 1), (-0.35, 1), (-0.35, -1)]
+        box = np.array([axle + size * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
+        half = WHEEL_HALF_LENGTH * size
+        wheel = np.array([axle - half * heading, axle + half * heading])
+        return [*car, (box, False), (np.array([axle, rear]), False), (wheel, True)]
+    raise ValueError(f"no drawing for a robot mapped by {type(robot).__name__}")
+
+
 def plane(q: Array, has_pose: bool) -> Array:
     """The drawn coordinates of configurations ``(..., nx)``: ``(x, y)`` for a car, ``(z1, zn)`` otherwise."""
     q = np.asarray(q)
@@ -63,43 +108,46 @@ def plane(q: Array, has_pose: bool) -> Array:
 def draw_pose(
     ax: Axes,
     q: Array,
-    wheelbase: float | None,
+    robot: object,
     color: str,
     linestyle: str = "-",
     alpha: float = 1.0,
     label: str | None = None,
 ) -> None:
-    """One configuration: the car's outline and wheels, or a marker for a chained plant."""
-    if wheelbase is None:
+    """One configuration: the robot's outline and wheels, or a marker for a chained plant (``robot`` ``None``)."""
+    if robot is None:
         point = plane(q, False)
         ax.plot(*point, "o", color=color, alpha=alpha, label=label, fillstyle="none" if linestyle != "-" else "full")
         return
-    body, rear, front = car_outline(q, wheelbase)
-    ax.plot(*body.T, color=color, linestyle=linestyle, alpha=alpha, linewidth=1.0, label=label)
-    for wheel in (rear, front):
-        ax.plot(*wheel.T, color=color, alpha=alpha, linewidth=3.0, solid_capstyle="butt")
+    for i, (line, wheel) in enumerate(robot_outline(robot, q)):
+        if wheel:
+            ax.plot(*line.T, color=color, alpha=alpha, linewidth=3.0, solid_capstyle="butt")
+        else:
+            ax.plot(
+                *line.T, color=color, linestyle=linestyle, alpha=alpha, linewidth=1.0, label=label if i == 0 else None
+            )
 
 
-def draw_waypoints(ax: Axes, waypoints: Array, wheelbase: float | None, names: Sequence[str]) -> None:
+def draw_waypoints(ax: Axes, waypoints: Array, robot: object, names: Sequence[str]) -> None:
     """Start (grey) and goal or waypoint (green, dashed) configurations, each named beside it."""
-    is_car = wheelbase is not None
     for i, (q, name) in enumerate(zip(waypoints, names)):
         color = START if i == 0 else GOAL
-        draw_pose(ax, q, wheelbase, color, linestyle="-" if i == 0 else "--", label=name)
-        x, y = plane(q, is_car)
+        draw_pose(ax, q, robot, color, linestyle="-" if i == 0 else "--", label=name)
+        x, y = plane(q, robot is not None)
         ax.annotate(name, (x, y), xytext=(-8, -24), textcoords="offset points", color=color, fontsize=8)
 
 
 def draw_trial(
-    ax: Axes, q: Array, wheelbase: float | None, snapshots: int = 8, color: str = PATH, label: str | None = None
+    ax: Axes, q: Array, robot: object, snapshots: int = 8, color: str = PATH, label: str | None = None
 ) -> None:
-    """A trial's path (the rear-axle midpoint) with the car drawn at ``snapshots`` evenly spaced
-    instants, the stroboscopic view of the paper's Figs. 3, 7 and 11."""
-    path = plane(q, wheelbase is not None)
+    """A trial's path (the robot's reference point: a car's rear-axle midpoint, a trailer's axle
+    midpoint) with the robot drawn at ``snapshots`` evenly spaced instants, the stroboscopic view
+    of the paper's Figs. 3, 7 and 11."""
+    path = plane(q, robot is not None)
     ax.plot(*path.T, color=color, linewidth=1.5, label=label)
     if snapshots > 0 and len(q) > 1:
         for i in np.unique(np.linspace(0, len(q) - 1, snapshots).round().astype(int)):
-            draw_pose(ax, q[i], wheelbase, STROBE, alpha=0.35)
+            draw_pose(ax, q[i], robot, STROBE, alpha=0.35)
 
 
 def setup_workspace(ax: Axes, dimension: int | None, title: str) -> None:
@@ -135,13 +183,13 @@ class Canvas:
 
 
 def render_scene(
-    canvas: Canvas, waypoints: Array, wheelbase: float | None, names: Sequence[str], paths: Sequence[Array], title: str
+    canvas: Canvas, waypoints: Array, robot: object, names: Sequence[str], paths: Sequence[Array], title: str
 ) -> npt.NDArray[np.uint8]:
     """An env's frame: the waypoints, the ``paths`` ``(S, nx)`` of the last trials, the last of
-    them stroboscopic."""
+    them stroboscopic (``robot``: the nominal map it is drawn with, ``None`` for a chained plant)."""
     ax = canvas.clear()
-    draw_waypoints(ax, waypoints, wheelbase, names)
+    draw_waypoints(ax, waypoints, robot, names)
     for i, q in enumerate(paths):
-        draw_trial(ax, q, wheelbase, snapshots=8 if i == len(paths) - 1 else 0)
-    setup_workspace(ax, None if wheelbase is not None else waypoints.shape[1], title)
+        draw_trial(ax, q, robot, snapshots=8 if i == len(paths) - 1 else 0)
+    setup_workspace(ax, None if robot is not None else waypoints.shape[1], title)
     return canvas.frame()

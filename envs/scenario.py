@@ -254,7 +254,7 @@ class Scenario:
                 # noise on a trial that halted at the chart's edge may read past it, where z is undefined:
                 # the measurement is taken at the edge
                 edge = np.pi / 2 - CHART_MARGIN
-                q_task[..., 2:4] = np.clip(q_task[..., 2:4], -edge, edge)
+                q_task[..., 2:] = np.clip(q_task[..., 2:], -edge, edge)
             out.update(self._errors(q_task, q_world, target, ""))
         out["q_final"] = q_world
         out["z_final"] = self.to_chained(q_task)

@@ -12,7 +12,6 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.core.car import drawn_wheelbase
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.score import TRUE_KEYS, trial_cost
 from ilc_steering.core.trajectory import Trajectory
@@ -289,14 +288,14 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
 
 class TrialView:
-    """What the envs draw: the waypoints (world frame; ``wheelbase`` [m] for a car's outline,
-    ``None`` for a robot drawn as a point) and the paths of the last trials, with a title line of
+    """What the envs draw: the waypoints (world frame; ``robot`` the nominal map the robot is
+    drawn with, ``None`` for a chained plant, drawn as a point) and the paths of the last trials, with a title line of
     the last trial's errors (Cartesian and orientation where the robot has a pose). Matplotlib is
     imported at the first frame."""
 
-    def __init__(self, waypoints: Array, wheelbase: float | None, names: list[str], has_pose: bool) -> None:
+    def __init__(self, waypoints: Array, robot: object, names: list[str], has_pose: bool) -> None:
         self._waypoints = waypoints
-        self._wheelbase = wheelbase
+        self._robot = robot
         self._names = names
         self._has_pose = has_pose
         self._paths: list[Array] = []
@@ -307,8 +306,7 @@ class TrialView:
     @classmethod
     def of(cls, scenario: Scenario, names: list[str]) -> TrialView:
         """The view of a scenario's waypoints, the robot drawn with its nominal geometry."""
-        wheelbase = drawn_wheelbase(scenario.nominal.chained_map)
-        return cls(scenario.waypoints, wheelbase, names, scenario.kind.has_pose)
+        return cls(scenario.waypoints, scenario.nominal.chained_map, names, scenario.kind.has_pose)
 
     def clear(self) -> None:
         """Forget the trials (the canvas stays)."""
@@ -331,7 +329,7 @@ class TrialView:
         if self._canvas is None:
             self._canvas = Canvas()
         title = label + (f"\n{self._errors}" if self.count else "")
-        return render_scene(self._canvas, self._waypoints, self._wheelbase, self._names, self._paths, title)
+        return render_scene(self._canvas, self._waypoints, self._robot, self._names, self._paths, title)
 
     def close(self) -> None:
         self._canvas = None

@@ -65,7 +65,14 @@ MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc")
 BLACKBOX = ("least_squares", "gauss_newton", "nelder_mead", "cma_es")
 RL = ("ppo", "sac", "td3")
 METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
-SCENARIOS = ("forward_parking", "forward_parking_saturated", "parallel_parking", "forward_parking_noisy")
+SCENARIOS = (
+    "forward_parking",
+    "forward_parking_saturated",
+    "parallel_parking",
+    "forward_parking_noisy",
+    "unicycle_parking",
+    "trailer_bay",
+)
 
 
 @dataclass(frozen=True)

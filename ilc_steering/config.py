@@ -25,9 +25,11 @@ import numpy as np
 from ilc_steering.core.car import CarModel, frame_angle, rotate
 from ilc_steering.core.checks import ParameterError, check_gains, check_jitter, check_noise
 from ilc_steering.core.grid import check_grid
-from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind
+from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind, TrailerPlant, UnicyclePlant
 from ilc_steering.core.profiles import PiecewiseProfile
+from ilc_steering.core.trailer import TrailerModel
 from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.core.unicycle import UnicycleModel
 
 __all__ = [
     "CarPlantConfig",
@@ -40,6 +42,8 @@ __all__ = [
     "SteeringConfig",
     "TaskConfig",
     "ToleranceConfig",
+    "TrailerPlantConfig",
+    "UnicyclePlantConfig",
     "load_config",
     "packaged_configs",
 ]
@@ -144,6 +148,79 @@ class ChainedPlantConfig:
             return ChainedPlant(self.dimension, self.v1_gain, self.v2_gain)
 
 
+@dataclass(frozen=True)
+class UnicyclePlantConfig:
+    model: Literal["unicycle"]
+    wheel_radius: float  # nominal rho [m] of the differential drive, known to the controller
+    axle_width: float  # nominal b [m], the distance between the two driven wheels
+    true_wheel_radius: float  # the simulated robot's rho [m]
+    true_axle_width: float  # the simulated robot's b [m]
+
+    def __post_init__(self) -> None:
+        self.plant()
+
+    @property
+    def dimension(self) -> int:
+        return 3
+
+    @property
+    def kind(self) -> PlantKind:
+        return UnicyclePlant.kind
+
+    def nominal_map(self) -> UnicycleModel:
+        """The geometry the drive assumes."""
+        with _domain():
+            return UnicycleModel(self.wheel_radius, self.axle_width)
+
+    def plant(self) -> UnicyclePlant:
+        """The simulated differential drive: true geometry, driven with the nominal one."""
+        nominal = self.nominal_map()
+        with _domain(names={"wheel_radius": "true_wheel_radius", "axle_width": "true_axle_width"}):
+            true = UnicycleModel(self.true_wheel_radius, self.true_axle_width)
+        return UnicyclePlant(true, nominal)
+
+
+@dataclass(frozen=True)
+class TrailerPlantConfig:
+    model: Literal["car_trailer"]
+    wheelbase: float  # nominal ell [m] of the car, known to the controller
+    wheel_radius: float  # nominal rho [m]
+    hitch_length: float  # nominal d [m], from the car's rear axle (the hitch) to the trailer's axle
+    true_wheelbase: float  # the simulated robot's ell [m]
+    true_wheel_radius: float  # the simulated robot's rho [m]
+    true_hitch_length: float  # the simulated robot's d [m]
+    steering_limit: float | None = None  # bound on |phi| [rad]; None for none
+
+    def __post_init__(self) -> None:
+        self.plant()
+
+    @property
+    def dimension(self) -> int:
+        return 5
+
+    @property
+    def kind(self) -> PlantKind:
+        return TrailerPlant.kind
+
+    def nominal_map(self) -> TrailerModel:
+        """The geometry the controller assumes."""
+        with _domain():
+            return TrailerModel(self.wheelbase, self.wheel_radius, self.hitch_length)
+
+    def plant(self) -> TrailerPlant:
+        """The simulated car and trailer: true geometry, steered with the nominal one."""
+        nominal = self.nominal_map()
+        names = {
+            "wheelbase": "true_wheelbase",
+            "wheel_radius": "true_wheel_radius",
+            "hitch_length": "true_hitch_length",
+        }
+        with _domain(names=names):
+            true = TrailerModel(self.true_wheelbase, self.true_wheel_radius, self.true_hitch_length)
+        with _domain():
+            return TrailerPlant(true, nominal, self.steering_limit)
+
+
 def _profile(leg: SegmentConfig | TaskConfig) -> PiecewiseProfile | TrapezoidProfile:
     if leg.v1_shape == "constant":
         _require(leg.ramp is None, "ramp", "is for v1_shape: trapezoid; with v1_shape: constant leave it out")
@@ -166,7 +243,9 @@ def _check_bound(bound: tuple[float, ...] | None, size: int) -> None:
 
 @dataclass(frozen=True)
 class TaskConfig:
-    start: tuple[float, ...]  # car: x [m], y [m], theta [rad], phi [rad]; chained: z
+    # car: x [m], y [m], theta [rad], phi [rad]; unicycle: x, y, theta; car_trailer: the trailer's x1 [m],
+    # y1 [m], theta1 [rad], then the car's phi [rad] and the hitch angle delta [rad]; chained: z
+    start: tuple[float, ...]
     goal: tuple[float, ...]
     pieces: tuple[float, ...]  # Delta_i [s]; T is their sum
     v1_fixed: tuple[float, ...]  # c12..c1p: v1 on pieces 2..p [m/s for the car]
@@ -278,7 +357,7 @@ class SimulationConfig:
 @dataclass(frozen=True)
 class SteeringConfig:
     name: str
-    plant: CarPlantConfig | ChainedPlantConfig
+    plant: CarPlantConfig | ChainedPlantConfig | UnicyclePlantConfig | TrailerPlantConfig
     task: TaskConfig | CyclicTaskConfig
     learning: LearningConfig
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
@@ -372,7 +451,7 @@ class SteeringConfig:
             _require(
                 cost != "steering_margin" or getattr(self.plant, "steering_limit", None) is not None,
                 "learning.cost",
-                "steering_margin needs a car with plant.steering_limit",
+                "steering_margin needs a robot with plant.steering_limit (a car, a car_trailer)",
             )
             _require(
                 self.legs()[0][1].v2_terms > n - 1,

@@ -26,7 +26,6 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ilc_steering.config import ConfigError, SteeringConfig, load_config
-from ilc_steering.core.car import drawn_wheelbase
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
@@ -63,9 +62,9 @@ class Run:
         return self.kind.has_pose
 
     @property
-    def wheelbase(self) -> float | None:
-        """The drawn car's wheelbase [m] (the nominal one), ``None`` for a robot not drawn as a car."""
-        return drawn_wheelbase(self.config.plant.nominal_map())
+    def robot(self) -> object:
+        """The nominal map the robot is drawn with, ``None`` for a chained plant (drawn as a point)."""
+        return self.config.plant.nominal_map()
 
     @property
     def dimension(self) -> int | None:
@@ -183,13 +182,13 @@ def trajectory_figure(run: Run) -> Figure:
     figure = _figure(6.4, 5.6)
     ax = figure.add_subplot()
     task = run.config.task
-    draw_waypoints(ax, np.array([task.start, task.goal]), run.wheelbase, ["start", "goal"])  # type: ignore[union-attr]
-    draw_trial(ax, run.trajectory(last).q, run.wheelbase, snapshots=10, label=f"trial {last['trial']}")
+    draw_waypoints(ax, np.array([task.start, task.goal]), run.robot, ["start", "goal"])  # type: ignore[union-attr]
+    draw_trial(ax, run.trajectory(last).q, run.robot, snapshots=10, label=f"trial {last['trial']}")
     for k, record in enumerate(dotted):
         draw_pose(
             ax,
             np.asarray(record["final_state"]),
-            run.wheelbase,
+            run.robot,
             FIRST if k == 0 else LATER,
             linestyle=":",
             label=f"end of trial {record['trial']}",
@@ -295,7 +294,7 @@ def path_figure(run: Run, cycles: int = 5) -> Figure:
     shown = [r for r in run.records if r["cycle"] <= cycles]
     figure = _figure(6.4, 5.6)
     ax = figure.add_subplot()
-    draw_waypoints(ax, waypoints, run.wheelbase, ["home", *(f"q{i}" for i in range(1, len(waypoints)))])
+    draw_waypoints(ax, waypoints, run.robot, ["home", *(f"q{i}" for i in range(1, len(waypoints)))])
     colors = matplotlib.colormaps["viridis"]
     last_cycle = shown[-1]["cycle"]
     arrivals: dict[int, int] = {}  # waypoint index -> arrivals numbered there so far

@@ -53,12 +53,12 @@ def test_without_spare_coefficients_or_a_limit_the_cost_is_refused():
         NullSpaceCost(
             NominalModel(N, PiecewiseProfile((2.0, 2.0), (0.5,), 3), MODEL.z_start, MODEL.z_goal), "curvature"
         )
-    with pytest.raises(ValueError, match="steering_margin needs a car with a steering_limit"):
+    with pytest.raises(ValueError, match="steering_margin needs a robot with a steering_limit"):
         NullSpaceCost(MODEL, "steering_margin")
     config = load_config("forward_parking")
     data = dataclasses.asdict(config)
     data["learning"]["cost"] = "steering_margin"
-    with pytest.raises(ConfigError, match=r"learning\.cost: steering_margin needs a car with plant\.steering_limit"):
+    with pytest.raises(ConfigError, match=r"learning\.cost: steering_margin needs a robot with plant\.steering_limit"):
         load_config(data)
     data["learning"]["cost"] = "curvature"
     with pytest.raises(ConfigError, match=r"learning\.cost: curvature needs task\.v2_terms > n - 1 = 3"):
@@ -80,3 +80,21 @@ def test_simulation_2_with_five_terms_and_the_steering_margin():
     # converge with in 8 trials, and beat the paper's three terms (8 trials)
     assert run("none", 5) is None
     assert run("steering_margin", 5) is not None and run("steering_margin", 5) <= 6
+
+
+def test_path_length_on_the_car_converges_and_shortens_the_true_path():
+    """The least nominal path lies at huge coefficients (drive straight, then turn on the spot) where
+    the true car, 10 % off, goes astray: the search box (COST_BOX) keeps the law converging."""
+    base = load_config("forward_parking")
+    task = dataclasses.replace(base.task, v2_terms=5)
+
+    def run(cost):
+        config = dataclasses.replace(base, task=task, learning=dataclasses.replace(base.learning, cost=cost))
+        result = run_ilc(config, trials=6, trajectories=True)
+        last = result.trials[-1]
+        path = np.sum(np.linalg.norm(np.diff(last.trajectory.q[:, :2], axis=0), axis=1))
+        return result.converged_at, path
+
+    (plain_trials, plain_path), (cost_trials, cost_path) = run("none"), run("path_length")
+    assert cost_trials == plain_trials == 4
+    assert cost_path < 0.97 * plain_path

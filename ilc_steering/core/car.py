@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from ilc_steering.core.checks import require_positive
 
-__all__ = ["CarModel", "car_velocity", "chained_inputs", "check_chart", "drawn_wheelbase", "frame_angle", "rotate"]
+__all__ = ["CarModel", "car_velocity", "chained_inputs", "check_chart", "frame_angle", "rotate"]
 
 Array = npt.NDArray[np.float64]
 
@@ -89,12 +89,6 @@ class CarModel:
         q = np.asarray(q, dtype=np.float64)
         u1, u2 = chained_inputs(q[..., 2], q[..., 3], np.asarray(v1), np.asarray(v2), self.wheelbase, self.wheel_radius)
         return np.asarray(u1), np.asarray(u2)
-
-
-def drawn_wheelbase(chained_map: object) -> float | None:
-    """The wheelbase [m] a robot is drawn with: the nominal one of a car's map, ``None`` for any other
-    (a chained plant is drawn as a point)."""
-    return chained_map.wheelbase if isinstance(chained_map, CarModel) else None
 
 
 def check_chart(q: Array) -> None:

@@ -9,7 +9,9 @@ trial spent) to fit :math:`\theta` to the trials it has measured and to invert t
   and :math:`\tilde\rho = \rho e^{\theta_2}`, the wheelbase and wheel radius of eq. 3 (the
   controller keeps the nominal ones in eqs. 4-5), with the robot's known steering limit;
 - the chained form (no map): the input gains :math:`g_1 = e^{\theta_1}` on ``v1`` and
-  :math:`g_2 = e^{\theta_2}` on ``v2`` (eq. 37).
+  :math:`g_2 = e^{\theta_2}` on ``v2`` (eq. 37);
+- any other robot: the two true parameters its plant's ``with_true_factors`` scales (a
+  unicycle's wheel radius and axle width, a car-trailer's wheelbase and wheel radius).
 
 At :math:`\theta = 0` the family is the nominal model itself, its final states those of eq. 23
 (to the integrator's 1e-9), except that it keeps the steering stop, which eq. 23 ignores.
@@ -20,11 +22,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.core.car import CarModel
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import CarPlant, ChainedPlant
+from ilc_steering.core.plants import Plant, nominal_plant
 from ilc_steering.core.simulate import simulate
 
 __all__ = ["MAX_LOG_RATIO", "ModelFamily"]
@@ -49,16 +50,9 @@ class ModelFamily:
     def __init__(self, model: NominalModel, max_step: float = DEFAULT_MAX_STEP) -> None:
         self.model = model
         self.max_step = max_step
-        chained_map = model.chained_map
-        if chained_map is None:
-            self.names: tuple[str, ...] = ("v1_gain", "v2_gain")
-            z0 = np.asarray(model.z_start, dtype=np.float64)
-        elif isinstance(chained_map, CarModel):
-            self.names = ("wheelbase_ratio", "wheel_radius_ratio")
-            z0 = chained_map.from_chained(model.z_start)
-        else:
-            raise ValueError(f"no model family for a robot mapped by {type(chained_map).__name__}")
-        self._q0 = z0
+        self._nominal = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
+        self.names: tuple[str, ...] = self._nominal.factor_names
+        self._q0 = self.to_configuration(model.z_start)
 
     @property
     def size(self) -> int:
@@ -69,14 +63,10 @@ class ModelFamily:
         """The ratios (true over nominal) that ``theta`` stands for, by name."""
         return {name: float(np.exp(t)) for name, t in zip(self.names, theta)}
 
-    def plant(self, theta: Array) -> CarPlant | ChainedPlant:
+    def plant(self, theta: Array) -> Plant:
         """The hypothesised plant with parameters ``theta``."""
         ratio = np.exp(np.clip(np.asarray(theta, dtype=np.float64), -MAX_LOG_RATIO, MAX_LOG_RATIO))
-        chained_map = self.model.chained_map
-        if isinstance(chained_map, CarModel):
-            true = CarModel(chained_map.wheelbase * ratio[0], chained_map.wheel_radius * ratio[1])
-            return CarPlant(true, chained_map, self.model.steering_limit)
-        return ChainedPlant(self.model.dimension, float(ratio[0]), float(ratio[1]))
+        return self._nominal.with_true_factors(ratio)
 
     def configurations(self, theta: Array, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
         """Final configurations ``(B, nq)`` (task frame; ``z`` for the chained form) of trials with

@@ -37,6 +37,11 @@ there: the steering limit; the play engaging; ``phi_s`` turning back (its rate c
 the clip formula restarts); and each encoder pulse, ``psi`` leaving ``[0, 2 pi / N]``,
 which jumps the estimate by the nominal odometry of an arc of ``2 pi rho_nominal / N``.
 
+The unicycle (:data:`~ilc_steering.core.plants.UNICYCLE_FIELD`) and the car towing a trailer
+(:data:`~ilc_steering.core.plants.TRAILER_FIELD`, whose fourth state is the steering command,
+limited as the car's) have fields of their own; the trailer's is compiled from the functions of
+:mod:`ilc_steering.core.trailer`.
+
 Chart guard: the controller's transform (eqs. 4-5) breaks down as ``|theta|`` or ``|phi|``
 approaches ``pi/2`` in the task frame. A step that ends within ``CHART_MARGIN`` rad of it (or
 beyond: a stiff step can throw ``theta`` far past it), or with a non-finite state, is discarded
@@ -60,6 +65,9 @@ from ilc_steering.core.plants import CAR_LAB_FIELD as CAR_LAB
 from ilc_steering.core.plants import CAR_SERVO_FIELD as CAR_SERVO
 from ilc_steering.core.plants import CHAINED_FIELD as CHAINED
 from ilc_steering.core.plants import CHART_MARGIN
+from ilc_steering.core.plants import TRAILER_FIELD as TRAILER
+from ilc_steering.core.plants import UNICYCLE_FIELD as UNICYCLE
+from ilc_steering.core.trailer import trailer_inputs, trailer_velocity
 
 __all__ = ["LEFT_CHART", "OK", "closed_loop_velocity", "integrate"]
 
@@ -194,6 +202,34 @@ def _rhs_car_lab(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
         out[i] = 0.0
 
 
+# The car-trailer's transformation and kinematics are compiled from the very functions of
+# ilc_steering.core.trailer (plain arithmetic and ufuncs), so its derivation lives in one place.
+_trailer_inputs = njit(cache=True, inline="always")(trailer_inputs)
+_trailer_velocity = njit(cache=True, inline="always")(trailer_velocity)
+
+
+@njit(cache=True, inline="always")
+def _rhs_unicycle(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
+    # v = v1 / cos(theta), omega = v2 cos^2(theta) realised by a drive with the true rho~, b~
+    k = params[2] / params[0]
+    c = np.cos(x[2])
+    out[0] = k * v1
+    out[1] = k * v1 * np.tan(x[2])
+    out[2] = k * params[1] / params[3] * v2 * c * c
+
+
+@njit(cache=True, inline="always")
+def _rhs_trailer(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
+    phi = min(max(x[3], -params[4]), params[4])
+    u1, u2 = _trailer_inputs(x[2], phi, x[4], v1, v2, params[0], params[1], params[5])
+    dx, dy, dtheta, dphi, ddelta = _trailer_velocity(x[2], phi, x[4], u1, u2, params[2], params[3], params[6])
+    out[0] = dx
+    out[1] = dy
+    out[2] = dtheta
+    out[3] = dphi
+    out[4] = ddelta
+
+
 @njit(cache=True, inline="always")
 def _rhs_chained(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
     w1 = params[0] * v1
@@ -226,7 +262,7 @@ def _rk(rhs, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-unty
 def _step(rhs, model, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
     """One step from local time ``tau``, split where ``|phi_c|`` crosses the steering limit."""
     _rk(rhs, n, params, x, tau, h, v1c, v2c, out, work)
-    if model != CAR and model != CAR_SERVO:
+    if model != CAR and model != CAR_SERVO and model != TRAILER:
         return
     limit = params[4]
     beyond = abs(x[3]) > limit
@@ -373,6 +409,10 @@ def _in_chart(model, params, x):  # type: ignore[no-untyped-def]
         phi_s = _lab_servo(params, x)
         wheel = _lab_wheel(params, x, phi_s) + params[5]
         return max(abs(x[2]), abs(x[10]), abs(phi_s), abs(wheel)) < _CHART_LIMIT
+    if model == UNICYCLE:
+        return abs(x[2]) < _CHART_LIMIT
+    if model == TRAILER:
+        return max(abs(x[2]), min(abs(x[3]), params[4]), abs(x[4])) < _CHART_LIMIT
     return True
 
 
@@ -421,6 +461,16 @@ def _car_servo_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type
 @njit(cache=True)
 def _car_lab_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
     return _drive(_rhs_car_lab, _lab_step, CAR_LAB, 12, params, x0, durations, steps, v1c, v2c, out, traj)
+
+
+@njit(cache=True)
+def _unicycle_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+    return _drive(_rhs_unicycle, _step, UNICYCLE, 3, params, x0, durations, steps, v1c, v2c, out, traj)
+
+
+@njit(cache=True)
+def _trailer_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
+    return _drive(_rhs_trailer, _step, TRAILER, 5, params, x0, durations, steps, v1c, v2c, out, traj)
 
 
 @njit(cache=True)
@@ -476,11 +526,37 @@ def _parallel_chained(params, x0, durations, steps, v1c, v2c, out, status, traj)
         status[b] = _chained_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
+@njit(cache=True)
+def _serial_unicycle(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in range(x0.shape[0]):
+        status[b] = _unicycle_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True, parallel=True)
+def _parallel_unicycle(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in prange(x0.shape[0]):
+        status[b] = _unicycle_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True)
+def _serial_trailer(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in range(x0.shape[0]):
+        status[b] = _trailer_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
+@njit(cache=True, parallel=True)
+def _parallel_trailer(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
+    for b in prange(x0.shape[0]):
+        status[b] = _trailer_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+
+
 _KERNELS = {
     CAR: (_serial_car, _parallel_car),
     CAR_SERVO: (_serial_car_servo, _parallel_car_servo),
     CAR_LAB: (_serial_car_lab, _parallel_car_lab),
     CHAINED: (_serial_chained, _parallel_chained),
+    UNICYCLE: (_serial_unicycle, _parallel_unicycle),
+    TRAILER: (_serial_trailer, _parallel_trailer),
 }
 
 

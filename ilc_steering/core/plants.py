@@ -23,6 +23,8 @@ import numpy.typing as npt
 
 from ilc_steering.core.car import CarModel, check_chart
 from ilc_steering.core.checks import require
+from ilc_steering.core.trailer import TrailerModel, check_trailer_chart
+from ilc_steering.core.unicycle import UnicycleModel, check_unicycle_chart
 
 __all__ = [
     "CAR_FIELD",
@@ -35,10 +37,15 @@ __all__ = [
     "MAX_PULSES",
     "MAX_STEERING_OFFSET",
     "PLANTS",
+    "TRAILER_FIELD",
+    "UNICYCLE_FIELD",
     "CarPlant",
     "ChainedPlant",
     "Plant",
     "PlantKind",
+    "TrailerPlant",
+    "UnicyclePlant",
+    "nominal_plant",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -61,6 +68,10 @@ CAR_LAB_FIELD = 3
 """Kernel id of the lab robot (section 5): the servo perturbations, play in the steering linkage
 and a heading dead-reckoned from wheel encoders: twelve states ``(x, y, theta, phi_c, phi_s,
 omega, A, psi, x_hat, y_hat, theta_hat, k)`` (see :mod:`ilc_steering.core.integrate`)."""
+UNICYCLE_FIELD = 4
+"""Kernel id of the closed-loop unicycle (a differential drive with its true wheel radius and axle width)."""
+TRAILER_FIELD = 5
+"""Kernel id of the closed-loop car towing a trailer: states ``(x1, y1, theta1, phi_c, delta)``."""
 MAX_BACKLASH = 0.2
 """[rad] the largest ``steering_backlash`` of a car plant."""
 MAX_PULSES = 100_000
@@ -92,6 +103,10 @@ class PlantKind:
 
 CAR = PlantKind("car", True, ("x [m]", "y [m]", "θ [rad]", "φ [rad]"), ("u1 [rad/s]", "u2 [rad/s]"))
 CHAINED = PlantKind("chained", False, (), ("v1", "v2"))
+UNICYCLE = PlantKind("unicycle", True, ("x [m]", "y [m]", "θ [rad]"), ("v [m/s]", "ω [rad/s]"))
+CAR_TRAILER = PlantKind(
+    "car_trailer", True, ("x1 [m]", "y1 [m]", "θ1 [rad]", "φ [rad]", "δ [rad]"), ("u1 [rad/s]", "u2 [rad/s]")
+)
 
 
 def _check_magnitude(q: Array) -> None:
@@ -99,11 +114,39 @@ def _check_magnitude(q: Array) -> None:
     require(largest <= MAX_COORDINATE, "configuration", f"entries must be within +-{MAX_COORDINATE:g}, got {largest:g}")
 
 
+def _check_angles(q: Array, names: str) -> None:
+    """The angles ``q[..., 2:]`` (task frame) ``CHART_MARGIN`` inside ``pi/2``, where a trial stops."""
+    angles = np.abs(np.asarray(q, dtype=np.float64)[..., 2:])
+    require(
+        bool(np.all(angles < pi / 2 - CHART_MARGIN)),
+        "configuration",
+        f"{names} must stay {CHART_MARGIN} rad inside pi/2 (where a trial stops), got {np.max(angles):.6g} rad",
+    )
+
+
+def _check_limit(phi: Array, limit: float | None) -> None:
+    require(
+        limit is None or bool(np.all(np.abs(phi) <= limit)),
+        "phi",
+        f"{np.asarray(phi).tolist()} rad exceeds the steering limit of {limit} rad",
+    )
+
+
+def _check_steering_limit(limit: float | None) -> None:
+    require(
+        limit is None or (isfinite(limit) and 0 < limit < pi / 2),
+        "steering_limit",
+        f"must be in (0, pi/2) rad or null, got {limit}",
+    )
+
+
 @runtime_checkable
 class Plant(Protocol):
     """What a simulated robot provides (``tests/test_protocols.py`` checks every entry of ``PLANTS``)."""
 
     kind: ClassVar[PlantKind]
+    factor_names: ClassVar[tuple[str, str]]
+    """The two true parameters :meth:`with_true_factors` scales (the names of a model family's ratios)."""
 
     @property
     def state_dim(self) -> int:
@@ -133,8 +176,8 @@ class Plant(Protocol):
         ...
 
     def with_true_factors(self, factors: Array) -> Plant:
-        """The plant with its two true parameters multiplied by ``factors`` (a car's wheelbase and
-        wheel radius, the chained form's gains): a trial's ``parameter_jitter``."""
+        """The plant with its two true parameters multiplied by ``factors`` (those named by
+        ``factor_names``): a trial's ``parameter_jitter``, and a model family's hypotheses."""
         ...
 
 
@@ -174,6 +217,7 @@ class CarPlant:
     """
 
     kind: ClassVar[PlantKind] = CAR
+    factor_names: ClassVar[tuple[str, str]] = ("wheelbase_ratio", "wheel_radius_ratio")
     true: CarModel
     nominal: CarModel
     steering_limit: float | None = None
@@ -184,12 +228,7 @@ class CarPlant:
     encoder_pulses: int = 0
 
     def __post_init__(self) -> None:
-        limit = self.steering_limit
-        require(
-            limit is None or (isfinite(limit) and 0 < limit < pi / 2),
-            "steering_limit",
-            f"must be in (0, pi/2) rad or null, got {limit}",
-        )
+        _check_steering_limit(self.steering_limit)
         offset = self.steering_offset
         require(
             isfinite(offset) and abs(offset) <= MAX_STEERING_OFFSET,
@@ -262,20 +301,8 @@ class CarPlant:
         """The chart of eq. 4 (``|theta|, |phi| < pi/2`` in the task frame) and the steering limit."""
         check_chart(q)
         _check_magnitude(q)
-        angles = np.abs(np.asarray(q, dtype=np.float64)[..., 2:4])
-        require(
-            bool(np.all(angles < pi / 2 - CHART_MARGIN)),
-            "configuration",
-            f"|theta| and |phi| must stay {CHART_MARGIN} rad inside pi/2 (where a trial stops), "
-            f"got {np.max(angles):.6g} rad",
-        )
-        phi = np.asarray(q, dtype=np.float64)[..., 3]
-        limit = self.steering_limit
-        require(
-            limit is None or bool(np.all(np.abs(phi) <= limit)),
-            "phi",
-            f"{np.asarray(phi).tolist()} rad exceeds the steering limit of {limit} rad",
-        )
+        _check_angles(q, "|theta| and |phi|")
+        _check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
 
     def with_true_factors(self, factors: Array) -> CarPlant:
         true = CarModel(self.true.wheelbase * float(factors[0]), self.true.wheel_radius * float(factors[1]))
@@ -298,6 +325,7 @@ class ChainedPlant:
     ``v1`` term and ``v2_gain * v2`` drives ``z2`` (a perturbation of the form of eq. 37)."""
 
     kind: ClassVar[PlantKind] = CHAINED
+    factor_names: ClassVar[tuple[str, str]] = ("v1_gain", "v2_gain")
     dimension: int
     v1_gain: float = 1.0
     v2_gain: float = 1.0
@@ -339,5 +367,121 @@ class ChainedPlant:
         return CHAINED_FIELD, np.array([self.v1_gain, self.v2_gain])
 
 
-PLANTS: dict[str, type[CarPlant] | type[ChainedPlant]] = {"car": CarPlant, "chained": ChainedPlant}
+@dataclass(frozen=True)
+class UnicyclePlant:
+    """A differential-drive robot (:mod:`ilc_steering.core.unicycle`) with its true wheel radius
+    and axle width, its commanded forward speed and turn rate turned into wheel speeds with the
+    nominal ones. The state is the configuration ``(x, y, theta)``."""
+
+    kind: ClassVar[PlantKind] = UNICYCLE
+    factor_names: ClassVar[tuple[str, str]] = ("wheel_radius_ratio", "axle_width_ratio")
+    true: UnicycleModel
+    nominal: UnicycleModel
+
+    @property
+    def state_dim(self) -> int:
+        return 3
+
+    def initial_state(self, q: Array) -> Array:
+        """The state is the configuration."""
+        return np.array(q, dtype=np.float64)
+
+    def configuration(self, x: Array) -> Array:
+        """The state is the configuration."""
+        return np.asarray(x, dtype=np.float64)
+
+    def estimate(self, x: Array) -> Array:
+        """The configuration, measured exactly."""
+        return np.asarray(x, dtype=np.float64)
+
+    def check_configuration(self, q: Array) -> None:
+        """The chart (``|theta| < pi/2`` in the task frame)."""
+        check_unicycle_chart(q)
+        _check_magnitude(q)
+        _check_angles(q, "|theta|")
+
+    def with_true_factors(self, factors: Array) -> UnicyclePlant:
+        true = UnicycleModel(self.true.wheel_radius * float(factors[0]), self.true.axle_width * float(factors[1]))
+        return replace(self, true=true)
+
+    def kernel(self) -> tuple[int, Array]:
+        nominal, true = self.nominal, self.true
+        return UNICYCLE_FIELD, np.array([nominal.wheel_radius, nominal.axle_width, true.wheel_radius, true.axle_width])
+
+
+@dataclass(frozen=True)
+class TrailerPlant:
+    """The car towing one trailer (:mod:`ilc_steering.core.trailer`) with its true geometry,
+    steered through the nominal chained form. ``steering_limit`` bounds ``|phi|`` [rad] as for
+    :class:`CarPlant`: the state's fourth entry is the servo's command, which winds past the stop
+    while the wheel rests there. State ``(x1, y1, theta1, phi_c, delta)``."""
+
+    kind: ClassVar[PlantKind] = CAR_TRAILER
+    factor_names: ClassVar[tuple[str, str]] = ("wheelbase_ratio", "wheel_radius_ratio")
+    true: TrailerModel
+    nominal: TrailerModel
+    steering_limit: float | None = None
+
+    def __post_init__(self) -> None:
+        _check_steering_limit(self.steering_limit)
+
+    @property
+    def state_dim(self) -> int:
+        return 5
+
+    def initial_state(self, q: Array) -> Array:
+        """At rest at ``q``: the commanded steering angle is ``phi``."""
+        return np.array(q, dtype=np.float64)
+
+    def configuration(self, x: Array) -> Array:
+        """The configurations, the wheel angle the clipped command."""
+        q = np.array(x, dtype=np.float64)
+        if self.steering_limit is not None:
+            q[..., 3] = np.clip(q[..., 3], -self.steering_limit, self.steering_limit)
+        return q
+
+    def estimate(self, x: Array) -> Array:
+        """The configurations, measured exactly."""
+        return self.configuration(x)
+
+    def check_configuration(self, q: Array) -> None:
+        """The chart (``|theta1|, |phi|, |delta| < pi/2`` in the task frame; no jackknife) and the steering limit."""
+        check_trailer_chart(q)
+        _check_magnitude(q)
+        _check_angles(q, "|theta1|, |phi| and the hitch angle |delta|")
+        _check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
+
+    def with_true_factors(self, factors: Array) -> TrailerPlant:
+        t = self.true
+        return replace(
+            self, true=TrailerModel(t.wheelbase * float(factors[0]), t.wheel_radius * float(factors[1]), t.hitch_length)
+        )
+
+    def kernel(self) -> tuple[int, Array]:
+        limit = np.inf if self.steering_limit is None else self.steering_limit
+        n, t = self.nominal, self.true
+        params = [n.wheelbase, n.wheel_radius, t.wheelbase, t.wheel_radius, limit, n.hitch_length, t.hitch_length]
+        return TRAILER_FIELD, np.array(params)
+
+
+PLANTS: dict[str, type[CarPlant] | type[ChainedPlant] | type[UnicyclePlant] | type[TrailerPlant]] = {
+    "car": CarPlant,
+    "chained": ChainedPlant,
+    "unicycle": UnicyclePlant,
+    "car_trailer": TrailerPlant,
+}
 """``plant.model`` -> plant class."""
+
+
+def nominal_plant(chained_map: object, dimension: int, steering_limit: float | None = None) -> Plant:
+    """The plant the controller assumes: a robot whose true geometry is its nominal map's (a
+    chained plant of ``dimension`` with unit gains for ``chained_map=None``)."""
+    if chained_map is None:
+        return ChainedPlant(dimension)
+    if isinstance(chained_map, CarModel):
+        return CarPlant(chained_map, chained_map, steering_limit)
+    if isinstance(chained_map, UnicycleModel):
+        return UnicyclePlant(chained_map, chained_map)
+    if isinstance(chained_map, TrailerModel):
+        return TrailerPlant(chained_map, chained_map, steering_limit)
+    raise ValueError(f"no plant for a robot mapped by {type(chained_map).__name__}")

@@ -16,10 +16,12 @@ import numpy.typing as npt
 from scipy.integrate import solve_ivp
 
 from ilc_steering.core.car import car_velocity, chained_inputs
-from ilc_steering.core.plants import CHART_MARGIN, CarPlant
+from ilc_steering.core.plants import CHART_MARGIN, CarPlant, TrailerPlant, UnicyclePlant
 from ilc_steering.core.profiles import InputProfile
+from ilc_steering.core.trailer import trailer_velocity
+from ilc_steering.core.unicycle import unicycle_velocity
 
-__all__ = ["car_field", "car_trial", "lab_car_trial", "reference_trial"]
+__all__ = ["car_field", "car_trial", "lab_car_trial", "reference_trial", "trailer_trial", "unicycle_trial"]
 
 Array = npt.NDArray[np.float64]
 Field = Callable[[float, Array], Array]
@@ -93,6 +95,47 @@ def car_trial(plant: CarPlant, profile: InputProfile, x0: Array, c: Array, rtol:
         return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))
 
     return reference_trial(car_field(plant, profile, c), x0, profile.breakpoints, limit, rtol, chart)
+
+
+def unicycle_trial(plant: UnicyclePlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
+    """The final state of one trial of the unicycle ``plant`` from ``x0``: the nominal map's
+    ``(v, omega)`` turned into wheel speeds with the nominal geometry, the wheels moving the
+    true robot (its own wheel radius and axle width)."""
+    nominal, true, chained_map = plant.nominal, plant.true, plant.nominal
+
+    def field(t: float, q: Array) -> Array:
+        v1, v2 = profile.evaluate(c, np.array(t))
+        v, omega = chained_map.inputs(q, float(v1), float(v2))
+        right = (v + 0.5 * nominal.axle_width * omega) / nominal.wheel_radius
+        left = (v - 0.5 * nominal.axle_width * omega) / nominal.wheel_radius
+        speed = 0.5 * true.wheel_radius * (right + left)
+        turn = true.wheel_radius * (right - left) / true.axle_width
+        return np.array(unicycle_velocity(q[2], speed, turn), dtype=np.float64)
+
+    def chart(t: float, x: Array) -> float:
+        return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))
+
+    return reference_trial(field, x0, profile.breakpoints, rtol=rtol, chart=chart)
+
+
+def trailer_trial(plant: TrailerPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
+    """The final state of one trial of the car-trailer ``plant`` from ``x0``: the nominal
+    ``u = beta(q) v`` at the measured configuration (the wheel at the stop when saturated), the
+    car and trailer moving with their true geometry."""
+    limit = np.inf if plant.steering_limit is None else plant.steering_limit
+    true = plant.true
+
+    def field(t: float, x: Array) -> Array:
+        v1, v2 = profile.evaluate(c, np.array(t))
+        q = plant.configuration(x)
+        u1, u2 = plant.nominal.inputs(q, float(v1), float(v2))
+        velocity = trailer_velocity(q[2], q[3], q[4], u1, u2, true.wheelbase, true.wheel_radius, true.hitch_length)
+        return np.array(velocity, dtype=np.float64)
+
+    def chart(t: float, x: Array) -> float:
+        return float(np.pi / 2 - CHART_MARGIN - max(abs(x[2]), abs(x[4]), min(abs(x[3]), limit)))
+
+    return reference_trial(field, x0, profile.breakpoints, limit, rtol, chart)
 
 
 def lab_car_trial(plant: CarPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
