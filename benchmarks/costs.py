@@ -23,7 +23,7 @@ import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.costs import NullSpaceCost
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig, TaskConfig, load_config
 from ilc_steering.envs.rendering import draw_trial, draw_waypoints, setup_workspace
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import check_output_dir
@@ -55,9 +55,12 @@ class Args:
 
 
 def with_terms(name: str, terms: int, cost: str) -> SteeringConfig:
+    """The packaged one-trial task ``name`` with ``terms`` coefficients of ``v2`` and ``learning.cost``."""
     config = load_config(name)
+    assert isinstance(config.task, TaskConfig)
     task = dataclasses.replace(config.task, v2_terms=terms, action_bound=None)
-    return dataclasses.replace(config, task=task, learning=dataclasses.replace(config.learning, cost=cost))
+    learning = dataclasses.replace(config.learning, cost=cost)  # type: ignore[arg-type]  # checked on loading
+    return dataclasses.replace(config, task=task, learning=learning)
 
 
 def summary(result: RunResult, term: NullSpaceCost) -> dict[str, Any]:
