@@ -84,7 +84,7 @@ def figure(name: str, cost: str, plain: RunResult, costly: RunResult, rows: dict
     fig = Figure(figsize=(11.0, 4.8), dpi=100)
     axes = fig.subplots(1, 2)
     task: Any = config.task
-    for ax, result, label in ((axes[0], plain, "plain eqs. 33-34"), (axes[1], costly, f"cost: {cost}")):
+    for ax, result, label in ((axes[0], plain, "plain eqs. 33-34"), (axes[1], costly, "with the cost")):
         last = result.trials[-1]
         assert last.trajectory is not None
         draw_waypoints(ax, np.array([task.start, task.goal]), robot, ["start", "goal"])
@@ -133,7 +133,9 @@ def main(args: Args) -> list[dict[str, Any]]:
             f"{r['plain_cost']:.4g}",
             f"{r['cost_cost']:.4g}",
             f"{100 * (r['cost_cost'] / r['plain_cost'] - 1):+.1f} %" if r["plain_cost"] else "-",
-            f"{r['plain_peak_phi_deg']:.1f} / {r['cost_peak_phi_deg']:.1f}",
+            "-"
+            if np.isnan(r["plain_peak_phi_deg"])
+            else f"{r['plain_peak_phi_deg']:.1f} / {r['cost_peak_phi_deg']:.1f}",
         ]
         for r in rows
     ]
