@@ -92,4 +92,4 @@ def test_compare_quick_runs_every_method(tmp_path, capsys):
         assert f"| forward_parking | {method} |" in table
     for method in ("ppo", "sac", "td3"):
         assert f"| forward_parking_noisy | {method} |" in table
-    assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 4 * 11 * 2  # priors, scenarios, methods, seeds
+    assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 6 * 11 * 2  # priors, scenarios, methods, seeds
