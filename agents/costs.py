@@ -76,8 +76,7 @@ class NullSpaceCost:
     def __init__(self, model: NominalModel, name: str) -> None:
         if name not in COSTS[1:]:
             raise ValueError(f"learning.cost must be one of {list(COSTS)}, got {name!r}")
-        car = model.chained_map is not None
-        if name == "steering_margin" and (not car or model.steering_limit is None):
+        if name == "steering_margin" and (model.chained_map is None or model.steering_limit is None):
             raise ValueError("learning.cost steering_margin needs a robot with a steering_limit")
         if model.profile.v2_terms <= model.dimension - 1:
             raise ValueError(

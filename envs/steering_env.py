@@ -107,7 +107,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     ## Description
 
-    The robot (the car-like robot of eq. 3, or the chained form of eq. 1) starts at the task's
+    The robot (the car-like robot of eq. 3, a unicycle, a car towing a trailer, or the chained
+    form of eq. 1; ``plant.model``) starts at the task's
     start configuration. The action is the coefficient vector ``c = (c11, c21, ..., c2q)`` of the
     input profile of eqs. 15-17: ``v1`` is ``c11`` on the first piece and fixed on the others,
     ``v2(t) = sum_j c2j (t - t_{i-1})**(j-1)`` on piece ``i``. For the car, the controller turns
@@ -147,11 +148,14 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     | 0..n-1 | start ``z(0)`` in chained coordinates (nominal map, task frame) | mixed | -b | b |
     | n..2n-1 | goal ``z^d`` in chained coordinates | mixed | -b | b |
 
-    For the car (n = 4): ``z = (x [m], tan(phi)/(ell cos^3 theta) [1/m], tan(theta), y [m])``.
+    For the car (n = 4): ``z = (x [m], tan(phi)/(ell cos^3 theta) [1/m], tan(theta), y [m])``; for
+    the unicycle (n = 3): ``z = (x, tan(theta), y)``; for the car-trailer (n = 5) the chained form
+    of :mod:`ilc_steering.core.trailer`, ending ``(tan(theta1), y1)``.
 
     ## Rewards
 
-    Minus the weighted final error, as measured. Car: ``-(cartesian_error / 1 m +
+    Minus the weighted final error, as measured. A robot with a pose (car, unicycle, car-trailer:
+    the trailer's pose): ``-(cartesian_error / 1 m +
     orientation_error / 1 rad)``. Chained plant: ``-||z^d - z(T)||``. A trial that left the chart
     (see Episode End) scores minus its error where it halted plus a penalty,
     ``ilc_steering.core.score.OFF_CHART_PENALTY`` (1000), so that halting early never pays.
@@ -164,7 +168,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     Every episode ends after its one step: ``terminated=True``, ``truncated=False``.
     A trial that drives the car within ``1e-3`` rad of ``|theta|`` or ``|phi| = pi/2`` (where
-    eqs. 4-5 break down) stops there; ``info["left_chart"]`` is then ``True``.
+    eqs. 4-5 break down; the car-trailer also of its hitch angle ``|delta| = pi/2``, the
+    jackknife) stops there; ``info["left_chart"]`` is then ``True``.
 
     ## Info
 
