@@ -6,14 +6,22 @@ every coefficient perturbed by 10%, seeded: the kind of trial an optimizer runs)
 - ``solve_ivp(method="DOP853", rtol=atol=1e-8)``, one call per trial: the reference speed;
 - ``env.step`` of :class:`~ilc_steering.envs.steering_env.ChainedSteeringEnv`, one trial per call,
   plain, with ``record_trajectory=True``, and followed by ``render()`` (``rgb_array``);
+- ``env.step`` through ``gym.make`` (with the wrappers it adds: order enforcing, the passive
+  checker), one trial per call;
 - ``step`` of :class:`~ilc_steering.envs.steering_vector_env.ChainedSteeringVectorEnv` at
-  each batch size ``N``, ``N`` trials per call;
+  each batch size ``N``, ``N`` trials per call, and at the largest ``N`` with a different true
+  plant per trial (``true_factors``);
+- the kernels alone at each ``N``: the batched car kernel (:mod:`ilc_steering.core.tangent`)
+  and the one it replaced (``integrate(..., angles=True)``), timed in alternation in the same
+  run: the speed-up of the new one is their ratio;
 - for every path, the largest final-state difference from ``solve_ivp`` at rtol = atol = 1e-12
   (restarted at every steering-limit crossing) over the first trials, and how far that reference
   is from itself at rtol = 1e-13;
 - the peak memory traced (``tracemalloc``) during one call, and the process's peak RSS;
 - numba's compile time: the first trial in a fresh process with an empty cache, and with the
-  cache that run wrote.
+  cache that run wrote; and the first ``ilc-steering run forward_parking`` with an empty cache
+  (the whole command: interpreter, imports, compile, learning), then with the cache;
+- a robustness map: ``ilc-steering sweep forward_parking`` (the paper's law on a 41 x 41 grid).
 
 Times are medians over ``repeats``; speed-ups are against the reference timed in the same run.
 
@@ -31,21 +39,32 @@ import resource
 import subprocess
 import sys
 import tempfile
+import time
 import tracemalloc
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from ilc_steering.config import load_config
+from ilc_steering.core.grid import steps_per_span
+from ilc_steering.core.integrate import integrate
 from ilc_steering.core.reference import car_trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
-from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, ChainedSteeringVectorEnv
 from ilc_steering.tables import markdown_table, median_seconds, write_results
 
-TARGETS = {"scalar_ms": 0.3, "scalar_speedup": 15.0, "batched_per_s": 20_000.0, "batched_size": 8192, "error": 1e-9}
+TARGETS = {
+    "gym_make_step_ms": 0.1,
+    "batched_speedup_over_angles": 4.0,
+    "batched_speedup_over_solve_ivp": 500.0,
+    "first_run_s": 10.0,
+    "sweep_41x41_s": 60.0,
+    "error": 1e-9,
+}
 
 
 @dataclass(frozen=True)
@@ -67,7 +86,9 @@ class Args:
     accuracy_trials: int = 8
     """Trials compared with solve_ivp at rtol=1e-12, per task and path."""
     compile_time: bool = True
-    """Also time numba's compilation in fresh processes (about 15 s)."""
+    """Also time numba's compilation and the first run in fresh processes (about 40 s)."""
+    sweep_grid: int = 41
+    """Points per axis of the timed robustness map."""
     seed: int = 0
     """Seed of the perturbed trials."""
     out: Path = Path("results/benchmarks")
@@ -81,6 +102,7 @@ QUICK = {
     "render_steps": 2,
     "reference_trials": 1,
     "accuracy_trials": 2,
+    "sweep_grid": 5,
 }
 
 
@@ -147,6 +169,12 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
     scalar_final = np.array([env.step(c)[4]["q_final"] for c in trials[:k]])
     row("env.step, scalar", 1, per_step, error(scalar_final), peak_traced_mb(lambda: env.step(trials[0])))
 
+    made = gym.make("ilc_steering/ChainedSteering-v0", config=name)
+    made.reset(seed=args.seed)
+    made.step(trials[0])  # the passive checker's first-step checks, outside the timing
+    per_step = median_seconds(lambda: [made.step(c) for c in steps], args.repeats) / len(steps)
+    row("env.step via gym.make", 1, per_step, error(np.array([made.step(c)[4]["q_final"] for c in trials[:k]])), 0.0)
+
     # What asking for pictures costs: a recorded trajectory, and a frame drawn after each trial.
     recording = ChainedSteeringEnv(name, record_trajectory=True)
     recording.reset(seed=args.seed)
@@ -182,7 +210,47 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
         final = envs.step(batch)[4]["final_info"]["q_final"]  # also warms the parallel kernel
         seconds = median_seconds(lambda: envs.step(batch), args.repeats)  # noqa: B023
         row(f"vector env, N = {n}", n, seconds, error(final), peak_traced_mb(lambda: envs.step(batch)))  # noqa: B023
+        new, old = kernel_calls(scenario, batch, n >= PARALLEL_FROM)
+        new_s, old_s = alternating_medians(new, old, args.repeats)
+        row(f"batched car kernel, N = {n}", n, new_s, error(scenario.to_world(new())), 0.0)
+        row(f"angle kernel (before), N = {n}", n, old_s, error(scenario.to_world(old())), 0.0)
+        rows[-2]["speedup_over_angles"] = old_s / new_s
+    n = max(args.sizes)
+    factors = np.exp(0.1 * np.random.default_rng(args.seed).standard_normal((n, 2)))
+    plants = ChainedSteeringVectorEnv(n, name, true_factors=factors)
+    plants.reset(seed=args.seed)
+    plants.step(trials[:n])
+    seconds = median_seconds(lambda: plants.step(trials[:n]), args.repeats)
+    row(f"vector env, N = {n} plants (true_factors)", n, seconds, float("nan"), 0.0)
     return rows
+
+
+def kernel_calls(scenario: Scenario, c: np.ndarray, parallel: bool) -> tuple[Any, Any]:
+    """The batched car kernel and the angle kernel on the trials ``c``: callables returning the
+    final configurations (task frame)."""
+    profile = scenario.profile
+    spans = np.asarray(profile.spans, dtype=np.float64)
+    steps = steps_per_span(spans, scenario.max_step)
+    v1, v2 = profile.polynomials(c)
+    field, params = scenario.plant.kernel()
+    x0 = np.ascontiguousarray(np.broadcast_to(scenario.x_start, (c.shape[0], scenario.x_start.size)))
+
+    def run(angles: bool) -> np.ndarray:
+        final = integrate(field, params, x0, spans, steps, v1, v2, parallel=parallel, angles=angles)[0]
+        return scenario.plant.configuration(final)
+
+    run(False), run(True)  # compile or load outside the timing
+    return (lambda: run(False)), (lambda: run(True))
+
+
+def alternating_medians(first: Any, second: Any, repeats: int) -> tuple[float, float]:
+    """Median seconds of ``first()`` and ``second()``, called in alternation: a machine that
+    slows down during the run slows both alike, so their ratio holds."""
+    a, b = [], []
+    for _ in range(max(repeats, 3)):
+        a.append(median_seconds(first, 1))
+        b.append(median_seconds(second, 1))
+    return float(np.median(a)), float(np.median(b))
 
 
 COMPILE_SNIPPET = """
@@ -192,6 +260,7 @@ from ilc_steering.envs.scenario import Scenario
 scenario = Scenario.from_config(load_config("forward_parking"))
 c = scenario.nominal.solve()[None]
 start = time.perf_counter(); scenario.run(c); serial = time.perf_counter() - start
+c = c.repeat(64, axis=0)  # more than a block of lanes: the parallel kernel
 start = time.perf_counter(); scenario.run(c, parallel=True); parallel = time.perf_counter() - start
 print(serial, parallel)
 """
@@ -211,7 +280,32 @@ def compile_times() -> dict[str, float]:
                 raise RuntimeError(f"compile-time probe failed:\n{done.stderr}")
             serial, parallel = map(float, done.stdout.split())
             out[f"{state}_serial_s"], out[f"{state}_parallel_s"] = serial, parallel
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        for state in ("cold", "cached"):
+            start = time.perf_counter()
+            done = subprocess.run(
+                [sys.executable, "-m", "ilc_steering", "run", "forward_parking"],
+                env=env,
+                cwd=cache,
+                capture_output=True,
+                text=True,
+            )
+            out[f"{state}_first_run_s"] = time.perf_counter() - start
+            if done.returncode != 0:
+                raise RuntimeError(f"ilc-steering run forward_parking failed:\n{done.stderr}")
     return out
+
+
+def sweep_seconds(grid: int) -> float:
+    """Wall time of ``ilc-steering sweep forward_parking --grid grid`` (the paper's law), compiled."""
+    from ilc_steering.sweep import SweepArgs
+    from ilc_steering.sweep import main as sweep
+
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        sweep(SweepArgs(grid=grid, out=Path(folder)))
+        return time.perf_counter() - start
 
 
 def machine() -> dict[str, Any]:
@@ -265,7 +359,15 @@ def report(rows: list[dict[str, Any]], extra: dict[str, Any]) -> str:
             f"Compile time of the first trial: {c['cold_serial_s']:.1f} s serial + {c['cold_parallel_s']:.1f} s "
             f"parallel with an empty numba cache; {c['cached_serial_s']:.2f} s + {c['cached_parallel_s']:.2f} s "
             "from the cache in a new process.\n"
+            f"`ilc-steering run forward_parking`, the whole command: {c['cold_first_run_s']:.1f} s with an empty numba "
+            f"cache, {c['cached_first_run_s']:.1f} s with it.\n"
         )
+    text += f"A {extra['sweep_grid']} x {extra['sweep_grid']} robustness map (`ilc-steering sweep forward_parking`): "
+    text += f"{extra['sweep_s']:.1f} s.\n"
+    speedups = [r for r in rows if "speedup_over_angles" in r]
+    if speedups:
+        text += "\nBatched car kernel over the angle kernel, same trials, timed in alternation: "
+        text += ", ".join(f"{r['task']} N = {r['N']} {r['speedup_over_angles']:.1f}x" for r in speedups) + ".\n"
     return text
 
 
@@ -276,6 +378,8 @@ def main(args: Args) -> list[dict[str, Any]]:
     extra: dict[str, Any] = {"args": asdict(args), "machine": machine(), "targets": TARGETS}
     if args.compile_time:
         extra["compile"] = compile_times()
+    extra["sweep_s"] = sweep_seconds(args.sweep_grid)
+    extra["sweep_grid"] = args.sweep_grid
     extra["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     text = report(rows, extra)
     write_results(rows, args.out, "throughput", text, extra)

@@ -19,7 +19,6 @@ import argparse
 import itertools
 import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -94,7 +93,7 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
 
 def main(args: Args) -> list[dict[str, Any]]:
 
-    from ilc_steering.compare import parallel_map
+    from ilc_steering.backends import run_calls
 
     grid = {a: candidates(a)[:2] if args.quick else candidates(a) for a in GRID}
     seeds = args.seeds[:1] if args.quick else args.seeds
@@ -120,7 +119,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
     todo = {key: call for key, call in calls.items() if key not in results}
     if todo:
-        parallel_map(run_candidate, todo, min(args.workers or os.cpu_count() or 1, len(todo)), finish)
+        run_calls(run_candidate, todo, finish, workers=args.workers)
     rows = []
     for algorithm, options in grid.items():
         for i, overrides in enumerate(options):

@@ -183,11 +183,11 @@ class Scenario:
 
     def to_world(self, x: Array) -> Array:
         """Configurations in the task frame to the world frame."""
-        return rotate(x, -self.frame) if self.kind.has_pose else np.asarray(x, dtype=np.float64)
+        return rotate(x, -self.frame) if self.kind.has_pose and self.frame else np.array(x, dtype=np.float64)
 
     def to_task(self, q: Array) -> Array:
         """World configurations to the task frame."""
-        return rotate(q, self.frame) if self.kind.has_pose else np.asarray(q, dtype=np.float64)
+        return rotate(q, self.frame) if self.kind.has_pose and self.frame else np.array(q, dtype=np.float64)
 
     def run(
         self,
@@ -196,12 +196,14 @@ class Scenario:
         record: bool = False,
         parallel: bool = False,
         leg: int = 0,
-        plant: Plant | None = None,
+        plant: Plant | Sequence[Plant] | None = None,
     ) -> Trials:
         """Simulate leg ``leg`` with coefficients ``c`` ``(B, 1 + q)`` from plant states ``x0``
-        (task frame; default: the start) on the true plant, or on ``plant`` (a jittered one)."""
+        (task frame; default: the start) on the true plant, or on ``plant`` (a jittered one, or
+        one plant per trial)."""
         if x0 is None:
-            x0 = np.broadcast_to(self.x_start, (c.shape[0], self.x_start.shape[0]))
+            x0 = np.empty((c.shape[0], self.x_start.shape[0]))
+            x0[:] = self.x_start
         profile = self.nominals[leg].profile
         true = self.plant if plant is None else plant
         return simulate(true, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
@@ -244,7 +246,8 @@ class Scenario:
         target = (leg + 1) % len(self.waypoints)
         q_task = self.plant.configuration(final)
         q_world = self.to_world(q_task)
-        out = self._errors(q_task, q_world, target, "true_")
+        z = self.to_chained(q_task)
+        out = self._errors(z, q_world, target, "true_")
         if noise is None:  # measured exactly: the same errors, not computed twice on the fast path
             out.update({key.removeprefix("true_"): value for key, value in out.items()})
         else:
@@ -255,20 +258,23 @@ class Scenario:
                 # the measurement is taken at the edge
                 edge = np.pi / 2 - CHART_MARGIN
                 q_task[..., 2:] = np.clip(q_task[..., 2:], -edge, edge)
-            out.update(self._errors(q_task, q_world, target, ""))
+            z = self.to_chained(q_task)
+            out.update(self._errors(z, q_world, target, ""))
         out["q_final"] = q_world
-        out["z_final"] = self.to_chained(q_task)
-        out["error"] = self.z_waypoints[target] - out["z_final"]
+        out["z_final"] = z
+        out["error"] = self.z_waypoints[target] - z
         out["left_chart"] = status != OK
         return out
 
-    def _errors(self, q_task: Array, q_world: Array, target: int, prefix: str) -> dict[str, Array]:
-        """The error norm (chained coordinates) and, with a pose, the Cartesian [m] and orientation
-        [rad] errors of a configuration (given in the task and the world frame) at waypoint ``target``."""
+    def _errors(self, z: Array, q_world: Array, target: int, prefix: str) -> dict[str, Array]:
+        """The error norm (of chained coordinates ``z``) and, with a pose, the Cartesian [m] and
+        orientation [rad] errors of a configuration (in the world frame) at waypoint ``target``."""
         goal = self.waypoints[target]
-        out = {prefix + "error_norm": np.linalg.norm(self.z_waypoints[target] - self.to_chained(q_task), axis=-1)}
+        dz = self.z_waypoints[target] - z
+        out = {prefix + "error_norm": np.sqrt((dz * dz).sum(axis=-1))}
         if self.kind.has_pose:
-            out[prefix + "cartesian_error"] = np.linalg.norm(q_world[..., :2] - goal[:2], axis=-1)
+            dx, dy = q_world[..., 0] - goal[0], q_world[..., 1] - goal[1]
+            out[prefix + "cartesian_error"] = np.sqrt(dx * dx + dy * dy)
             out[prefix + "orientation_error"] = np.abs(q_world[..., 2] - goal[2])
         return out
 

@@ -13,6 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.plants import Plant
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
     action_names,
@@ -27,6 +28,8 @@ __all__ = ["ChainedSteeringVectorEnv"]
 
 Array = npt.NDArray[np.float64]
 
+MAX_FACTOR = 100.0
+"""The largest ``true_factors`` entry: a robot 100 times its nominal size is a typo."""
 PARALLEL_FROM = 64
 """Batches of at least this many trials run on all cores (numba ``prange``); the results are
 bitwise the same either way, since every trial runs the same compiled code."""
@@ -40,6 +43,11 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ``(N, 1 + q)`` and runs ``N`` whole trials in one call of the compiled integrator, on all
     cores from :data:`PARALLEL_FROM` trials up. ``measurement_noise`` is the scalar env's; the
     noise of a step's trials is drawn in one call from the vector env's ``np_random``.
+
+    ``true_factors`` ``(N, 2)`` makes every env a different robot: env ``i``'s true plant is the
+    config's with its two parameters (``plant.factor_names``: a car's wheelbase and wheel radius)
+    multiplied by row ``i``, still one compiled call per step (``ilc-steering sweep`` maps a
+    learner over such a grid). The learner's nominal model is the same for all.
 
     Every episode is one step long, so the env resets in the same step
     (``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``) and every step is a trial: the
@@ -69,6 +77,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         render_mode: str | None = None,
         parallel: bool | None = None,
         measurement_noise: float | Sequence[float] | None = None,
+        true_factors: Any = None,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
@@ -85,6 +94,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self._observations = np.tile(observation, (self.num_envs, 1))
         self._action_names = f"(num_envs = {self.num_envs}, {action_names(self._scenario.nominal)})"
         self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
+        self._plants = None if true_factors is None else self._vary(true_factors)
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -108,7 +118,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ) -> tuple[npt.NDArray[np.float32], Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
         c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")
         applied = np.clip(c, self._low, self._high)
-        trials = self._scenario.run(applied, parallel=self.parallel)
+        trials = self._scenario.run(applied, parallel=self.parallel, plant=self._plants)
         noise = self._scenario.draw_noise(self.np_random, self.num_envs)
         final_info = trial_infos(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
         rewards = np.asarray(reward(final_info), dtype=np.float64)
@@ -123,6 +133,17 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
             **self._reset_info(),
         }
         return self._observations.copy(), rewards, everyone.copy(), np.zeros(self.num_envs, dtype=np.bool_), info
+
+    def _vary(self, true_factors: Any) -> list[Plant]:
+        """One true plant per env: the config's with its two parameters scaled by a row of ``true_factors``."""
+        plant = self._scenario.plant
+        names = f"(num_envs = {self.num_envs}, ({', '.join(plant.factor_names)}))"
+        factors = check_action(true_factors, (self.num_envs, 2), names, what="true_factors")
+        if not np.all((factors > 0) & (factors <= MAX_FACTOR)):
+            raise ValueError(
+                f"true_factors must be in (0, {MAX_FACTOR}], got a range [{factors.min()}, {factors.max()}]"
+            )
+        return [plant.with_true_factors(row) for row in factors]
 
     def _reset_info(self) -> dict[str, Any]:
         everyone = np.ones(self.num_envs, dtype=np.bool_)

@@ -30,6 +30,7 @@ from ilc_steering.runner import (
     run_cyclic_ilc,
     run_ilc,
 )
+from ilc_steering.sweep import add_arguments as add_sweep_arguments
 
 __all__ = ["main"]
 
@@ -258,6 +259,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_compare_arguments(compare)
     compare.set_defaults(handler=_compare)
+    sweep = sub.add_parser(
+        "sweep", help="robustness map: trials to tolerance over a grid of true plants, a learner per plant"
+    )
+    add_sweep_arguments(sweep)
+    sweep.set_defaults(handler=_sweep)
     return parser
 
 
@@ -266,6 +272,14 @@ def _compare(args: argparse.Namespace) -> int:
     from ilc_steering.compare import main as compare
 
     compare(from_namespace(args))
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from ilc_steering.sweep import from_namespace
+    from ilc_steering.sweep import main as sweep
+
+    sweep(from_namespace(args))
     return 0
 
 

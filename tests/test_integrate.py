@@ -211,3 +211,77 @@ def test_a_lagging_drive_starts_from_rest_and_a_lagging_wheel_trails_the_command
     # far behind u1 at first, then within the lag of a ramping command after 5 time constants
     assert gap[1] > 0.5 and gap[np.searchsorted(t, 1.0)] < 0.1
     assert np.abs(states[:, 4] - states[:, 3]).max() > 1e-3  # phi_w trails phi_c
+
+
+# The batched car kernel (core/tangent.py): the same ODE in (x, y, tan theta, sigma) coordinates.
+
+
+def perturbed(scenario, count, seed=0, scale=0.1):
+    c = scenario.nominal.solve()
+    return c * (1.0 + scale * np.random.default_rng(seed).standard_normal((count, c.size)))
+
+
+def angle_kernel(scenario, c):
+    from ilc_steering.core.grid import steps_per_span
+
+    profile = scenario.profile
+    spans = np.asarray(profile.spans, dtype=np.float64)
+    v1, v2 = profile.polynomials(c)
+    field, params = scenario.plant.kernel()
+    x0 = np.broadcast_to(scenario.x_start, (c.shape[0], scenario.x_start.size))
+    steps = steps_per_span(spans, scenario.max_step)
+    return kernel.integrate(field, params, x0, spans, steps, v1, v2, angles=True)
+
+
+@pytest.mark.parametrize(
+    "name", ["forward_parking", "forward_parking_saturated", "parallel_parking", "cyclic_home_goal"]
+)
+def test_the_batched_kernel_agrees_with_the_angle_kernel_and_a_tight_reference(name):
+    """On the learner's trials both kernels are within 1e-9 of the reference (the tests above); on
+    trials with every coefficient 10 % off, some of which turn the car to 85 degrees, where
+    ``tan(theta)`` is stiff, within 1e-8 (the angle kernel: 2e-9; benchmarks/throughput.py)."""
+    scenario = Scenario.from_config(load_config(name))
+    c = perturbed(scenario, 40)  # more than two blocks of lanes, the last one partial
+    trials = scenario.run(c)
+    final, status, _ = angle_kernel(scenario, c)
+    np.testing.assert_array_equal(trials.status, status)
+    np.testing.assert_allclose(trials.final, final, rtol=0, atol=1e-8)
+    for b in range(3):
+        np.testing.assert_allclose(trials.final[b], reference(scenario, c[b]), rtol=0, atol=1e-8)
+
+
+def test_the_batched_kernel_lanes_do_not_interact():
+    """A trial's result is the same bit for bit alone, in a block with others, and on all cores."""
+    scenario = Scenario.from_config(load_config("forward_parking_saturated"))
+    c = perturbed(scenario, 37, seed=3)
+    batch = scenario.run(c).final
+    np.testing.assert_array_equal(scenario.run(c, parallel=True).final, batch)
+    for b in (0, 15, 16, 36):
+        np.testing.assert_array_equal(scenario.run(c[b][None]).final[0], batch[b])
+    recorded = scenario.run(c[:20], record=True)
+    np.testing.assert_array_equal(recorded.final, batch[:20])
+    np.testing.assert_array_equal(recorded.states[:, -1], batch[:20])
+
+
+@pytest.mark.parametrize("name", ["forward_parking_saturated", "unicycle_parking", "trailer_bay", "parallel_parking"])
+def test_a_batch_of_different_plants_equals_each_plant_alone(name):
+    """One kernel call with a plant per trial (each its own true parameters) gives what each plant
+    gives on its own: the robustness sweep's grid is one call."""
+    scenario = Scenario.from_config(load_config(name))
+    factors = np.exp(0.2 * np.random.default_rng(1).standard_normal((20, 2)))
+    plants = [scenario.plant.with_true_factors(f) for f in factors]
+    c = np.tile(scenario.nominal.solve(), (20, 1))
+    together = scenario.run(c, plant=plants)
+    for b in (0, 7, 19):
+        alone = scenario.run(c[b][None], plant=plants[b])
+        np.testing.assert_array_equal(together.final[b], alone.final[0])
+    assert np.ptp(together.final[:, 0]) > 1e-3  # the plants differ
+
+
+def test_a_batch_of_plants_must_be_one_per_trial_of_one_kind():
+    scenario = Scenario.from_config(load_config("forward_parking"))
+    c = np.tile(scenario.nominal.solve(), (3, 1))
+    with pytest.raises(ValueError, match="one per trial"):
+        scenario.run(c, plant=[scenario.plant] * 2)
+    with pytest.raises(ValueError, match="one kind"):
+        scenario.run(c, plant=[scenario.plant, scenario.plant, ChainedPlant(4)])

@@ -72,9 +72,12 @@ class CarModel:
         """The change of coordinates ``z = alpha(q)`` of section 2.1, for ``q`` of shape ``(..., 4)``."""
         q = np.asarray(q, dtype=np.float64)
         check_chart(q)
-        x, y, theta, phi = np.moveaxis(q, -1, 0)
-        z2 = np.tan(phi) / (self.wheelbase * np.cos(theta) ** 3)
-        return np.stack([x, z2, np.tan(theta), y], axis=-1)
+        z = np.empty(q.shape)
+        z[..., 0] = q[..., 0]
+        z[..., 1] = np.tan(q[..., 3]) / (self.wheelbase * np.cos(q[..., 2]) ** 3)
+        z[..., 2] = np.tan(q[..., 2])
+        z[..., 3] = q[..., 1]
+        return z
 
     def from_chained(self, z: Array) -> Array:
         """The inverse map ``q = alpha^{-1}(z)``, for ``z`` of shape ``(..., 4)``."""
@@ -96,6 +99,8 @@ def check_chart(q: Array) -> None:
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1] != 4:
         raise ValueError(f"a car configuration is (x, y, theta, phi); got shape {q.shape}")
+    if q.size and float(np.abs(q[..., 2:]).max()) < pi / 2 and np.isfinite(q[..., :2]).all():
+        return  # the common case, in one pass; the checks below say what is wrong
     if not np.all(np.isfinite(q)):
         raise ValueError(f"configuration must be finite, got {q.tolist()}")
     theta, phi = q[..., 2], q[..., 3]

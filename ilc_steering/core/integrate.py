@@ -1,5 +1,12 @@
 """Fixed-step explicit Runge-Kutta over a batch of trials, compiled with numba.
 
+The car without servo perturbations runs on the batched kernel of
+:mod:`ilc_steering.core.tangent` (the same ODE in tangent coordinates, vectorized across trials,
+four times this module's speed); the kernels below integrate every other plant, and the car in
+``(x, y, theta, phi)`` with ``integrate(..., angles=True)``, which ``benchmarks/throughput.py``
+times against it. Every kernel takes a row of parameters per trial, so one call may run a batch
+of different plants.
+
 The method is the 8th-order, 12-stage Dormand-Prince tableau (the one behind scipy's DOP853),
 run with a fixed step: on the paper's tasks a step of 1/32 s lands within 1e-9 of an adaptive
 DOP853 reference at rtol = atol = 1e-12 (``tests/test_integrate.py``; ``benchmarks/integrator.py``
@@ -59,7 +66,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
-from ilc_steering.core import dop853
+from ilc_steering.core import dop853, tangent
 from ilc_steering.core.plants import CAR_FIELD as CAR
 from ilc_steering.core.plants import CAR_LAB_FIELD as CAR_LAB
 from ilc_steering.core.plants import CAR_SERVO_FIELD as CAR_SERVO
@@ -80,6 +87,7 @@ _MAX_ITERATIONS = 60  # of the root finder at a steering-limit crossing; it need
 _MAX_EVENTS = 10_000  # events within one step of the lab robot before it gives up locating them
 _LAB_EVENT_TIME = 1e-14  # relative to the step: how closely a lab event is located
 
+_SINGLE_LANES = 6  # a last, partial block of the batched car kernel of at most this many trials runs them one by one
 _STAGES = dop853.STAGES
 _A = np.ascontiguousarray(dop853.A)
 _B = np.ascontiguousarray(dop853.B)
@@ -481,73 +489,73 @@ def _chained_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: 
 @njit(cache=True)
 def _serial_car(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _car_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_car(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _car_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_car_servo(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _car_servo_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_servo_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_car_servo(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _car_servo_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_servo_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_car_lab(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _car_lab_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_lab_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_car_lab(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _car_lab_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _car_lab_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _chained_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _chained_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_chained(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _chained_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _chained_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_unicycle(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _unicycle_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _unicycle_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_unicycle(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _unicycle_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _unicycle_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True)
 def _serial_trailer(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in range(x0.shape[0]):
-        status[b] = _trailer_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _trailer_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 @njit(cache=True, parallel=True)
 def _parallel_trailer(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
     for b in prange(x0.shape[0]):
-        status[b] = _trailer_trial(params, x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+        status[b] = _trailer_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
 
 
 _KERNELS = {
@@ -570,38 +578,80 @@ def integrate(
     v2: Array,
     record: bool = False,
     parallel: bool = False,
+    angles: bool = False,
 ) -> tuple[Array, npt.NDArray[np.int64], Array | None]:
     """Integrate a batch of trials.
 
-    ``x0`` is ``(B, nx)``; ``v1`` and ``v2`` are ``(B, p, D)`` piecewise polynomials from an input
-    profile. Returns the final states ``(B, nx)``, the status of each trial (``OK`` or
-    ``LEFT_CHART``) and, with ``record``, the states at every step ``(B, 1 + sum(steps), nx)``.
+    ``x0`` is ``(B, nx)``; ``params`` is ``(P,)`` for every trial or ``(B, P)``, a plant per
+    trial; ``v1`` and ``v2`` are ``(B, p, D)`` piecewise polynomials from an input profile.
+    Returns the final states ``(B, nx)``, the status of each trial (``OK`` or ``LEFT_CHART``)
+    and, with ``record``, the states at every step ``(B, 1 + sum(steps), nx)``.
+
+    The car (:data:`~ilc_steering.core.plants.CAR_FIELD`) runs on the batched kernel of
+    :mod:`ilc_steering.core.tangent`; ``angles=True`` runs it on this module's kernel in
+    ``(x, y, theta, phi)`` instead, the one it replaced (kept for ``benchmarks/throughput.py``).
     """
+    batch = x0.shape[0]
+    params = np.asarray(params, dtype=np.float64)
+    if params.ndim == 1:
+        per_trial = np.empty((batch, params.shape[0]))
+        per_trial[:] = params
+        params = per_trial
     # One layout for every caller (C order, float64, writeable): a read-only or strided view would
     # compile a second specialization of the kernel, which costs as long as the first.
-    x0, params, durations, v1, v2 = (np.require(a, np.float64, ["C", "W"]) for a in (x0, params, durations, v1, v2))
-    steps = np.require(steps, np.int64, ["C", "W"])
-    batch, n = x0.shape
+    x0, params, durations, v1, v2 = (_layout(a, np.float64) for a in (x0, params, durations, v1, v2))
+    steps = _layout(steps, np.int64)
+    n = x0.shape[1]
     out = np.empty((batch, n))
     status = np.empty(batch, dtype=np.int64)
     rows = 1 + int(steps.sum()) if record else 0
     traj = np.empty((batch, rows, n))
-    kernel = _KERNELS[model][1 if parallel else 0]
-    if not kernel.signatures:
+    args = (params, x0, durations, steps, v1, v2, out, status, traj)
+    if model == CAR and not angles:
+        lanes = tangent.LANES
+        full = batch - batch % lanes if batch % lanes <= _SINGLE_LANES else batch
+        if parallel and full > lanes:
+            _announce_compile(tangent.parallel_batch)
+            tangent.parallel_batch(*args, full)
+        elif full:
+            _announce_compile(tangent.block_full)
+            for start in range(0, full, lanes):
+                tangent.block_full(*args, start, min(full, start + lanes))
+        if full < batch:
+            _announce_compile(tangent.block_one)
+            for start in range(full, batch):
+                tangent.block_one(*args, start, start + 1)
+    else:
+        kernel = _KERNELS[model][1 if parallel else 0]
         _announce_compile(kernel)
-    kernel(params, x0, durations, steps, v1, v2, out, status, traj)
+        kernel(*args)
     return out, status, traj if record else None
+
+
+def _layout(a: Any, dtype: Any) -> Any:
+    if isinstance(a, np.ndarray) and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.require(a, dtype, ["C", "W"])
+
+
+_READY: set[Any] = set()  # kernels this process has run: no announcement to consider
 
 
 def _announce_compile(kernel: Any) -> None:
     """Say so on stderr when the first call will compile (no numba cache of ``kernel`` for this
-    install yet): it takes 10-45 s once, then about 0.2 s per process."""
+    install yet): it takes 5-20 s once, then about 0.2 s per process."""
+    if kernel in _READY:
+        return
+    _READY.add(kernel)
+    if kernel.overloads:  # compiled (or loaded) in this process already
+        return
     name = kernel.py_func.__name__
+    module = Path(kernel.py_func.__code__.co_filename).stem
     cache_dir = getattr(numba.config, "CACHE_DIR", "")
     folder = Path(cache_dir) if cache_dir else Path(__file__).parent / "__pycache__"
-    if folder.is_dir() and any(folder.rglob(f"integrate.{name}-*.nbi")):
+    if folder.is_dir() and any(folder.rglob(f"{module}.{name}-*.nbi")):
         return
-    what = name.removeprefix("_").replace("_", " ", 1).replace("_", "-")  # e.g. "serial car-servo"
+    what = "batched car" if module == "tangent" else name.removeprefix("_").replace("_", " ", 1).replace("_", "-")
     print(
         f"ilc-steering: compiling the {what} simulator once for this install (numba), then it is cached ...",
         file=sys.stderr,

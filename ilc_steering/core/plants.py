@@ -180,6 +180,10 @@ class Plant(Protocol):
         ``factor_names``): a trial's ``parameter_jitter``, and a model family's hypotheses."""
         ...
 
+    def true_factors(self) -> Array:
+        """The two true parameters of ``factor_names`` over their nominal values."""
+        ...
+
 
 @dataclass(frozen=True)
 class CarPlant:
@@ -304,6 +308,11 @@ class CarPlant:
         _check_angles(q, "|theta| and |phi|")
         _check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
 
+    def true_factors(self) -> Array:
+        return np.array(
+            [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
+        )
+
     def with_true_factors(self, factors: Array) -> CarPlant:
         true = CarModel(self.true.wheelbase * float(factors[0]), self.true.wheel_radius * float(factors[1]))
         return replace(self, true=true)
@@ -360,6 +369,9 @@ class ChainedPlant:
         require(bool(np.all(np.isfinite(q))), "z", f"must be finite, got {q.tolist()}")
         _check_magnitude(q)
 
+    def true_factors(self) -> Array:
+        return np.array([self.v1_gain, self.v2_gain])
+
     def with_true_factors(self, factors: Array) -> ChainedPlant:
         return replace(self, v1_gain=self.v1_gain * float(factors[0]), v2_gain=self.v2_gain * float(factors[1]))
 
@@ -399,6 +411,11 @@ class UnicyclePlant:
         check_unicycle_chart(q)
         _check_magnitude(q)
         _check_angles(q, "|theta|")
+
+    def true_factors(self) -> Array:
+        return np.array(
+            [self.true.wheel_radius / self.nominal.wheel_radius, self.true.axle_width / self.nominal.axle_width]
+        )
 
     def with_true_factors(self, factors: Array) -> UnicyclePlant:
         true = UnicycleModel(self.true.wheel_radius * float(factors[0]), self.true.axle_width * float(factors[1]))
@@ -450,6 +467,11 @@ class TrailerPlant:
         _check_magnitude(q)
         _check_angles(q, "|theta1|, |phi| and the hitch angle |delta|")
         _check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
+
+    def true_factors(self) -> Array:
+        return np.array(
+            [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
+        )
 
     def with_true_factors(self, factors: Array) -> TrailerPlant:
         t = self.true

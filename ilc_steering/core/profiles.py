@@ -185,7 +185,8 @@ class PiecewiseProfile:
         v1 = np.empty((batch, self.num_pieces, 1))
         v1[:, 0, 0] = c[:, 0]
         v1[:, 1:, 0] = self.v1_fixed
-        v2 = np.einsum("bj,pjd->bpd", c[:, 1:], self.bases())
+        bases = self.bases()  # (p, q, q): piece, coefficient, degree
+        v2 = (c[:, 1:] @ bases.transpose(1, 0, 2).reshape(bases.shape[1], -1)).reshape(batch, *bases[:, 0].shape)
         return v1, v2
 
     def evaluate(self, c: Array, t: Array) -> tuple[Array, Array]:

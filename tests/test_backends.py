@@ -1,0 +1,55 @@
+"""The Ray backend writes the same cells as the local one (wall times aside), on a local Ray."""
+
+import json
+
+import pytest
+import ray
+
+from ilc_steering import compare, sweep
+from ilc_steering.backends import run_calls
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    yield
+    ray.shutdown()
+
+
+def cells(folder):
+    found = {}
+    for path in sorted((folder / "cells").glob("*.json")):
+        cell = json.loads(path.read_text())
+        cell.pop("wall_s")
+        found[path.name] = cell
+    return found
+
+
+def test_the_quick_comparison_on_ray_writes_the_local_cells(tmp_path, local_ray):
+    local = compare.main(compare.Args(quick=True, seeds=compare.QUICK_SEEDS, out=tmp_path / "local"))
+    on_ray = compare.main(compare.Args(quick=True, seeds=compare.QUICK_SEEDS, out=tmp_path / "ray", backend="ray"))
+    assert len(local) == len(on_ray) == len(cells(tmp_path / "local")) > 0
+    assert cells(tmp_path / "ray") == cells(tmp_path / "local")
+    # and it resumes the same way: a second run computes nothing
+    stamps = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "ray" / "cells").iterdir()}
+    compare.main(compare.Args(quick=True, seeds=compare.QUICK_SEEDS, out=tmp_path / "ray", backend="ray"))
+    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "ray" / "cells").iterdir()} == stamps
+
+
+def test_a_sweep_on_ray_gives_the_local_map(tmp_path, local_ray):
+    args = sweep.SweepArgs(grid=4, trials=8, methods=("ilc_paper", "newton"))
+    local = sweep.run_rows(sweep.SweepArgs(**{**args.__dict__, "out": tmp_path / "local"}))
+    on_ray = sweep.run_rows(sweep.SweepArgs(**{**args.__dict__, "out": tmp_path / "ray", "backend": "ray"}))
+    strip = {key: [{k: v for k, v in row.items() if k != "wall_s"} for row in rows] for key, rows in local.items()}
+    assert {
+        key: [{k: v for k, v in row.items() if k != "wall_s"} for row in rows] for key, rows in on_ray.items()
+    } == strip
+
+
+def test_an_error_in_a_ray_task_is_raised(local_ray):
+    with pytest.raises(Exception, match="boom"):
+        run_calls(_fail, {0: ("boom",)}, lambda key, value: None, "ray")
+
+
+def _fail(message):
+    raise RuntimeError(message)
