@@ -152,6 +152,7 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
                 "max_error": err,
                 "peak_traced_mb": memory_mb,
                 "reference_spread": spread,
+                "speedup_over_angles": float("nan"),
             }
         )
 
@@ -364,7 +365,7 @@ def report(rows: list[dict[str, Any]], extra: dict[str, Any]) -> str:
         )
     text += f"A {extra['sweep_grid']} x {extra['sweep_grid']} robustness map (`ilc-steering sweep forward_parking`): "
     text += f"{extra['sweep_s']:.1f} s.\n"
-    speedups = [r for r in rows if "speedup_over_angles" in r]
+    speedups = [r for r in rows if r["speedup_over_angles"] == r["speedup_over_angles"]]  # not NaN
     if speedups:
         text += "\nBatched car kernel over the angle kernel, same trials, timed in alternation: "
         text += ", ".join(f"{r['task']} N = {r['N']} {r['speedup_over_angles']:.1f}x" for r in speedups) + ".\n"

@@ -292,7 +292,7 @@ def main(args: SweepArgs) -> list[dict[str, Any]]:
     lines = summary(args, maps)
     for (method, gain), rows in maps.items():
         plot_map(args, method, gain, rows, names, args.out / f"sweep_{safe_name(method)}_nu{gain:g}.png")
-    header = ["method", "nu_b", "converged", "median trials", "most trials", "at the nominal plant", "wall [s]"]
+    header = ["method", "nu_b", "converged", "median trials", "most trials", "at the nominal plant", "cell time [s]"]
     cells = [
         [
             line["method"],
