@@ -347,6 +347,37 @@ def attacks(tmp: str) -> list[tuple[str, str, str, Any]]:
     cp = os.path.join(tmp, "m4.yaml")
     Path(cp).write_text(cyc)
     cli("config", "cyclic action_bound of the wrong length", "run", cp, "--trials", "1")
+    # Robustness maps and batches of plants (issue 16)
+    out = os.path.join(tmp, "sweep")
+    cli("sweep", "--grid 1", "sweep", "forward_parking", "--grid", "1", "--out", out)
+    cli("sweep", "--grid 100000", "sweep", "forward_parking", "--grid", "100000", "--out", out)
+    cli("sweep", "--range inverted", "sweep", "forward_parking", "--range", "1.5", "0.5", "--out", out)
+    cli("sweep", "--range with a zero", "sweep", "forward_parking", "--range", "0", "1.5", "--out", out)
+    cli("sweep", "--nu-b nan", "sweep", "forward_parking", "--nu-b", "nan", "--out", out)
+    cli("sweep", "--methods sac (RL)", "sweep", "forward_parking", "--methods", "sac", "--out", out)
+    cli("sweep", "a cyclic config", "sweep", "cyclic_home_goal", "--out", out)
+    cli("sweep", "--out is a file", "sweep", "forward_parking", "--out", cfg("s1.yaml"))
+    cli("sweep", "--backend unknown", "sweep", "forward_parking", "--backend", "spark", "--out", out)
+    py(
+        "sweep",
+        "true_factors negative",
+        """
+        from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+        try:
+            ChainedSteeringVectorEnv(2, "forward_parking", true_factors=[[1.0, 1.0], [-1.0, 1.0]]); print("ACCEPTED")
+        except ValueError as x: print("VALUEERROR", x)
+    """,
+    )
+    py(
+        "sweep",
+        "true_factors wrong shape",
+        """
+        from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+        try:
+            ChainedSteeringVectorEnv(2, "forward_parking", true_factors=[1.0, 1.0]); print("ACCEPTED")
+        except ValueError as x: print("VALUEERROR", x)
+    """,
+    )
     return attacks
 
 

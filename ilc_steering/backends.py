@@ -17,8 +17,10 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import pickle
 from collections.abc import Callable, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from pathlib import Path
 from typing import Any
 
 __all__ = ["BACKENDS", "run_calls"]
@@ -79,7 +81,25 @@ def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]],
         raise ValueError('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
     if not ray.is_initialized():
         ray.init(logging_level=logging.WARNING, log_to_driver=False)  # RAY_ADDRESS, if set, names the cluster
-    task = ray.remote(function)
+
+    def on_worker(home: str, payload: bytes) -> Any:
+        """Run a call on a Ray worker, importing the package from where the driver found it.
+
+        Ray puts the driver's working directory first on its workers' path; run from a source
+        checkout, that is the bare ``ilc_steering/`` folder, without the installed ``envs`` and
+        ``agents``. So the call travels as bytes, unpickled only once ``home`` leads the path (a
+        folder missing on another node changes nothing), and this function, local to
+        ``_ray_map``, is pickled by value: the worker imports nothing of the package to run it."""
+        import pickle
+        import sys
+
+        if sys.path[:1] != [home]:
+            sys.path.insert(0, home)
+        function, args = pickle.loads(payload)
+        return function(*args)
+
+    task = ray.remote(on_worker)
+    home = str(Path(__file__).resolve().parents[1])  # where this process found the package
     width = 2 * max(1, int(ray.cluster_resources().get("CPU", 1)))  # type: ignore[no-untyped-call]
     pending: dict[Any, Any] = {}
     queue = list(calls)
@@ -87,7 +107,7 @@ def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]],
         while queue or pending:
             while queue and len(pending) < width:
                 key = queue.pop(0)
-                pending[task.remote(*calls[key])] = key
+                pending[task.remote(home, pickle.dumps((function, calls[key])))] = key
             finished, _ = ray.wait(list(pending), num_returns=1)
             for ref in finished:
                 finish(pending.pop(ref), ray.get(ref))
