@@ -358,6 +358,7 @@ def attacks(tmp: str) -> list[tuple[str, str, str, Any]]:
     cli("sweep", "a cyclic config", "sweep", "cyclic_home_goal", "--out", out)
     cli("sweep", "--out is a file", "sweep", "forward_parking", "--out", cfg("s1.yaml"))
     cli("sweep", "--backend unknown", "sweep", "forward_parking", "--backend", "spark", "--out", out)
+    cli("compare", "--backend unknown", "compare", "--quick", "--backend", "spark", "--out", out)
     py(
         "sweep",
         "true_factors negative",

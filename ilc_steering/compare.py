@@ -43,7 +43,7 @@ from ilc_steering.backends import BACKENDS, run_calls
 from ilc_steering.compare_report import LADDER, write_report
 from ilc_steering.core.score import true_cost
 from ilc_steering.loop import run_trials
-from ilc_steering.output import check_output_dir, safe_name, write_json
+from ilc_steering.output import check_output_dir, check_run_settings, safe_name, write_json
 
 __all__ = [
     "LADDER",
@@ -268,6 +268,8 @@ def validate(args: Args) -> dict[str, str]:
     """
     from ilc_steering.config import load_config
 
+    if args.backend not in BACKENDS:
+        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {args.backend!r}")
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds)):
         if not values:
@@ -358,26 +360,14 @@ def _check_run_folder(args: Args) -> None:
     skip = ("out", "progress_bar", "priors", "methods", "scenarios", "workers", "backend")
     settings = {k: v for k, v in asdict(args).items() if k not in skip}
     settings["seeds"] = list(settings["seeds"])
-    stored_path = args.out / "run.json"
     cells = args.out / "cells"
     check_output_dir(args.out, "--out")
     if cells.exists() and not cells.is_dir():
         raise ValueError(f"{cells}: exists and is not a folder; this is not a compare run folder")
-    if stored_path.exists():
-        try:
-            stored = json.loads(stored_path.read_bytes().decode("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-            raise ValueError(f"{stored_path}: not readable ({error}); use another --out folder") from None
-        if stored != settings:
-            raise ValueError(f"{stored_path} was written with {stored}, not {settings}: use another --out folder")
-    elif cells.is_dir() and any(cells.glob("*.json")):
-        raise ValueError(
-            f"{args.out}: has cells but no run.json, so their settings cannot be checked: use another --out folder"
-        )
+    resumed = check_run_settings(args.out, settings, cells)
     cells.mkdir(exist_ok=True)
-    if stored_path.exists():
+    if resumed:
         _restore_cells(args.out)
-    write_json(stored_path, settings)
 
 
 def _restore_cells(folder: Path) -> None:
@@ -539,7 +529,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=0, help="worker processes (0: one per core)")
     parser.add_argument(
         "--backend",
-        choices=list(BACKENDS),
         default="local",
         help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
     )

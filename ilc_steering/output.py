@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["check_output_dir", "check_output_file", "safe_name", "write_atomic", "write_json"]
+__all__ = ["check_output_dir", "check_output_file", "check_run_settings", "safe_name", "write_atomic", "write_json"]
 
 
 def _problem(error: OSError) -> str:
@@ -79,3 +79,25 @@ def write_atomic(path: Path, text: str) -> None:
 def write_json(path: Path, data: Any) -> None:
     """:func:`write_atomic` of ``data`` as JSON."""
     write_atomic(path, json.dumps(data))
+
+
+def check_run_settings(folder: Path, settings: dict[str, Any], results: Path) -> bool:
+    """Record ``settings`` in ``folder/run.json``; ``ValueError`` if the folder was written with
+    others, or holds results (``results/*.json``) but no record of their settings. Returns whether
+    the folder was a run already (a resume)."""
+    stored_path = folder / "run.json"
+    resumed = stored_path.exists()
+    if resumed:
+        try:
+            stored = json.loads(stored_path.read_bytes().decode("utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+            raise ValueError(f"{stored_path}: not readable ({error}); use another --out folder") from None
+        if stored != settings:
+            raise ValueError(f"{stored_path} was written with {stored}, not {settings}: use another --out folder")
+    elif results.is_dir() and any(results.glob("*.json")):
+        raise ValueError(
+            f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
+            "use another --out folder"
+        )
+    write_json(stored_path, settings)
+    return resumed

@@ -31,7 +31,7 @@ from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.config import load_config
 from ilc_steering.core.score import TRUE_KEYS, within_tolerance
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.output import check_output_dir, safe_name, write_json
+from ilc_steering.output import check_output_dir, check_run_settings, safe_name, write_json
 
 __all__ = ["SweepArgs", "lockstep", "main", "run_row"]
 
@@ -184,16 +184,11 @@ def _check_folder(args: SweepArgs) -> None:
     settings = {k: v for k, v in asdict(args).items() if k not in ("out", "methods", "nu_b", "backend", "workers")}
     settings["config"] = load_config(args.config).name
     check_output_dir(args.out, "--out")
-    (args.out / "rows").mkdir(exist_ok=True)
-    stored = args.out / "run.json"
-    if stored.exists():
-        try:
-            previous = json.loads(stored.read_bytes().decode("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-            raise ValueError(f"{stored}: not readable ({error}); use another --out folder") from None
-        if previous != settings:
-            raise ValueError(f"{stored} was written with {previous}, not {settings}: use another --out folder")
-    write_json(stored, settings)
+    rows = args.out / "rows"
+    if rows.exists() and not rows.is_dir():
+        raise ValueError(f"{rows}: exists and is not a folder; this is not a sweep run folder")
+    check_run_settings(args.out, settings, rows)
+    rows.mkdir(exist_ok=True)
 
 
 def _read_row(path: Path, size: int) -> dict[str, Any]:
@@ -337,7 +332,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=SweepArgs.out, help="run folder; an existing one is resumed")
     parser.add_argument(
         "--backend",
-        choices=["local", "ray"],
         default="local",
         help="local worker processes, or Ray tasks (ray.init(): RAY_ADDRESS for a cluster)",
     )

@@ -100,3 +100,10 @@ def test_the_sweep_command_refuses_bad_input_before_any_trial(tmp_path, capsys, 
 def test_the_sweep_refuses_a_cyclic_task(tmp_path, capsys):
     assert main(["sweep", "cyclic_home_goal", "--out", str(tmp_path / "s")]) == 2
     assert "cyclic" in capsys.readouterr().err
+
+
+def test_a_folder_with_rows_but_no_settings_is_refused(tmp_path, capsys):
+    (tmp_path / "s" / "rows").mkdir(parents=True)
+    (tmp_path / "s" / "rows" / "ilc_paper__nu1__000.json").write_text("{}")
+    assert main(["sweep", "forward_parking", "--grid", "3", "--out", str(tmp_path / "s")]) == 2
+    assert "no run.json" in capsys.readouterr().err

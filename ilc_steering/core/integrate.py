@@ -646,10 +646,11 @@ def _announce_compile(kernel: Any) -> None:
     if kernel.overloads:  # compiled (or loaded) in this process already
         return
     name = kernel.py_func.__name__
+    cached = kernel.py_func.__qualname__.replace("<locals>", "locals")  # numba's file name: a factory's kernels too
     module = Path(kernel.py_func.__code__.co_filename).stem
     cache_dir = getattr(numba.config, "CACHE_DIR", "")
     folder = Path(cache_dir) if cache_dir else Path(__file__).parent / "__pycache__"
-    if folder.is_dir() and any(folder.rglob(f"{module}.{name}-*.nbi")):
+    if folder.is_dir() and any(folder.rglob(f"{module}.{cached}-*.nbi")):
         return
     what = "batched car" if module == "tangent" else name.removeprefix("_").replace("_", " ", 1).replace("_", "-")
     print(
