@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -302,7 +302,7 @@ def main(args: SweepArgs) -> list[dict[str, Any]]:
     ]
     table = markdown_table(header, cells, [False, True, True, True, True, True, True])
     grid = {f"{method}__nu{gain:g}": [row["trials_to"] for row in rows] for (method, gain), rows in maps.items()}
-    extra = {"settings": {**asdict(replace(args, out=Path(args.out.name))), "out": None}, "axes": names}
+    extra = {"settings": {**asdict(args), "out": None}, "axes": names}
     write_results(lines, args.out, "sweep", table, {**extra, "ratios": ratios(args).tolist(), "maps": grid})
     print(table)
     print(
