@@ -21,7 +21,7 @@ from ilc_steering.core.checks import check_jitter, check_noise
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
-from ilc_steering.core.plants import CHART_MARGIN, Plant
+from ilc_steering.core.plants import CHART_MARGIN, Plant, PlantBatch
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials, simulate
 from ilc_steering.core.trajectory import Trajectory
@@ -196,7 +196,7 @@ class Scenario:
         record: bool = False,
         parallel: bool = False,
         leg: int = 0,
-        plant: Plant | Sequence[Plant] | None = None,
+        plant: Plant | PlantBatch | Sequence[Plant] | None = None,
     ) -> Trials:
         """Simulate leg ``leg`` with coefficients ``c`` ``(B, 1 + q)`` from plant states ``x0``
         (task frame; default: the start) on the true plant, or on ``plant`` (a jittered one, or

@@ -13,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import Plant
+from ilc_steering.core.plants import PlantBatch
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
     action_names,
@@ -134,8 +134,9 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         }
         return self._observations.copy(), rewards, everyone.copy(), np.zeros(self.num_envs, dtype=np.bool_), info
 
-    def _vary(self, true_factors: Any) -> list[Plant]:
-        """One true plant per env: the config's with its two parameters scaled by a row of ``true_factors``."""
+    def _vary(self, true_factors: Any) -> PlantBatch:
+        """One true plant per env: the config's with its two parameters scaled by a row of
+        ``true_factors``, stacked once for every step."""
         plant = self._scenario.plant
         names = f"(num_envs = {self.num_envs}, ({', '.join(plant.factor_names)}))"
         factors = check_action(true_factors, (self.num_envs, 2), names, what="true_factors")
@@ -143,7 +144,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
             raise ValueError(
                 f"true_factors must be in (0, {MAX_FACTOR}], got a range [{factors.min()}, {factors.max()}]"
             )
-        return [plant.with_true_factors(row) for row in factors]
+        return PlantBatch([plant.with_true_factors(row) for row in factors])
 
     def _reset_info(self) -> dict[str, Any]:
         everyone = np.ones(self.num_envs, dtype=np.bool_)

@@ -597,6 +597,8 @@ def integrate(
         per_trial = np.empty((batch, params.shape[0]))
         per_trial[:] = params
         params = per_trial
+    elif params.shape[0] != batch:
+        raise ValueError(f"{batch} trials need {batch} rows of plant parameters, one per trial; got {params.shape[0]}")
     # One layout for every caller (C order, float64, writeable): a read-only or strided view would
     # compile a second specialization of the kernel, which costs as long as the first.
     x0, params, durations, v1, v2 = (_layout(a, np.float64) for a in (x0, params, durations, v1, v2))

@@ -14,6 +14,7 @@ kernel (:mod:`ilc_steering.core.integrate`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from math import isfinite, pi
 from typing import ClassVar, Protocol, runtime_checkable
@@ -42,6 +43,7 @@ __all__ = [
     "CarPlant",
     "ChainedPlant",
     "Plant",
+    "PlantBatch",
     "PlantKind",
     "TrailerPlant",
     "UnicyclePlant",
@@ -493,6 +495,25 @@ PLANTS: dict[str, type[CarPlant] | type[ChainedPlant] | type[UnicyclePlant] | ty
     "car_trailer": TrailerPlant,
 }
 """``plant.model`` -> plant class."""
+
+
+class PlantBatch:
+    """Plants of one kind, one per trial of a batch: their kernel parameters stacked once, so a
+    batch of different robots (a vector env's ``true_factors``, a robustness map's row) costs one
+    compiled call per step and nothing per plant."""
+
+    def __init__(self, plants: Sequence[Plant]) -> None:
+        kernels = [plant.kernel() for plant in plants]
+        fields = {field for field, _ in kernels}
+        if len(fields) != 1:
+            raise ValueError(f"a batch of plants must be all of one kind; got {len(plants)} of {len(fields)} kinds")
+        self.field = fields.pop()
+        self.params = np.array([row for _, row in kernels])
+        self.size = len(kernels)
+
+    def kernel(self) -> tuple[int, Array]:
+        """The field's id and the parameters ``(B, P)``, a row per trial."""
+        return self.field, self.params
 
 
 def nominal_plant(chained_map: object, dimension: int, steering_limit: float | None = None) -> Plant:

@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from ilc_steering.core.grid import DEFAULT_MAX_STEP, steps_per_span
 from ilc_steering.core.integrate import integrate
-from ilc_steering.core.plants import Plant
+from ilc_steering.core.plants import Plant, PlantBatch
 from ilc_steering.core.profiles import InputProfile
 
 __all__ = ["Trials", "simulate"]
@@ -32,7 +32,7 @@ class Trials:
 
 
 def simulate(
-    plant: Plant | Sequence[Plant],
+    plant: Plant | PlantBatch | Sequence[Plant],
     profile: InputProfile,
     x0: Array,
     c: Array,
@@ -43,20 +43,15 @@ def simulate(
     """Run a batch of trials of ``plant`` from states ``x0`` ``(B, nx)`` with coefficients ``c``
     ``(B, 1 + q)``, in steps of at most ``max_step`` [s]; ``record`` keeps every step's state.
 
-    ``plant`` may be a sequence of ``B`` plants of one kind, a plant per trial (different true
-    parameters, say): the batch is still one call of the compiled kernel."""
+    ``plant`` may be a :class:`~ilc_steering.core.plants.PlantBatch` or a sequence of ``B``
+    plants of one kind, a plant per trial (different true parameters, say): the batch is still
+    one call of the compiled kernel."""
     spans = np.asarray(profile.spans, dtype=np.float64)
     steps = steps_per_span(spans, max_step)
     v1, v2 = profile.polynomials(c)
     if isinstance(plant, Sequence):
-        kernels = [each.kernel() for each in plant]
-        if len(kernels) != x0.shape[0] or len({field for field, _ in kernels}) != 1:
-            raise ValueError(
-                f"simulate: {x0.shape[0]} plants are needed, one per trial, all of one kind; got {len(kernels)}"
-            )
-        field, params = kernels[0][0], np.array([row for _, row in kernels])
-    else:
-        field, params = plant.kernel()
+        plant = PlantBatch(plant)
+    field, params = plant.kernel()
     final, status, states = integrate(field, params, x0, spans, steps, v1, v2, record=record, parallel=parallel)
     if not record:
         return Trials(final, status)
