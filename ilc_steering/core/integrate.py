@@ -71,7 +71,7 @@ from ilc_steering.core.plants import CAR_FIELD as CAR
 from ilc_steering.core.plants import CAR_LAB_FIELD as CAR_LAB
 from ilc_steering.core.plants import CAR_SERVO_FIELD as CAR_SERVO
 from ilc_steering.core.plants import CHAINED_FIELD as CHAINED
-from ilc_steering.core.plants import CHART_MARGIN
+from ilc_steering.core.plants import CHART_MARGIN, KERNEL_LAYOUTS
 from ilc_steering.core.plants import TRAILER_FIELD as TRAILER
 from ilc_steering.core.plants import UNICYCLE_FIELD as UNICYCLE
 from ilc_steering.core.trailer import trailer_inputs, trailer_velocity
@@ -591,19 +591,12 @@ def integrate(
     :mod:`ilc_steering.core.tangent`; ``angles=True`` runs it on this module's kernel in
     ``(x, y, theta, phi)`` instead, the one it replaced (kept for ``benchmarks/throughput.py``).
     """
-    batch = x0.shape[0]
-    params = np.asarray(params, dtype=np.float64)
-    if params.ndim == 1:
-        per_trial = np.empty((batch, params.shape[0]))
-        per_trial[:] = params
-        params = per_trial
-    elif params.shape[0] != batch:
-        raise ValueError(f"{batch} trials need {batch} rows of plant parameters, one per trial; got {params.shape[0]}")
     # One layout for every caller (C order, float64, writeable): a read-only or strided view would
     # compile a second specialization of the kernel, which costs as long as the first.
     x0, params, durations, v1, v2 = (_layout(a, np.float64) for a in (x0, params, durations, v1, v2))
     steps = _layout(steps, np.int64)
-    n = x0.shape[1]
+    params = _check_arrays(model, params, x0, durations, steps, v1, v2)
+    batch, n = x0.shape
     out = np.empty((batch, n))
     status = np.empty(batch, dtype=np.int64)
     rows = 1 + int(steps.sum()) if record else 0
@@ -628,6 +621,49 @@ def integrate(
         _announce_compile(kernel)
         kernel(*args)
     return out, status, traj if record else None
+
+
+def _check_arrays(
+    model: int, params: Array, x0: Array, durations: Array, steps: npt.NDArray[np.int64], v1: Array, v2: Array
+) -> Array:
+    """``ValueError`` unless the arrays fit the layout of field ``model`` and one another: the compiled
+    code reads them by position and checks nothing. Returns the parameter table ``(B, P)``."""
+    layout = KERNEL_LAYOUTS.get(model)
+    if layout is None:
+        raise ValueError(f"no compiled field has id {model!r}; known: {sorted(KERNEL_LAYOUTS)}")
+    if x0.ndim != 2 or x0.shape[0] < 1:
+        raise ValueError(f"x0 must be a batch of states (B, nx) with B >= 1, got shape {x0.shape}")
+    batch = x0.shape[0]
+    if params.ndim == 1:
+        params = np.ascontiguousarray(np.broadcast_to(params, (batch, params.shape[0])))
+    if params.ndim != 2 or params.shape[0] != batch:
+        raise ValueError(f"{batch} trials need {batch} rows of plant parameters, one per trial; got {params.shape}")
+    if params.shape[1] != len(layout.params):
+        raise ValueError(
+            f"a parameter row of this field has {len(layout.params)} entries {list(layout.params)}, "
+            f"got {params.shape[1]}"
+        )
+    if np.isnan(params).any():
+        raise ValueError("plant parameters must not be NaN")
+    sizes = {layout.state_size(row) for row in params} if not layout.state else {len(layout.state)}
+    if sizes != {x0.shape[1]}:
+        raise ValueError(f"the state of this field has {sorted(sizes)} entries, got states of {x0.shape[1]}")
+    if not np.isfinite(x0).all():
+        raise ValueError("start states x0 must be finite")
+    pieces = durations.shape[0] if durations.ndim == 1 else -1
+    if pieces < 1 or not np.all(durations > 0) or not np.isfinite(durations).all():
+        raise ValueError(f"durations must be a vector of finite piece lengths > 0 [s], got {durations.tolist()}")
+    if steps.shape != (pieces,) or not np.all(steps >= 1):
+        raise ValueError(f"steps must give each of the {pieces} pieces at least 1 step, got {steps.tolist()}")
+    for name, v in (("v1", v1), ("v2", v2)):
+        if v.ndim != 3 or v.shape[:2] != (batch, pieces) or v.shape[2] < 1:
+            raise ValueError(
+                f"{name} must be polynomials (B, pieces, D) = ({batch}, {pieces}, D >= 1) for {batch} trials "
+                f"of {pieces} pieces, got shape {v.shape}"
+            )
+        if not np.isfinite(v).all():
+            raise ValueError(f"{name} coefficients must be finite")
+    return params
 
 
 def _layout(a: Any, dtype: Any) -> Any:

@@ -33,6 +33,7 @@ __all__ = [
     "CAR_SERVO_FIELD",
     "CHAINED_FIELD",
     "CHART_MARGIN",
+    "KERNEL_LAYOUTS",
     "MAX_BACKLASH",
     "MAX_LAG",
     "MAX_PULSES",
@@ -42,6 +43,7 @@ __all__ = [
     "UNICYCLE_FIELD",
     "CarPlant",
     "ChainedPlant",
+    "KernelLayout",
     "Plant",
     "PlantBatch",
     "PlantKind",
@@ -74,6 +76,52 @@ UNICYCLE_FIELD = 4
 """Kernel id of the closed-loop unicycle (a differential drive with its true wheel radius and axle width)."""
 TRAILER_FIELD = 5
 """Kernel id of the closed-loop car towing a trailer: states ``(x1, y1, theta1, phi_c, delta)``."""
+
+
+@dataclass(frozen=True)
+class KernelLayout:
+    """The arrays a compiled field reads, by name: the entries of its state and of its parameter row.
+
+    The compiled code reads both by position and checks nothing (numba does no bounds checking),
+    so :func:`~ilc_steering.core.integrate.integrate` checks every array it hands over against the
+    layout of its field, and a plant builds its row with :meth:`row`, by name.
+    """
+
+    state: tuple[str, ...]
+    """The state's entries; empty for a state of as many entries as the parameter ``dimension`` says."""
+    params: tuple[str, ...]
+    """The parameter row's entries."""
+
+    def row(self, **values: float) -> Array:
+        """The parameter row of ``values`` (every name of :attr:`params`, no other)."""
+        if set(values) != set(self.params):
+            raise ValueError(f"a parameter row needs {list(self.params)}, got {sorted(values)}")
+        return np.array([float(values[name]) for name in self.params])
+
+    def state_size(self, row: Array) -> int:
+        """The number of state entries of a trial with parameter row ``row``."""
+        return len(self.state) if self.state else int(row[self.params.index("dimension")])
+
+
+_CAR_PARAMS = ("wheelbase", "wheel_radius", "true_wheelbase", "true_wheel_radius", "steering_limit")
+_SERVO_PARAMS = (*_CAR_PARAMS, "steering_offset", "steering_lag", "speed_lag")
+KERNEL_LAYOUTS: dict[int, KernelLayout] = {
+    CAR_FIELD: KernelLayout(("x", "y", "theta", "phi_c"), _CAR_PARAMS),
+    CHAINED_FIELD: KernelLayout((), ("v1_gain", "v2_gain", "dimension")),
+    CAR_SERVO_FIELD: KernelLayout(("x", "y", "theta", "phi_c", "phi_w", "omega"), _SERVO_PARAMS),
+    CAR_LAB_FIELD: KernelLayout(
+        ("x", "y", "theta", "phi_c", "phi_s", "omega", "A", "psi", "x_hat", "y_hat", "theta_hat", "k"),
+        (*_SERVO_PARAMS, "steering_backlash", "encoder_pulses"),
+    ),
+    UNICYCLE_FIELD: KernelLayout(
+        ("x", "y", "theta"), ("wheel_radius", "axle_width", "true_wheel_radius", "true_axle_width")
+    ),
+    TRAILER_FIELD: KernelLayout(
+        ("x1", "y1", "theta1", "phi_c", "delta"), (*_CAR_PARAMS, "hitch_length", "true_hitch_length")
+    ),
+}
+"""Kernel id -> the layout of its state and parameter row (the field that reads each row is in
+:mod:`ilc_steering.core.integrate`, :mod:`ilc_steering.core.tangent` for the car)."""
 MAX_BACKLASH = 0.2
 """[rad] the largest ``steering_backlash`` of a car plant."""
 MAX_PULSES = 100_000
@@ -321,13 +369,21 @@ class CarPlant:
 
     def kernel(self) -> tuple[int, Array]:
         limit = np.inf if self.steering_limit is None else self.steering_limit
-        params = [self.nominal.wheelbase, self.nominal.wheel_radius, self.true.wheelbase, self.true.wheel_radius, limit]
-        servo = [self.steering_offset, self.steering_lag, self.speed_lag]
+        nominal, true = self.nominal, self.true
+        values = dict(
+            wheelbase=nominal.wheelbase,
+            wheel_radius=nominal.wheel_radius,
+            true_wheelbase=true.wheelbase,
+            true_wheel_radius=true.wheel_radius,
+            steering_limit=limit,
+        )
+        servo = dict(steering_offset=self.steering_offset, steering_lag=self.steering_lag, speed_lag=self.speed_lag)
         if self.lab:
-            return CAR_LAB_FIELD, np.array([*params, *servo, self.steering_backlash, float(self.encoder_pulses)])
+            lab = dict(steering_backlash=self.steering_backlash, encoder_pulses=float(self.encoder_pulses))
+            return CAR_LAB_FIELD, KERNEL_LAYOUTS[CAR_LAB_FIELD].row(**values, **servo, **lab)
         if self.servo:
-            return CAR_SERVO_FIELD, np.array([*params, *servo])
-        return CAR_FIELD, np.array(params)
+            return CAR_SERVO_FIELD, KERNEL_LAYOUTS[CAR_SERVO_FIELD].row(**values, **servo)
+        return CAR_FIELD, KERNEL_LAYOUTS[CAR_FIELD].row(**values)
 
 
 @dataclass(frozen=True)
@@ -378,7 +434,8 @@ class ChainedPlant:
         return replace(self, v1_gain=self.v1_gain * float(factors[0]), v2_gain=self.v2_gain * float(factors[1]))
 
     def kernel(self) -> tuple[int, Array]:
-        return CHAINED_FIELD, np.array([self.v1_gain, self.v2_gain])
+        row = KERNEL_LAYOUTS[CHAINED_FIELD].row(v1_gain=self.v1_gain, v2_gain=self.v2_gain, dimension=self.dimension)
+        return CHAINED_FIELD, row
 
 
 @dataclass(frozen=True)
@@ -425,7 +482,13 @@ class UnicyclePlant:
 
     def kernel(self) -> tuple[int, Array]:
         nominal, true = self.nominal, self.true
-        return UNICYCLE_FIELD, np.array([nominal.wheel_radius, nominal.axle_width, true.wheel_radius, true.axle_width])
+        row = KERNEL_LAYOUTS[UNICYCLE_FIELD].row(
+            wheel_radius=nominal.wheel_radius,
+            axle_width=nominal.axle_width,
+            true_wheel_radius=true.wheel_radius,
+            true_axle_width=true.axle_width,
+        )
+        return UNICYCLE_FIELD, row
 
 
 @dataclass(frozen=True)
@@ -484,8 +547,16 @@ class TrailerPlant:
     def kernel(self) -> tuple[int, Array]:
         limit = np.inf if self.steering_limit is None else self.steering_limit
         n, t = self.nominal, self.true
-        params = [n.wheelbase, n.wheel_radius, t.wheelbase, t.wheel_radius, limit, n.hitch_length, t.hitch_length]
-        return TRAILER_FIELD, np.array(params)
+        row = KERNEL_LAYOUTS[TRAILER_FIELD].row(
+            wheelbase=n.wheelbase,
+            wheel_radius=n.wheel_radius,
+            true_wheelbase=t.wheelbase,
+            true_wheel_radius=t.wheel_radius,
+            steering_limit=limit,
+            hitch_length=n.hitch_length,
+            true_hitch_length=t.hitch_length,
+        )
+        return TRAILER_FIELD, row
 
 
 PLANTS: dict[str, type[CarPlant] | type[ChainedPlant] | type[UnicyclePlant] | type[TrailerPlant]] = {

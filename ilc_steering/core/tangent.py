@@ -31,8 +31,6 @@ plants: the robustness sweep's grid of true geometries is one call per trial ind
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
@@ -70,67 +68,73 @@ def _field(k, a, b3, ell, big_w, s, sigma, v1, v2):  # type: ignore[no-untyped-d
     return kv, kv * s, a * v1 * w * r2 * r, -b3 * s * r * w * w * v1 + ell * v2 / (r2 * r)
 
 
-def _stepper(n: int) -> Any:
-    """The Runge-Kutta step of a block of ``n`` lanes; ``n`` is a constant of the compiled code (a
-    closure over an int, which numba's cache keys on), so one lane runs without loop overhead and
-    a block of :data:`LANES` vectorizes."""
-
-    @njit(cache=True)
-    def rk(p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
-        """One step of length ``h`` from local time ``tau`` of every lane: ``p`` the
-        derived parameters ``(6, n)``, ``x`` and ``out`` the states ``(4, n)``, ``coef1`` ``(n, D1)``
-        and ``coef`` ``(n, D)`` the piece's inputs ``v1`` and ``v2`` (polynomials in local time,
-        lowest degree first); ``kst``, ``tmp``, ``v1`` and ``v2`` scratch. Every inner
-        loop runs over the lanes (the compiler vectorizes it), with the four states written out."""
-        degree, degree1 = coef.shape[1] - 1, coef1.shape[1] - 1
-        for st in range(_STAGES):
-            t = tau + _C[st] * h
-            for j in range(n):
-                acc = coef[j, degree]
-                for d in range(degree - 1, -1, -1):
-                    acc = acc * t + coef[j, d]
-                v2[j] = acc
-                acc = coef1[j, degree1]
-                for d in range(degree1 - 1, -1, -1):
-                    acc = acc * t + coef1[j, d]
-                v1[j] = acc
-                tmp[0, j] = x[0, j]
-                tmp[1, j] = x[1, j]
-                tmp[2, j] = x[2, j]
-                tmp[3, j] = x[3, j]
-            for m in range(st):
-                ah = _A[st, m] * h
-                if ah != 0.0:
-                    for j in range(n):
-                        tmp[0, j] += ah * kst[m, 0, j]
-                        tmp[1, j] += ah * kst[m, 1, j]
-                        tmp[2, j] += ah * kst[m, 2, j]
-                        tmp[3, j] += ah * kst[m, 3, j]
-            for j in range(n):
-                f0, f1, f2, f3 = _field(p[0, j], p[1, j], p[2, j], p[3, j], p[4, j], tmp[2, j], tmp[3, j], v1[j], v2[j])
-                kst[st, 0, j] = f0
-                kst[st, 1, j] = f1
-                kst[st, 2, j] = f2
-                kst[st, 3, j] = f3
+# No closures and no factories here: numba names a compiled function by its qualified name, so
+# two closures of one factory (a block of 1 lane and one of 64) compile to the same symbol, and
+# a process that loads one from the cache and compiles the other links one in place of the
+# other (heap corruption, seen in the wild). Each lane count is its own module-level function
+# around an inlined body, where the count is a constant the compiler folds.
+@njit(cache=True, inline="always")
+def _rk(n, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
+    """One step of length ``h`` from local time ``tau`` of every lane: ``p`` the
+    derived parameters ``(6, n)``, ``x`` and ``out`` the states ``(4, n)``, ``coef1`` ``(n, D1)``
+    and ``coef`` ``(n, D)`` the piece's inputs ``v1`` and ``v2`` (polynomials in local time,
+    lowest degree first); ``kst``, ``tmp``, ``v1`` and ``v2`` scratch. Every inner
+    loop runs over the lanes (the compiler vectorizes it), with the four states written out."""
+    degree, degree1 = coef.shape[1] - 1, coef1.shape[1] - 1
+    for st in range(_STAGES):
+        t = tau + _C[st] * h
         for j in range(n):
-            out[0, j] = x[0, j]
-            out[1, j] = x[1, j]
-            out[2, j] = x[2, j]
-            out[3, j] = x[3, j]
-        for st in range(_STAGES):
-            bh = _B[st] * h
-            if bh != 0.0:
+            acc = coef[j, degree]
+            for d in range(degree - 1, -1, -1):
+                acc = acc * t + coef[j, d]
+            v2[j] = acc
+            acc = coef1[j, degree1]
+            for d in range(degree1 - 1, -1, -1):
+                acc = acc * t + coef1[j, d]
+            v1[j] = acc
+            tmp[0, j] = x[0, j]
+            tmp[1, j] = x[1, j]
+            tmp[2, j] = x[2, j]
+            tmp[3, j] = x[3, j]
+        for m in range(st):
+            ah = _A[st, m] * h
+            if ah != 0.0:
                 for j in range(n):
-                    out[0, j] += bh * kst[st, 0, j]
-                    out[1, j] += bh * kst[st, 1, j]
-                    out[2, j] += bh * kst[st, 2, j]
-                    out[3, j] += bh * kst[st, 3, j]
+                    tmp[0, j] += ah * kst[m, 0, j]
+                    tmp[1, j] += ah * kst[m, 1, j]
+                    tmp[2, j] += ah * kst[m, 2, j]
+                    tmp[3, j] += ah * kst[m, 3, j]
+        for j in range(n):
+            f0, f1, f2, f3 = _field(p[0, j], p[1, j], p[2, j], p[3, j], p[4, j], tmp[2, j], tmp[3, j], v1[j], v2[j])
+            kst[st, 0, j] = f0
+            kst[st, 1, j] = f1
+            kst[st, 2, j] = f2
+            kst[st, 3, j] = f3
+    for j in range(n):
+        out[0, j] = x[0, j]
+        out[1, j] = x[1, j]
+        out[2, j] = x[2, j]
+        out[3, j] = x[3, j]
+    for st in range(_STAGES):
+        bh = _B[st] * h
+        if bh != 0.0:
+            for j in range(n):
+                out[0, j] += bh * kst[st, 0, j]
+                out[1, j] += bh * kst[st, 1, j]
+                out[2, j] += bh * kst[st, 2, j]
+                out[3, j] += bh * kst[st, 3, j]
 
-    return rk
+
+@njit(cache=True)
+def _rk_one(p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
+    """:func:`_rk` of one lane."""
+    _rk(1, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2)
 
 
-_rk_one = _stepper(1)
-_rk_block = _stepper(LANES)
+@njit(cache=True)
+def _rk_block(p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
+    """:func:`_rk` of a block of :data:`LANES` lanes."""
+    _rk(LANES, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2)
 
 
 @njit(cache=True)
@@ -184,106 +188,107 @@ def _angle(p, x, lane, dst):  # type: ignore[no-untyped-def]
         dst[3] = np.sign(sig) * (p[5, lane] + (abs(sig) - big_w) / (1.0 + big_w * big_w))
 
 
-def _blocker(n: int) -> Any:
-    """The kernel of a block of ``n`` lanes (1 or :data:`LANES`)."""
-
-    @njit(cache=True)
-    def block(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-        """Trials ``start:stop`` (at most ``n``) of a batch, laid out lane by lane: the arguments
-        are those of :func:`ilc_steering.core.integrate.integrate`'s kernels, with ``params``
-        ``(B, 5)``, one row ``(ell, rho, ell~, rho~, lim)`` per trial. Lanes past ``stop`` repeat
-        its last trial and are dropped."""
-        p = np.empty((6, n))  # per lane: k, a, b3, ell, W, lim
-        x = np.empty((4, n))
-        nxt = np.empty((4, n))
-        tmp = np.empty((4, n))
-        kst = np.empty((_STAGES, 4, n))
-        v1 = np.empty(n)
-        v2 = np.empty(n)
-        coef1 = np.empty((n, v1c.shape[2]))
-        coef = np.empty((n, v2c.shape[2]))
-        alive = np.empty(n, dtype=np.bool_)
-        lane_p = np.empty((6, 1))
-        lane_x = np.empty((4, 1))
-        lane_out = np.empty((4, 1))
-        lane_coef = np.empty((1, v2c.shape[2]))
-        lane_coef1 = np.empty((1, v1c.shape[2]))
-        record = traj.shape[1] > 0
-        used = stop - start
+@njit(cache=True, inline="always")
+def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    """Trials ``start:stop`` (at most ``n``) of a batch, laid out lane by lane: the arguments
+    are those of :func:`ilc_steering.core.integrate.integrate`'s kernels, with ``params``
+    ``(B, 5)``, one row ``(ell, rho, ell~, rho~, lim)`` per trial. Lanes past ``stop`` repeat
+    its last trial and are dropped."""
+    p = np.empty((6, n))  # per lane: k, a, b3, ell, W, lim
+    x = np.empty((4, n))
+    nxt = np.empty((4, n))
+    tmp = np.empty((4, n))
+    kst = np.empty((_STAGES, 4, n))
+    v1 = np.empty(n)
+    v2 = np.empty(n)
+    coef1 = np.empty((n, v1c.shape[2]))
+    coef = np.empty((n, v2c.shape[2]))
+    alive = np.empty(n, dtype=np.bool_)
+    lane_p = np.empty((6, 1))
+    lane_x = np.empty((4, 1))
+    lane_out = np.empty((4, 1))
+    lane_coef = np.empty((1, v2c.shape[2]))
+    lane_coef1 = np.empty((1, v1c.shape[2]))
+    record = traj.shape[1] > 0
+    used = stop - start
+    for j in range(n):
+        b = start + min(j, used - 1)
+        ell, rho, true_ell, true_rho, lim = params[b, 0], params[b, 1], params[b, 2], params[b, 3], params[b, 4]
+        k = true_rho / rho
+        big_w = np.tan(lim) if lim < np.pi / 2 else np.inf
+        p[0, j], p[1, j], p[2, j], p[3, j], p[4, j], p[5, j] = k, k / true_ell, 3.0 / ell, ell, big_w, lim
+        x[0, j], x[1, j], x[2, j] = x0[b, 0], x0[b, 1], np.tan(x0[b, 2])
+        phi = x0[b, 3]
+        if abs(phi) <= lim:
+            x[3, j] = np.tan(phi)
+        else:
+            x[3, j] = np.sign(phi) * (big_w + (1.0 + big_w * big_w) * (abs(phi) - lim))
+        alive[j] = True
+    for j in range(used):
+        status[start + j] = OK
+        if record:
+            _angle(p, x, j, traj[start + j, 0])
+    row = 1
+    for piece in range(durations.shape[0]):
+        step_h = durations[piece] / steps[piece]
         for j in range(n):
             b = start + min(j, used - 1)
-            ell, rho, true_ell, true_rho, lim = params[b, 0], params[b, 1], params[b, 2], params[b, 3], params[b, 4]
-            k = true_rho / rho
-            big_w = np.tan(lim) if lim < np.pi / 2 else np.inf
-            p[0, j], p[1, j], p[2, j], p[3, j], p[4, j], p[5, j] = k, k / true_ell, 3.0 / ell, ell, big_w, lim
-            x[0, j], x[1, j], x[2, j] = x0[b, 0], x0[b, 1], np.tan(x0[b, 2])
-            phi = x0[b, 3]
-            if abs(phi) <= lim:
-                x[3, j] = np.tan(phi)
+            for d in range(coef1.shape[1]):
+                coef1[j, d] = v1c[b, piece, d]
+            for d in range(coef.shape[1]):
+                coef[j, d] = v2c[b, piece, d]
+        for step in range(steps[piece]):
+            tau = step * step_h
+            if n == 1:
+                _rk_one(p, x, tau, step_h, coef1, coef, nxt, kst, tmp, v1, v2)
             else:
-                x[3, j] = np.sign(phi) * (big_w + (1.0 + big_w * big_w) * (abs(phi) - lim))
-            alive[j] = True
-        for j in range(used):
-            status[start + j] = OK
-            if record:
-                _angle(p, x, j, traj[start + j, 0])
-        row = 1
-        for piece in range(durations.shape[0]):
-            step_h = durations[piece] / steps[piece]
-            for j in range(n):
-                b = start + min(j, used - 1)
-                for d in range(coef1.shape[1]):
-                    coef1[j, d] = v1c[b, piece, d]
-                for d in range(coef.shape[1]):
-                    coef[j, d] = v2c[b, piece, d]
-            for step in range(steps[piece]):
-                tau = step * step_h
-                if n == 1:
-                    _rk_one(p, x, tau, step_h, coef1, coef, nxt, kst, tmp, v1, v2)
-                else:
-                    _rk_block(p, x, tau, step_h, coef1, coef, nxt, kst, tmp, v1, v2)
-                for j in range(used):
-                    if not alive[j]:
-                        continue
-                    big_w = p[4, j]
-                    if (abs(x[3, j]) > big_w) != (abs(nxt[3, j]) > big_w):
-                        for i in range(6):
-                            lane_p[i, 0] = p[i, j]
-                        for i in range(4):
-                            lane_x[i, 0] = x[i, j]
-                            lane_out[i, 0] = nxt[i, j]
-                        for d in range(coef.shape[1]):
-                            lane_coef[0, d] = coef[j, d]
-                        for d in range(coef1.shape[1]):
-                            lane_coef1[0, d] = coef1[j, d]
-                        _split_at_limit(lane_p, lane_x, tau, step_h, lane_coef1, lane_coef, lane_out)
-                        for i in range(4):
-                            nxt[i, j] = lane_out[i, 0]
-                    finite = True
+                _rk_block(p, x, tau, step_h, coef1, coef, nxt, kst, tmp, v1, v2)
+            for j in range(used):
+                if not alive[j]:
+                    continue
+                big_w = p[4, j]
+                if (abs(x[3, j]) > big_w) != (abs(nxt[3, j]) > big_w):
+                    for i in range(6):
+                        lane_p[i, 0] = p[i, j]
                     for i in range(4):
-                        if not np.isfinite(nxt[i, j]):
-                            finite = False
-                    wheel = min(abs(nxt[3, j]), big_w)
-                    if finite and abs(nxt[2, j]) < _T_CHART and wheel < _T_CHART:
-                        for i in range(4):
-                            x[i, j] = nxt[i, j]
-                    else:
-                        alive[j] = False
-                        status[start + j] = LEFT_CHART
-                if record:
-                    for j in range(used):
-                        _angle(p, x, j, traj[start + j, row])
-                    row += 1
-        for j in range(used):
-            _angle(p, x, j, out[start + j])
+                        lane_x[i, 0] = x[i, j]
+                        lane_out[i, 0] = nxt[i, j]
+                    for d in range(coef.shape[1]):
+                        lane_coef[0, d] = coef[j, d]
+                    for d in range(coef1.shape[1]):
+                        lane_coef1[0, d] = coef1[j, d]
+                    _split_at_limit(lane_p, lane_x, tau, step_h, lane_coef1, lane_coef, lane_out)
+                    for i in range(4):
+                        nxt[i, j] = lane_out[i, 0]
+                finite = True
+                for i in range(4):
+                    if not np.isfinite(nxt[i, j]):
+                        finite = False
+                wheel = min(abs(nxt[3, j]), big_w)
+                if finite and abs(nxt[2, j]) < _T_CHART and wheel < _T_CHART:
+                    for i in range(4):
+                        x[i, j] = nxt[i, j]
+                else:
+                    alive[j] = False
+                    status[start + j] = LEFT_CHART
+            if record:
+                for j in range(used):
+                    _angle(p, x, j, traj[start + j, row])
+                row += 1
+    for j in range(used):
+        _angle(p, x, j, out[start + j])
 
-    return block
+
+@njit(cache=True)
+def block_one(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    """One trial: the scalar path (``env.step``), and all a first run compiles."""
+    _block(1, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
 
 
-block_one = _blocker(1)
-"""One trial: the scalar path (``env.step``), and all a first run compiles."""
-block_full = _blocker(LANES)
-"""A block of :data:`LANES` trials, vectorized across them (a last, partial block is padded)."""
+@njit(cache=True)
+def block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    """A block of :data:`LANES` trials, vectorized across them (a last, partial block is padded)."""
+    _block(LANES, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
 
 
 @njit(cache=True, parallel=True)
