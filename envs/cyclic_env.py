@@ -160,7 +160,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         if unknown:
             raise ValueError(f"options: unknown key {unknown[0]!r}; the cyclic env takes 'start' (a configuration)")
         start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])
-        self._x = self._scenario.to_task(np.asarray(start, dtype=np.float64)).copy()
+        self._x = self._scenario.plant.initial_state(self._scenario.to_task(np.asarray(start, dtype=np.float64)))
         self._segment, self._cycle = 0, 1
         self._view.clear()
         return self._observation(), {"q": np.asarray(start, dtype=np.float64).copy(), "segment": 0, "cycle": 1}
