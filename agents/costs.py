@@ -36,7 +36,6 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.agents.ilc import ILCAgent
-from ilc_steering.core.car import CarModel
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
@@ -76,7 +75,7 @@ class NullSpaceCost:
     def __init__(self, model: NominalModel, name: str) -> None:
         if name not in COSTS[1:]:
             raise ValueError(f"learning.cost must be one of {list(COSTS)}, got {name!r}")
-        if name == "steering_margin" and (model.chained_map is None or model.steering_limit is None):
+        if name == "steering_margin" and model.steering_limit is None:
             raise ValueError("learning.cost steering_margin needs a robot with a steering_limit")
         if model.profile.v2_terms <= model.dimension - 1:
             raise ValueError(
@@ -153,21 +152,11 @@ class NullSpaceCost:
 
     # Costs of recorded configurations q (B, S, nq) with step lengths dt (S - 1,) [s].
     def _path_length(self, q: Array, dt: Array) -> Array:
-        points = q[..., :2] if self.model.chained_map is not None else q
+        points = q[..., :2] if self.model.chained_map.has_pose else q
         return np.asarray(np.sum(np.linalg.norm(np.diff(points, axis=1), axis=-1), axis=1), dtype=np.float64)
 
     def _curvature(self, q: Array, dt: Array) -> Array:
-        if self.model.chained_map is None:  # the chained form: the energy of v2, from z2's change
-            v2 = np.diff(q[..., 1], axis=1) / dt
-            return np.asarray(np.sum(v2**2 * dt, axis=1), dtype=np.float64)
-        ds = np.linalg.norm(np.diff(q[..., :2], axis=1), axis=-1)
-        robot = self.model.chained_map
-        if isinstance(robot, CarModel):
-            kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / robot.wheelbase
-            return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
-        turn = np.diff(q[..., 2], axis=1)  # kappa^2 ds = (dtheta / ds)^2 ds
-        squared = np.divide(turn**2, ds, out=np.zeros_like(ds), where=ds > 1e-12)
-        return np.asarray(np.sum(squared, axis=1), dtype=np.float64)
+        return self.model.chained_map.curvature_cost(q, dt)
 
     def _steering_margin(self, q: Array, dt: Array) -> Array:
         bound = (1 - STEERING_MARGIN) * float(self.model.steering_limit or 0.0)

@@ -24,7 +24,7 @@ import numpy as np
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.core.reference import car_trial
+from ilc_steering.core.reference import trial as car_trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.loop import run_trials
 from ilc_steering.tables import markdown_table, median_seconds, write_results
@@ -63,7 +63,7 @@ def main(args: Args) -> list[dict[str, object]]:
         scenario = Scenario.from_config(base)
 
         def reference(c: np.ndarray, rtol: float) -> np.ndarray:
-            return car_trial(scenario.plant, scenario.profile, scenario.x_start, c, rtol)  # type: ignore[arg-type]  # noqa: B023
+            return car_trial(scenario.plant, scenario.profile, scenario.x_start, c, rtol)  # noqa: B023
 
         truth = [reference(c, 1e-12) for c in actions]
         ref_time = median_seconds(lambda: [reference(c, 1e-8) for c in actions], repeats) / trials  # noqa: B023

@@ -90,7 +90,7 @@ class Args:
 
 def perturbed(name: str, **plant: float) -> SteeringConfig:
     config = load_config(name)
-    return dataclasses.replace(config, plant=dataclasses.replace(config.plant, **plant)) if plant else config  # type: ignore[arg-type]
+    return dataclasses.replace(config, plant=dataclasses.replace(config.plant, **plant)) if plant else config  # type: ignore[type-var]
 
 
 def run(config: SteeringConfig, learner: str, trials: int, seed: int = 0, noise: float | None = None) -> dict[str, Any]:

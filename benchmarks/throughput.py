@@ -12,7 +12,7 @@ every coefficient perturbed by 10%, seeded: the kind of trial an optimizer runs)
   each batch size ``N``, ``N`` trials per call, and at the largest ``N`` with a different true
   plant per trial (``true_factors``);
 - the kernels alone at each ``N``: the batched car kernel (:mod:`ilc_steering.core.tangent`)
-  and the one it replaced (``integrate(..., angles=True)``), timed in alternation in the same
+  and the one it replaced (``car_fields.ANGLE_KERNEL``), timed in alternation in the same
   run: the speed-up of the new one is their ratio;
 - for every path, the largest final-state difference from ``solve_ivp`` at rtol = atol = 1e-12
   (restarted at every steering-limit crossing) over the first trials, and how far that reference
@@ -51,7 +51,8 @@ import numpy as np
 from ilc_steering.config import load_config
 from ilc_steering.core.grid import steps_per_span
 from ilc_steering.core.integrate import integrate
-from ilc_steering.core.reference import car_trial
+from ilc_steering.core.reference import trial as car_trial
+from ilc_steering.core.robots.car_fields import ANGLE_KERNEL
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, ChainedSteeringVectorEnv
@@ -114,7 +115,7 @@ def trial_actions(scenario: Scenario, count: int, seed: int) -> np.ndarray:
 
 def solve_ivp_final(scenario: Scenario, c: np.ndarray, rtol: float) -> np.ndarray:
     """The final world configuration of one trial by ``solve_ivp`` DOP853 at ``rtol`` = atol."""
-    final = car_trial(scenario.plant, scenario.profile, scenario.x_start, c, rtol)  # type: ignore[arg-type]
+    final = car_trial(scenario.plant, scenario.profile, scenario.x_start, c, rtol)
     return scenario.to_world(scenario.plant.configuration(final))
 
 
@@ -237,7 +238,8 @@ def kernel_calls(scenario: Scenario, c: np.ndarray, parallel: bool) -> tuple[Any
     x0 = np.ascontiguousarray(np.broadcast_to(scenario.x_start, (c.shape[0], scenario.x_start.size)))
 
     def run(angles: bool) -> np.ndarray:
-        final = integrate(field, params, x0, spans, steps, v1, v2, parallel=parallel, angles=angles)[0]
+        kernel = ANGLE_KERNEL if angles else field
+        final = integrate(kernel, params, x0, spans, steps, v1, v2, parallel=parallel)[0]
         return scenario.plant.configuration(final)
 
     run(False), run(True)  # compile or load outside the timing

@@ -2,8 +2,8 @@
 
 The envs' ``render`` and the paper's figures (:mod:`ilc_steering.plots`) draw with these, on
 matplotlib's Agg canvas, which needs no display. A robot is drawn with its *nominal* map's
-geometry (``robot``, the map, or ``None`` for a chained plant, drawn in the plane ``(z1, zn)`` as
-a point):
+geometry (``robot``, the map; its ``outline`` is the drawing, see :mod:`ilc_steering.core.robots`;
+a chained plant has none and is drawn in the plane ``(z1, zn)`` as a point):
 
 - the car is the bicycle model of Fig. 1: a body, the rear wheel at ``(x, y)`` and the front
   wheel one wheelbase ahead, turned by ``phi``;
@@ -23,13 +23,10 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ilc_steering.core.car import CarModel
-from ilc_steering.core.trailer import TrailerModel, car_position
-from ilc_steering.core.unicycle import UnicycleModel
+from ilc_steering.core.nominal import ChainedMap
 
 __all__ = [
     "Canvas",
-    "car_outline",
     "draw_pose",
     "draw_trial",
     "draw_waypoints",
@@ -41,62 +38,13 @@ __all__ = [
 
 Array = npt.NDArray[np.float64]
 
-# Proportions of the drawn car, in wheelbases (the paper's car: 0.2 m between the axles).
-BODY_REAR, BODY_FRONT, BODY_HALF_WIDTH, WHEEL_HALF_LENGTH = -0.3, 1.3, 0.35, 0.2
 START, GOAL, PATH, STROBE = "0.45", "tab:green", "tab:blue", "tab:blue"
 
 
-def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
-    """The body polygon ``(5, 2)``, rear wheel ``(2, 2)`` and front wheel ``(2, 2)`` [m] of a car
-    at ``q = (x, y, theta, phi)`` with the given ``wheelbase`` [m]."""
-    x, y, theta, phi = (float(v) for v in q[:4])
-    heading = np.array([np.cos(theta), np.sin(theta)])
-    normal = np.array([-heading[1], heading[0]])
-    rear = np.array([x, y])
-    corners = [(BODY_REAR, -1), (BODY_FRONT, -1), (BODY_FRONT, 1), (BODY_REAR, 1), (BODY_REAR, -1)]
-    body = np.array([rear + wheelbase * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
-    half = WHEEL_HALF_LENGTH * wheelbase
-    front = rear + wheelbase * heading
-    steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
-    return (
-        body,
-        np.array([rear - half * heading, rear + half * heading]),
-        np.array([front - half * steered, front + half * steered]),
-    )
-
-
-def robot_outline(robot: object, q: Array) -> list[tuple[Array, bool]]:
+def robot_outline(robot: ChainedMap, q: Array) -> list[tuple[Array, bool]]:
     """The polylines ``(k, 2)`` [m] that draw ``robot`` (a nominal map) at configuration ``q``, each
-    with whether it is a wheel (drawn thick) rather than an outline."""
-    if isinstance(robot, CarModel):
-        body, rear, front = car_outline(q, robot.wheelbase)
-        return [(body, False), (rear, True), (front, True)]
-    if isinstance(robot, UnicycleModel):
-        x, y, theta = (float(v) for v in q[:3])
-        centre, b, rho = np.array([x, y]), robot.axle_width, robot.wheel_radius
-        heading = np.array([np.cos(theta), np.sin(theta)])
-        normal = np.array([-heading[1], heading[0]])
-        angles = np.linspace(0.0, 2.0 * np.pi, 33)
-        body = centre + 0.6 * b * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-        wheels = [
-            np.array([c - rho * heading, c + rho * heading])
-            for c in (centre + 0.5 * b * normal, centre - 0.5 * b * normal)
-        ]
-        return [(body, False), (np.array([centre, centre + 0.6 * b * heading]), False), *((w, True) for w in wheels)]
-    if isinstance(robot, TrailerModel):
-        q = np.asarray(q, dtype=np.float64)
-        rear, theta0 = car_position(q[:5], robot.hitch_length)
-        car = robot_outline(CarModel(robot.wheelbase, robot.wheel_radius), np.array([*rear, theta0, q[3]]))
-        axle = q[:2]
-        heading = np.array([np.cos(q[2]), np.sin(q[2])])
-        normal = np.array([-heading[1], heading[0]])
-        size = robot.wheelbase
-        corners = [(-0.35, -1), (0.45, -1), (0.45, 1), (-0.35, 1), (-0.35, -1)]
-        box = np.array([axle + size * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
-        half = WHEEL_HALF_LENGTH * size
-        wheel = np.array([axle - half * heading, axle + half * heading])
-        return [*car, (box, False), (np.array([axle, rear]), False), (wheel, True)]
-    raise ValueError(f"no drawing for a robot mapped by {type(robot).__name__}")
+    with whether it is a wheel (drawn thick) rather than an outline: the map's own drawing."""
+    return robot.outline(q)
 
 
 def plane(q: Array, has_pose: bool) -> Array:
@@ -108,18 +56,19 @@ def plane(q: Array, has_pose: bool) -> Array:
 def draw_pose(
     ax: Axes,
     q: Array,
-    robot: object,
+    robot: ChainedMap,
     color: str,
     linestyle: str = "-",
     alpha: float = 1.0,
     label: str | None = None,
 ) -> None:
-    """One configuration: the robot's outline and wheels, or a marker for a chained plant (``robot`` ``None``)."""
-    if robot is None:
-        point = plane(q, False)
+    """One configuration: the robot's outline and wheels, or a marker for a robot without one (a chained plant)."""
+    lines = robot_outline(robot, q)
+    if not lines:
+        point = plane(q, robot.has_pose)
         ax.plot(*point, "o", color=color, alpha=alpha, label=label, fillstyle="none" if linestyle != "-" else "full")
         return
-    for i, (line, wheel) in enumerate(robot_outline(robot, q)):
+    for i, (line, wheel) in enumerate(lines):
         if wheel:
             ax.plot(*line.T, color=color, alpha=alpha, linewidth=3.0, solid_capstyle="butt")
         else:
@@ -128,22 +77,22 @@ def draw_pose(
             )
 
 
-def draw_waypoints(ax: Axes, waypoints: Array, robot: object, names: Sequence[str]) -> None:
+def draw_waypoints(ax: Axes, waypoints: Array, robot: ChainedMap, names: Sequence[str]) -> None:
     """Start (grey) and goal or waypoint (green, dashed) configurations, each named beside it."""
     for i, (q, name) in enumerate(zip(waypoints, names)):
         color = START if i == 0 else GOAL
         draw_pose(ax, q, robot, color, linestyle="-" if i == 0 else "--", label=name)
-        x, y = plane(q, robot is not None)
+        x, y = plane(q, robot.has_pose)
         ax.annotate(name, (x, y), xytext=(-8, -24), textcoords="offset points", color=color, fontsize=8)
 
 
 def draw_trial(
-    ax: Axes, q: Array, robot: object, snapshots: int = 8, color: str = PATH, label: str | None = None
+    ax: Axes, q: Array, robot: ChainedMap, snapshots: int = 8, color: str = PATH, label: str | None = None
 ) -> None:
     """A trial's path (the robot's reference point: a car's rear-axle midpoint, a trailer's axle
     midpoint) with the robot drawn at ``snapshots`` evenly spaced instants, the stroboscopic view
     of the paper's Figs. 3, 7 and 11."""
-    path = plane(q, robot is not None)
+    path = plane(q, robot.has_pose)
     ax.plot(*path.T, color=color, linewidth=1.5, label=label)
     if snapshots > 0 and len(q) > 1:
         for i in np.unique(np.linspace(0, len(q) - 1, snapshots).round().astype(int)):
@@ -183,13 +132,13 @@ class Canvas:
 
 
 def render_scene(
-    canvas: Canvas, waypoints: Array, robot: object, names: Sequence[str], paths: Sequence[Array], title: str
+    canvas: Canvas, waypoints: Array, robot: ChainedMap, names: Sequence[str], paths: Sequence[Array], title: str
 ) -> npt.NDArray[np.uint8]:
     """An env's frame: the waypoints, the ``paths`` ``(S, nx)`` of the last trials, the last of
-    them stroboscopic (``robot``: the nominal map it is drawn with, ``None`` for a chained plant)."""
+    them stroboscopic (``robot``: the nominal map it is drawn with)."""
     ax = canvas.clear()
     draw_waypoints(ax, waypoints, robot, names)
     for i, q in enumerate(paths):
         draw_trial(ax, q, robot, snapshots=8 if i == len(paths) - 1 else 0)
-    setup_workspace(ax, None if robot is not None else waypoints.shape[1], title)
+    setup_workspace(ax, None if robot.has_pose else waypoints.shape[1], title)
     return canvas.frame()

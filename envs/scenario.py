@@ -4,7 +4,7 @@ The environments own a :class:`Scenario`; learners get only its
 :class:`~ilc_steering.core.nominal.NominalModel`, one per leg. :meth:`Scenario.from_config`
 builds every domain object from a config once; nothing reads the config's plant, task bounds or
 simulation keys after that. Tasks of a robot with a pose are simulated in a *task frame*, the
-world frame rotated by :func:`~ilc_steering.core.car.frame_angle` so that every waypoint's
+world frame rotated by :func:`~ilc_steering.core.robots.car.frame_angle` so that every waypoint's
 orientation sits in the chained-form chart; everything reported is in the world frame.
 """
 
@@ -16,13 +16,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
-from ilc_steering.core.car import rotate
 from ilc_steering.core.checks import check_jitter, check_noise
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
 from ilc_steering.core.plants import CHART_MARGIN, Plant, PlantBatch
 from ilc_steering.core.profiles import InputProfile
+from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.simulate import Trials, simulate
 from ilc_steering.core.trajectory import Trajectory
 
@@ -43,7 +43,7 @@ class Scenario:
     plant
         The true plant (its parameters stay here).
     chained_map
-        The nominal map to the chained form, ``None`` for a chained plant.
+        The nominal map to the chained form (the identity ``ChainedForm`` for a chained plant).
     profiles
         The input profile of each leg.
     waypoints
@@ -69,7 +69,7 @@ class Scenario:
     def __init__(
         self,
         plant: Plant,
-        chained_map: ChainedMap | None,
+        chained_map: ChainedMap,
         profiles: Sequence[InputProfile],
         waypoints: Array,
         frame: float = 0.0,
@@ -90,9 +90,9 @@ class Scenario:
         self.jitter = None if parameter_jitter is None else check_jitter(parameter_jitter)
         self.x_start = plant.initial_state(self.to_task(self.waypoints[0]))
         task_points = self.to_task(self.waypoints)
-        self.z_waypoints = task_points.copy() if chained_map is None else chained_map.to_chained(task_points)
+        self.z_waypoints = chained_map.to_chained(task_points)
         m, n = self.z_waypoints.shape
-        limit = getattr(plant, "steering_limit", None)  # a specification of the robot, known to the controller
+        limit = plant.steering_limit  # a specification of the robot, known to the controller
         self.nominals = [
             NominalModel(n, profile, self.z_waypoints[leg], self.z_waypoints[(leg + 1) % m], chained_map, limit)
             for leg, profile in enumerate(profiles)
@@ -178,8 +178,7 @@ class Scenario:
 
     def to_chained(self, x: Array) -> Array:
         """Configurations ``(..., nx)`` in the task frame to chained coordinates (nominal map)."""
-        chained_map = self.nominal.chained_map
-        return np.asarray(x, dtype=np.float64) if chained_map is None else chained_map.to_chained(x)
+        return self.nominal.chained_map.to_chained(x)
 
     def to_world(self, x: Array) -> Array:
         """Configurations in the task frame to the world frame."""
@@ -228,7 +227,7 @@ class Scenario:
         v1, v2 = self.nominals[leg].profile.evaluate(c[index], t)
         chained_map = self.nominal.chained_map
         acted_on = self.plant.estimate(states)
-        u = np.stack([v1, v2] if chained_map is None else chained_map.inputs(acted_on, v1, v2), axis=-1)
+        u = np.stack(chained_map.inputs(acted_on, v1, v2), axis=-1)
         return Trajectory(t.copy(), self.to_world(q), u, left_chart)
 
     def measure(

@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.nominal import ChainedMap, NominalModel
 from ilc_steering.core.score import TRUE_KEYS, trial_cost
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.scenario import Scenario
@@ -150,7 +150,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     For the car (n = 4): ``z = (x [m], tan(phi)/(ell cos^3 theta) [1/m], tan(theta), y [m])``; for
     the unicycle (n = 3): ``z = (x, tan(theta), y)``; for the car-trailer (n = 5) the chained form
-    of :mod:`ilc_steering.core.trailer`, ending ``(tan(theta1), y1)``.
+    of :mod:`ilc_steering.core.robots.car_trailer`, ending ``(tan(theta1), y1)``.
 
     ## Rewards
 
@@ -298,7 +298,7 @@ class TrialView:
     the last trial's errors (Cartesian and orientation where the robot has a pose). Matplotlib is
     imported at the first frame."""
 
-    def __init__(self, waypoints: Array, robot: object, names: list[str], has_pose: bool) -> None:
+    def __init__(self, waypoints: Array, robot: ChainedMap, names: list[str], has_pose: bool) -> None:
         self._waypoints = waypoints
         self._robot = robot
         self._names = names

@@ -22,18 +22,15 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ilc_steering.core.car import CarModel, frame_angle, rotate
+from ilc_steering.core import robots
 from ilc_steering.core.checks import ParameterError, check_gains, check_jitter, check_noise
 from ilc_steering.core.grid import check_grid
-from ilc_steering.core.plants import CarPlant, ChainedPlant, PlantKind, TrailerPlant, UnicyclePlant
+from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.profiles import PiecewiseProfile
-from ilc_steering.core.trailer import TrailerModel
+from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.core.trapezoid import TrapezoidProfile
-from ilc_steering.core.unicycle import UnicycleModel
 
 __all__ = [
-    "CarPlantConfig",
-    "ChainedPlantConfig",
     "ConfigError",
     "CyclicTaskConfig",
     "LearningConfig",
@@ -42,8 +39,6 @@ __all__ = [
     "SteeringConfig",
     "TaskConfig",
     "ToleranceConfig",
-    "TrailerPlantConfig",
-    "UnicyclePlantConfig",
     "load_config",
     "packaged_configs",
 ]
@@ -63,162 +58,18 @@ def _positive(value: float) -> bool:
 
 
 @contextmanager
-def _domain(key: str = "", names: dict[str, str] | None = None) -> Iterator[None]:
+def _domain(key: str = "", names: dict[str, str] | None = None, prefix: str = "") -> Iterator[None]:
     """Build a domain object, its range rules reported as config errors: a
-    :class:`ParameterError` names the key (its parameter, renamed by ``names``); any other
-    ``ValueError`` is put under ``key``."""
+    :class:`ParameterError` names the key (its parameter, renamed by ``names``, after ``prefix``);
+    any other ``ValueError`` is put under ``key``."""
     try:
         yield
     except ConfigError:
         raise
     except ParameterError as error:
-        raise ConfigError(f"{(names or {}).get(error.name, error.name)}: {error.problem}") from None
+        raise ConfigError(f"{prefix}{(names or {}).get(error.name, error.name)}: {error.problem}") from None
     except ValueError as error:
         raise ConfigError(f"{key}: {error}") from None
-
-
-@dataclass(frozen=True)
-class CarPlantConfig:
-    model: Literal["car"]
-    wheelbase: float  # nominal ell [m], known to the controller
-    wheel_radius: float  # nominal rho [m]
-    true_wheelbase: float  # the simulated robot's ell [m]
-    true_wheel_radius: float  # the simulated robot's rho [m]
-    steering_limit: float | None = None  # bound on |phi| [rad]; None for none
-    steering_offset: float = 0.0  # [rad] the wheel's true angle exceeds the measured one by this (misaligned wheel)
-    steering_lag: float = 0.0  # [s] time constant of the steering servo (wheel follows the command); 0: none
-    speed_lag: float = 0.0  # [s] time constant of the drive servo (wheel speed follows u1); 0: none
-    steering_backlash: float = 0.0  # [rad] play in the steering linkage (section 5); 0: none
-    encoder_pulses: int = 0  # pulses per wheel turn; > 0: the heading is dead-reckoned from them; 0: measured
-
-    def __post_init__(self) -> None:
-        self.plant()
-
-    @property
-    def dimension(self) -> int:
-        return 4
-
-    @property
-    def kind(self) -> PlantKind:
-        return CarPlant.kind
-
-    def nominal_map(self) -> CarModel:
-        """The geometry the controller assumes (eqs. 4-5)."""
-        with _domain():
-            return CarModel(self.wheelbase, self.wheel_radius)
-
-    def plant(self) -> CarPlant:
-        """The simulated car: true geometry, steered with the nominal one."""
-        nominal = self.nominal_map()
-        with _domain(names={"wheelbase": "true_wheelbase", "wheel_radius": "true_wheel_radius"}):
-            true = CarModel(self.true_wheelbase, self.true_wheel_radius)
-        with _domain():
-            return CarPlant(
-                true,
-                nominal,
-                self.steering_limit,
-                self.steering_offset,
-                self.steering_lag,
-                self.speed_lag,
-                self.steering_backlash,
-                self.encoder_pulses,
-            )
-
-
-@dataclass(frozen=True)
-class ChainedPlantConfig:
-    model: Literal["chained"]
-    dimension: int  # n, the chained-form dimension (>= 3)
-    v1_gain: float = 1.0  # true gain on v1 [-]; 1.0 unperturbed
-    v2_gain: float = 1.0  # true gain on v2 [-]; 1.0 unperturbed
-
-    def __post_init__(self) -> None:
-        self.plant()
-
-    @property
-    def kind(self) -> PlantKind:
-        return ChainedPlant.kind
-
-    def nominal_map(self) -> None:
-        """A chained plant needs no map."""
-        return None
-
-    def plant(self) -> ChainedPlant:
-        with _domain():
-            return ChainedPlant(self.dimension, self.v1_gain, self.v2_gain)
-
-
-@dataclass(frozen=True)
-class UnicyclePlantConfig:
-    model: Literal["unicycle"]
-    wheel_radius: float  # nominal rho [m] of the differential drive, known to the controller
-    axle_width: float  # nominal b [m], the distance between the two driven wheels
-    true_wheel_radius: float  # the simulated robot's rho [m]
-    true_axle_width: float  # the simulated robot's b [m]
-
-    def __post_init__(self) -> None:
-        self.plant()
-
-    @property
-    def dimension(self) -> int:
-        return 3
-
-    @property
-    def kind(self) -> PlantKind:
-        return UnicyclePlant.kind
-
-    def nominal_map(self) -> UnicycleModel:
-        """The geometry the drive assumes."""
-        with _domain():
-            return UnicycleModel(self.wheel_radius, self.axle_width)
-
-    def plant(self) -> UnicyclePlant:
-        """The simulated differential drive: true geometry, driven with the nominal one."""
-        nominal = self.nominal_map()
-        with _domain(names={"wheel_radius": "true_wheel_radius", "axle_width": "true_axle_width"}):
-            true = UnicycleModel(self.true_wheel_radius, self.true_axle_width)
-        return UnicyclePlant(true, nominal)
-
-
-@dataclass(frozen=True)
-class TrailerPlantConfig:
-    model: Literal["car_trailer"]
-    wheelbase: float  # nominal ell [m] of the car, known to the controller
-    wheel_radius: float  # nominal rho [m]
-    hitch_length: float  # nominal d [m], from the car's rear axle (the hitch) to the trailer's axle
-    true_wheelbase: float  # the simulated robot's ell [m]
-    true_wheel_radius: float  # the simulated robot's rho [m]
-    true_hitch_length: float  # the simulated robot's d [m]
-    steering_limit: float | None = None  # bound on |phi| [rad]; None for none
-
-    def __post_init__(self) -> None:
-        self.plant()
-
-    @property
-    def dimension(self) -> int:
-        return 5
-
-    @property
-    def kind(self) -> PlantKind:
-        return TrailerPlant.kind
-
-    def nominal_map(self) -> TrailerModel:
-        """The geometry the controller assumes."""
-        with _domain():
-            return TrailerModel(self.wheelbase, self.wheel_radius, self.hitch_length)
-
-    def plant(self) -> TrailerPlant:
-        """The simulated car and trailer: true geometry, steered with the nominal one."""
-        nominal = self.nominal_map()
-        names = {
-            "wheelbase": "true_wheelbase",
-            "wheel_radius": "true_wheel_radius",
-            "hitch_length": "true_hitch_length",
-        }
-        with _domain(names=names):
-            true = TrailerModel(self.true_wheelbase, self.true_wheel_radius, self.true_hitch_length)
-        with _domain():
-            return TrailerPlant(true, nominal, self.steering_limit)
 
 
 def _profile(leg: SegmentConfig | TaskConfig) -> PiecewiseProfile | TrapezoidProfile:
@@ -357,7 +208,7 @@ class SimulationConfig:
 @dataclass(frozen=True)
 class SteeringConfig:
     name: str
-    plant: CarPlantConfig | ChainedPlantConfig | UnicyclePlantConfig | TrailerPlantConfig
+    plant: PlantConfig  # plant.model names a robot of ilc_steering.core.robots, whose config class has the rest
     task: TaskConfig | CyclicTaskConfig
     learning: LearningConfig
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
@@ -382,7 +233,7 @@ class SteeringConfig:
         return [("task", self.task)]
 
     def frame(self) -> float:
-        """The rotation [rad] of the task frame (:func:`~ilc_steering.core.car.frame_angle`, computed once,
+        """The rotation [rad] of the task frame (:func:`~ilc_steering.core.robots.car.frame_angle`, computed once,
         on loading); 0 without a pose."""
         frame: float = self.__dict__["_frame"]
         return frame
@@ -425,20 +276,8 @@ class SteeringConfig:
                 frame = frame_angle(*(point[2] for _, point in points))
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         plant = self.plant.plant()
-        for lag in ("steering_lag", "speed_lag"):
-            value = getattr(self.plant, lag, 0.0)
-            _require(
-                value == 0 or value >= self.simulation.max_step,
-                f"plant.{lag}",
-                f"{value} s is shorter than the integrator step simulation.max_step = {self.simulation.max_step} s, "
-                "which would not resolve it; lower max_step or set the lag to 0",
-            )
-        _require(
-            not (self.is_cyclic and getattr(plant, "lab", False)),
-            "plant",
-            "steering_backlash and encoder_pulses are for one-trial tasks (a cycle would carry the "
-            "dead-reckoned estimate from trial to trial)",
-        )
+        with _domain("plant", prefix="plant."):
+            self.plant.check_task(self.simulation.max_step, self.is_cyclic)
         task_points = []
         for key, point in points:
             with _domain(key, {"phi": key, "configuration": key}):
@@ -449,7 +288,7 @@ class SteeringConfig:
         if cost != "none":
             _require(not self.is_cyclic, "learning.cost", "is for one-trial tasks (the cyclic law has none)")
             _require(
-                cost != "steering_margin" or getattr(self.plant, "steering_limit", None) is not None,
+                cost != "steering_margin" or self.plant.steering_limit is not None,
                 "learning.cost",
                 "steering_margin needs a robot with plant.steering_limit (a car, a car_trailer)",
             )
@@ -514,6 +353,14 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
         if all(dataclasses.is_dataclass(a) for a in options):
             return _build_tagged(options, value, key)
         return _coerce(options[0], value, key)
+    if hint is PlantConfig:
+        _require(isinstance(value, dict), key, f"must be a mapping, got {_show(value)}")
+        model = value.get("model")
+        known = robots.names()
+        _require(
+            isinstance(model, str) and model in known, f"{key}.model", f"must be one of {known}, got {_show(model)}"
+        )
+        return _build(robots.config_class(model), value, key)
     if dataclasses.is_dataclass(hint):
         return _build(hint, value, key)
     if origin is tuple:
@@ -583,6 +430,8 @@ def _build(cls: Any, value: Any, key: str) -> Any:
         return cls(**kwargs)
     except ConfigError as error:
         raise ConfigError(f"{prefix}{error}") from None
+    except ParameterError as error:  # a robot's config keys check their ranges with the core's rules
+        raise ConfigError(f"{prefix}{error.name}: {error.problem}") from None
 
 
 def packaged_configs() -> list[str]:

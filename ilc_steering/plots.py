@@ -62,8 +62,8 @@ class Run:
         return self.kind.has_pose
 
     @property
-    def robot(self) -> object:
-        """The nominal map the robot is drawn with, ``None`` for a chained plant (drawn as a point)."""
+    def robot(self) -> Any:
+        """The nominal map the robot is drawn with (a chained plant's has no outline: a point)."""
         return self.config.plant.nominal_map()
 
     @property
@@ -206,7 +206,7 @@ def coordinates_figure(run: Run) -> Figure:
     labels = run.kind.coordinate_labels(trajectory.q.shape[1])
     figure = _figure(6.4, 1.6 * len(labels) + 0.8)
     axes = _time_panels(figure, trajectory.t, trajectory.q, labels)
-    limit = getattr(run.config.plant, "steering_limit", None)
+    limit = run.config.plant.steering_limit
     if limit is not None:
         for sign, name in ((1, "+φ_max"), (-1, "−φ_max")):
             axes[3].axhline(sign * limit, color="0.4", linestyle="--", linewidth=0.8, label=name)

@@ -14,7 +14,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.config import load_config
-from ilc_steering.core.car import CarModel
+from ilc_steering.core.robots.car import CarModel
 from ilc_steering.envs import steering_env
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"

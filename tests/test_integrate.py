@@ -9,11 +9,12 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
 from ilc_steering.config import load_config
 from ilc_steering.core import dop853
-from ilc_steering.core import integrate as kernel
-from ilc_steering.core.integrate import LEFT_CHART, OK
-from ilc_steering.core.plants import ChainedPlant
+from ilc_steering.core import stepper as kernel
+from ilc_steering.core.integrate import LEFT_CHART, OK, integrate
 from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.reference import reference_trial
+from ilc_steering.core.robots.car_fields import ANGLE_KERNEL
+from ilc_steering.core.robots.chained import ChainedPlant
 from ilc_steering.core.simulate import simulate
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.loop import run_trials
@@ -53,7 +54,7 @@ def ilc_actions(name, count):
 
 
 def test_tableau_is_consistent():
-    assert kernel._A.shape == (kernel._STAGES, kernel._STAGES)
+    assert kernel._A.shape == (kernel.STAGES, kernel.STAGES)
     np.testing.assert_allclose(kernel._A.sum(axis=1), kernel._C, atol=1e-14)
     assert kernel._B.sum() == pytest.approx(1.0, abs=1e-14)
     assert np.all(np.triu(kernel._A) == 0)  # explicit
@@ -180,7 +181,7 @@ SERVOS = [
 def test_the_servo_perturbations_within_1e9_of_a_tight_solve_ivp(name, servo):
     import dataclasses
 
-    from ilc_steering.core.reference import car_trial
+    from ilc_steering.core.reference import trial as car_trial
 
     config = load_config(name)
     config = dataclasses.replace(config, plant=dataclasses.replace(config.plant, **servo))
@@ -227,10 +228,10 @@ def angle_kernel(scenario, c):
     profile = scenario.profile
     spans = np.asarray(profile.spans, dtype=np.float64)
     v1, v2 = profile.polynomials(c)
-    field, params = scenario.plant.kernel()
+    _, params = scenario.plant.kernel()
     x0 = np.broadcast_to(scenario.x_start, (c.shape[0], scenario.x_start.size))
     steps = steps_per_span(spans, scenario.max_step)
-    return kernel.integrate(field, params, x0, spans, steps, v1, v2, angles=True)
+    return integrate(ANGLE_KERNEL, params, x0, spans, steps, v1, v2)
 
 
 @pytest.mark.parametrize(

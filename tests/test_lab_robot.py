@@ -8,8 +8,8 @@ import pytest
 
 from ilc_steering.config import ConfigError, load_config
 from ilc_steering.core.integrate import OK
-from ilc_steering.core.plants import CAR_LAB_FIELD
 from ilc_steering.core.reference import lab_car_trial
+from ilc_steering.core.robots.car_fields import LAB_KERNEL
 from ilc_steering.envs.scenario import Scenario
 
 LAB = [
@@ -43,7 +43,7 @@ def comparable(scenario, x):
 @pytest.mark.parametrize("lab", LAB, ids=lambda s: "+".join(s))
 def test_the_lab_robot_within_1e9_of_an_event_driven_solve_ivp(name, lab):
     scenario = scenario_with(name, **{**OFF, **lab})
-    assert scenario.plant.kernel()[0] == CAR_LAB_FIELD and scenario.plant.state_dim == 12
+    assert scenario.plant.kernel()[0] is LAB_KERNEL and scenario.plant.state_dim == 12
     c = scenario.nominal.solve()
     trial = scenario.run(c[None])
     assert trial.status[0] == OK

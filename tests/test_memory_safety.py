@@ -74,7 +74,7 @@ def kernel_args(name, batch=3):
     spans = np.asarray(scenario.profile.spans, dtype=np.float64)
     steps = np.full(spans.shape, 40, dtype=np.int64)
     x0 = np.tile(scenario.x_start, (batch, 1))
-    return dict(model=field, params=params, x0=x0, durations=spans, steps=steps, v1=v1, v2=v2)
+    return dict(kernel=field, params=params, x0=x0, durations=spans, steps=steps, v1=v1, v2=v2)
 
 
 @pytest.mark.parametrize("name", ["forward_parking", "unicycle_parking", "trailer_bay", "chained_perturbed"])

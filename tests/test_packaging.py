@@ -32,6 +32,8 @@ def test_wheel_ships_every_subpackage_and_config(tmp_path):
         ("envs", "ilc_steering/envs"),
         ("agents", "ilc_steering/agents"),
         ("ilc_steering", "ilc_steering"),
+        ("ilc_steering/core", "ilc_steering/core"),
+        ("ilc_steering/core/robots", "ilc_steering/core/robots"),
     ):
         for source in (ROOT / folder).glob("*.py"):
             assert f"{package}/{source.name}" in names

@@ -15,10 +15,12 @@ from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContex
 from ilc_steering.agents.newton import make_newton
 from ilc_steering.agents.newton_ilc import make_newton_ilc
 from ilc_steering.config import load_config, packaged_configs
-from ilc_steering.core.car import rotate
+from ilc_steering.core import robots
 from ilc_steering.core.integrate import OK
-from ilc_steering.core.plants import PLANTS, ChainedPlant, Plant, PlantKind
+from ilc_steering.core.plants import Kernel, Plant, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
+from ilc_steering.core.robots.car import rotate
+from ilc_steering.core.robots.chained import ChainedPlant
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.loop import run_trials
@@ -30,7 +32,7 @@ def plants_of_every_kind():
     out = {}
     for config in CONFIGS.values():
         out.setdefault(config.plant.model, (config.plant.plant(), config))
-    assert set(out) == set(PLANTS), "every entry of PLANTS needs a packaged config"
+    assert set(out) == set(robots.names()), "every registered robot needs a packaged config"
     return out
 
 
@@ -47,12 +49,12 @@ def lab_car():
     return config.plant.plant(), config
 
 
-@pytest.mark.parametrize("model", [*sorted(PLANTS), "car with servos", "car of the lab"])
+@pytest.mark.parametrize("model", [*robots.names(), "car with servos", "car of the lab"])
 def test_plant_contract(model):
     special = {"car with servos": servo_car, "car of the lab": lab_car}
     plant, config = special[model]() if model in special else plants_of_every_kind()[model]
     model = model.split()[0]
-    assert isinstance(plant, Plant) and isinstance(plant, PLANTS[model])
+    assert isinstance(plant, Plant) and isinstance(plant, robots.config_class(model).plant_class)
     assert isinstance(plant.kind, PlantKind) and plant.kind.name == model
     start = np.array(config.points()[0][1])
     q0 = rotate(start, config.frame()) if plant.kind.has_pose else start
@@ -64,7 +66,7 @@ def test_plant_contract(model):
     np.testing.assert_array_equal(plant.configuration(x0), q0)
     assert plant.configuration(np.stack([x0, x0])).shape == (2, q0.size)
     field, params = plant.kernel()
-    assert isinstance(field, int) and params.dtype == np.float64 and params.ndim == 1
+    assert isinstance(field, Kernel) and params.dtype == np.float64 and params.shape == (len(field.layout.params),)
     profile = config.legs()[0][1].profile()
     c = np.zeros((1, profile.num_coefficients))
     c[0, 0] = 0.1

@@ -12,9 +12,8 @@ from gymnasium.utils.env_checker import check_env
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import CyclicILCAgent
 from ilc_steering.config import load_config
-from ilc_steering.core.car import chained_inputs
-from ilc_steering.core.reference import car_field, reference_trial
-from ilc_steering.envs.rendering import car_outline
+from ilc_steering.core.reference import reference_trial
+from ilc_steering.core.robots.car import car_outline, chained_inputs
 
 STEERING, CYCLIC = "ilc_steering/ChainedSteering-v0", "ilc_steering/CyclicSteering-v0"
 DOCUMENTED = ("symmetric and normalized space", "observation space minimum", "observation space maximum")
@@ -104,7 +103,7 @@ def test_trajectory_matches_solve_ivp_at_every_sample():
     *_, info = env.step(c)
     trajectory = info["trajectory"]
     scenario = env.unwrapped._scenario
-    field = car_field(scenario.plant, scenario.profile, c)
+    field = scenario.plant.reference_field(scenario.profile, c)[0]
     for k in (20, 57, 100, 143):
         reference = reference_trial(field, scenario.x_start, np.array([0.0, trajectory.t[k]]))
         assert np.max(np.abs(scenario.to_world(reference) - trajectory.q[k])) < 1e-9

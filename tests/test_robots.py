@@ -13,11 +13,10 @@ from ilc_steering.agents import ILCAgent
 from ilc_steering.config import ConfigError, load_config
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.integrate import LEFT_CHART, OK
-from ilc_steering.core.plants import TrailerPlant, UnicyclePlant
-from ilc_steering.core.reference import trailer_trial, unicycle_trial
+from ilc_steering.core.reference import trial
+from ilc_steering.core.robots.car_trailer import TrailerModel, TrailerPlant, _to_chained, trailer_velocity
+from ilc_steering.core.robots.unicycle import UnicycleModel, UnicyclePlant, unicycle_velocity
 from ilc_steering.core.simulate import simulate
-from ilc_steering.core.trailer import TrailerModel, _to_chained, trailer_velocity
-from ilc_steering.core.unicycle import UnicycleModel, unicycle_velocity
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.loop import run_trials
 from ilc_steering.runner import run_ilc
@@ -125,9 +124,8 @@ def test_the_kernel_matches_solve_ivp_within_1e_9(name, config):
     rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), 3)
     actions = np.array([info["action"] for info in rollout.infos])
     final = scenario.run(actions).final
-    reference = unicycle_trial if isinstance(scenario.plant, UnicyclePlant) else trailer_trial
     for c, x in zip(actions, final):
-        expected = reference(scenario.plant, scenario.profile, scenario.x_start, c)
+        expected = trial(scenario.plant, scenario.profile, scenario.x_start, c)
         np.testing.assert_allclose(x, expected, rtol=0, atol=1e-9)
     if "stop" in name:  # the limit is reached, so its crossings were located
         states = scenario.run(actions, record=True).states

@@ -11,8 +11,8 @@ from scipy.integrate import solve_ivp
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.core.checks import ParameterError
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import ChainedPlant
 from ilc_steering.core.profiles import InputProfile
+from ilc_steering.core.robots.chained import ChainedPlant
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 
@@ -135,7 +135,7 @@ def test_a_car_with_trapezoidal_v1_within_1e9_of_solve_ivp_and_ilc_converges():
     import gymnasium as gym
 
     import ilc_steering  # noqa: F401  (registers the envs)
-    from ilc_steering.core.reference import car_trial
+    from ilc_steering.core.reference import trial as car_trial
     from ilc_steering.core.score import within_tolerance
     from ilc_steering.envs.scenario import Scenario
     from ilc_steering.loop import run_trials

@@ -29,12 +29,14 @@ Eqs. 24-25 chain the pieces into ``V`` and ``W`` with :math:`z_b(T) = V z_b(0) +
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from math import factorial
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["chained_rhs", "drift_matrix", "piece_transition", "transition"]
+__all__ = ["ChainedForm", "chained_rhs", "drift_matrix", "piece_transition", "transition"]
 
 Array = npt.NDArray[np.float64]
 
@@ -98,3 +100,41 @@ def transition(v1: Array, durations: Array, dimension: int, bases: Array) -> tup
         V = V_i @ V
         W = V_i @ W + W_i
     return V, W
+
+
+@dataclass(frozen=True)
+class ChainedForm:
+    """The map of a system that is itself in chained form (eq. 1): the identity, ``v = u``.
+
+    A :class:`~ilc_steering.core.nominal.ChainedMap` like a robot's, so that every task has a map
+    and nothing has to ask whether it is there. Its plant is registered as ``chained``.
+    """
+
+    dimension: int
+    robot: ClassVar[str] = "chained"
+    has_pose: ClassVar[bool] = False
+
+    def to_chained(self, q: Array) -> Array:
+        """``z = q``."""
+        return np.array(q, dtype=np.float64)
+
+    def from_chained(self, z: Array) -> Array:
+        """``q = z``."""
+        return np.array(z, dtype=np.float64)
+
+    def inputs(self, q: Array, v1: Array | float, v2: Array | float) -> tuple[Array, Array]:
+        """``(v1, v2)`` themselves."""
+        shape = np.shape(np.asarray(q))[:-1]
+        return np.broadcast_to(np.asarray(v1, dtype=np.float64), shape), np.broadcast_to(
+            np.asarray(v2, dtype=np.float64), shape
+        )
+
+    def outline(self, q: Array) -> list[tuple[Array, bool]]:
+        """No outline: a chained system is drawn as a point of the plane ``(z1, zn)``."""
+        return []
+
+    def curvature_cost(self, q: Array, dt: Array) -> Array:
+        """``int v2^2 dt`` of recorded trials ``q`` ``(B, S, n)`` with steps ``dt`` ``(S - 1,)`` [s], from
+        ``z2``'s change: the chained form's stand-in for the energy of bending the path."""
+        v2 = np.diff(q[..., 1], axis=1) / dt
+        return np.asarray(np.sum(v2**2 * dt, axis=1), dtype=np.float64)

@@ -8,7 +8,8 @@ naming the file and the YAML key (:mod:`ilc_steering.config`), so no rule is wri
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from math import isfinite
 
 import numpy as np
@@ -21,6 +22,7 @@ __all__ = [
     "check_gains",
     "check_jitter",
     "check_noise",
+    "renamed",
     "require",
     "require_positive",
 ]
@@ -88,3 +90,13 @@ def check_noise(
         f"each sigma must be finite and in [0, {MAX_NOISE:g}], got {values.tolist()}",
     )
     return values if np.any(values > 0) else None
+
+
+@contextmanager
+def renamed(names: dict[str, str]) -> Iterator[None]:
+    """Re-raise a :class:`ParameterError` of the block under the name ``names`` gives its parameter
+    (a true geometry built by the class of the nominal one: ``wheelbase`` is ``true_wheelbase``)."""
+    try:
+        yield
+    except ParameterError as error:
+        raise ParameterError(names.get(error.name, error.name), error.problem) from None

@@ -5,7 +5,7 @@ the plant the controller *assumes*, with a vector :math:`\theta` of log-ratios o
 it is least sure of, and no other knowledge. A learner simulates it (on the compiled kernel, no
 trial spent) to fit :math:`\theta` to the trials it has measured and to invert the refit model.
 
-- a car (a :class:`~ilc_steering.core.car.CarModel` map): :math:`\tilde\ell = \ell e^{\theta_1}`
+- a car (a :class:`~ilc_steering.core.robots.car.CarModel` map): :math:`\tilde\ell = \ell e^{\theta_1}`
   and :math:`\tilde\rho = \rho e^{\theta_2}`, the wheelbase and wheel radius of eq. 3 (the
   controller keeps the nominal ones in eqs. 4-5), with the robot's known steering limit;
 - the chained form (no map): the input gains :math:`g_1 = e^{\theta_1}` on ``v1`` and
@@ -25,7 +25,8 @@ import numpy.typing as npt
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import Plant, nominal_plant
+from ilc_steering.core.plants import Plant
+from ilc_steering.core.robots import nominal_plant
 from ilc_steering.core.simulate import simulate
 
 __all__ = ["MAX_LOG_RATIO", "ModelFamily"]
@@ -50,7 +51,7 @@ class ModelFamily:
     def __init__(self, model: NominalModel, max_step: float = DEFAULT_MAX_STEP) -> None:
         self.model = model
         self.max_step = max_step
-        self._nominal = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
+        self._nominal: Plant = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
         self.names: tuple[str, ...] = self._nominal.factor_names
         self._q0 = self.to_configuration(model.z_start)
 
@@ -79,10 +80,8 @@ class ModelFamily:
 
     def to_configuration(self, z: Array) -> Array:
         """Chained coordinates ``(..., n)`` to configurations (the nominal map's inverse)."""
-        chained_map = self.model.chained_map
-        return np.asarray(z, dtype=np.float64) if chained_map is None else chained_map.from_chained(z)
+        return self.model.chained_map.from_chained(z)
 
     def to_chained(self, q: Array) -> Array:
         """Configurations to chained coordinates (the nominal map)."""
-        chained_map = self.model.chained_map
-        return np.asarray(q, dtype=np.float64) if chained_map is None else chained_map.to_chained(q)
+        return self.model.chained_map.to_chained(q)

@@ -10,11 +10,12 @@ not reachable from here.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.core.chained_form import ChainedForm
 from ilc_steering.core.profiles import InputProfile
 
 __all__ = ["ChainedMap", "NominalModel"]
@@ -25,7 +26,14 @@ Array = npt.NDArray[np.float64]
 @runtime_checkable
 class ChainedMap(Protocol):
     """A robot's change of coordinates to the chained form and its input transformation, with the
-    geometry the controller assumes (for the car: eqs. 4-5, :class:`~ilc_steering.core.car.CarModel`)."""
+    geometry the controller assumes (for the car: eqs. 4-5, :class:`~ilc_steering.core.robots.car.CarModel`;
+    for a system already in chained form, :class:`~ilc_steering.core.chained_form.ChainedForm`). Each
+    robot's module of :mod:`ilc_steering.core.robots` has one."""
+
+    robot: ClassVar[str]
+    """The robot's name in the registry (``plant.model``)."""
+    has_pose: ClassVar[bool]
+    """The configuration starts with a planar pose ``(x [m], y [m], theta [rad])``."""
 
     def to_chained(self, q: Array) -> Array:
         """``z = alpha(q)`` for configurations ``(..., nq)``."""
@@ -39,24 +47,39 @@ class ChainedMap(Protocol):
         """``u = beta(q) v``: the robot's inputs that realise chained inputs ``v1``, ``v2`` at ``q``."""
         ...
 
+    def outline(self, q: Array) -> list[tuple[Array, bool]]:
+        """The polylines ``(k, 2)`` [m] that draw the robot at configuration ``q``, each with whether
+        it is a wheel (drawn thick); none for a system drawn as a point."""
+        ...
+
+    def curvature_cost(self, q: Array, dt: Array) -> Array:
+        """``int kappa^2 ds`` [1/m] of the paths of recorded trials ``q`` ``(B, S, nq)`` with steps ``dt``
+        ``(S - 1,)`` [s] (section 7's curvature cost)."""
+        ...
+
 
 @dataclass(frozen=True, eq=False)
 class NominalModel:
     """What a learner may know: the nominal chained form, the input profile and the task.
 
     ``z_start`` and ``z_goal`` are the start and goal in chained coordinates (computed with the
-    nominal map, in the task frame). ``chained_map`` is the nominal map of the robot, or ``None``
-    for a plant that is itself in chained form; ``steering_limit`` is the car's steering stop.
-    No true plant parameter is reachable from here.
+    nominal map, in the task frame). ``chained_map`` is the nominal map of the robot (given as
+    ``None``: the system is itself in chained form, and the map is
+    :class:`~ilc_steering.core.chained_form.ChainedForm`); ``steering_limit`` is the car's steering
+    stop. No true plant parameter is reachable from here.
     """
 
     dimension: int
     profile: InputProfile
     z_start: Array
     z_goal: Array
-    chained_map: ChainedMap | None = None
+    chained_map: ChainedMap = None  # type: ignore[assignment]  # None stands for ChainedForm(dimension)
     steering_limit: float | None = None
     """The robot's bound on ``|phi|`` [rad], a specification the controller knows (``None``: none)."""
+
+    def __post_init__(self) -> None:
+        if self.chained_map is None:
+            object.__setattr__(self, "chained_map", ChainedForm(self.dimension))
 
     def transition(self, c11: float) -> tuple[Array, Array]:
         """Eqs. (24)-(25): ``V`` and ``W`` of ``z_b`` when the learned ``v1`` coefficient is ``c11``."""

@@ -2,8 +2,10 @@
 
 Each span of the input profile is integrated separately (the inputs jump between spans), and
 with a steering limit the integration restarts at every crossing of ``|phi_c| = limit``, where
-the vector field has a kink (see :mod:`ilc_steering.core.integrate`). The car's field is built
-from eqs. 3-5 as written in :mod:`ilc_steering.core.car`, not from the kernel's fused form.
+the vector field has a kink (see :mod:`ilc_steering.core.stepper`). Each robot's field is the
+one its module writes from its equations (``Plant.reference_field``; the car's from eqs. 3-5 as
+in :mod:`ilc_steering.core.robots.car`), not from the kernel's fused form; the lab robot, whose
+events restart the integration, has its own (:func:`lab_car_trial`).
 """
 
 from __future__ import annotations
@@ -15,13 +17,11 @@ import numpy as np
 import numpy.typing as npt
 from scipy.integrate import solve_ivp
 
-from ilc_steering.core.car import car_velocity, chained_inputs
-from ilc_steering.core.plants import CHART_MARGIN, CarPlant, TrailerPlant, UnicyclePlant
+from ilc_steering.core.plants import Plant
 from ilc_steering.core.profiles import InputProfile
-from ilc_steering.core.trailer import trailer_velocity
-from ilc_steering.core.unicycle import unicycle_velocity
+from ilc_steering.core.robots.car import CarPlant, car_velocity, chained_inputs
 
-__all__ = ["car_field", "car_trial", "lab_car_trial", "reference_trial", "trailer_trial", "unicycle_trial"]
+__all__ = ["lab_car_trial", "reference_trial", "trial"]
 
 Array = npt.NDArray[np.float64]
 Field = Callable[[float, Array], Array]
@@ -62,79 +62,11 @@ def reference_trial(
     return x
 
 
-def car_field(plant: CarPlant, profile: InputProfile, c: Array) -> Field:
-    """The closed-loop car ``plant`` under coefficients ``c``: eqs. 4-5 with its nominal geometry
-    from the measured wheel angle (the clipped command, or the lagging wheel), eq. 3 with its true
-    geometry, misaligned wheel and lagging drive, the servo integrating ``u2``."""
-    limit = np.inf if plant.steering_limit is None else plant.steering_limit
-    nominal, true = plant.nominal, plant.true
-
-    offset, steering_lag, speed_lag = plant.steering_offset, plant.steering_lag, plant.speed_lag
-
-    def field(t: float, q: Array) -> Array:
-        v1, v2 = profile.evaluate(c, np.array(t))
-        commanded = min(max(q[3], -limit), limit)
-        phi = q[4] if steering_lag else commanded
-        u1, u2 = chained_inputs(q[2], phi, float(v1), float(v2), nominal.wheelbase, nominal.wheel_radius)
-        omega = q[5] if speed_lag else u1
-        dx, dy, dtheta, _ = car_velocity(q[2], phi + offset, omega, u2, true.wheelbase, true.wheel_radius)
-        if not plant.servo:
-            return np.array([dx, dy, dtheta, u2])
-        dphi_w = (commanded - q[4]) / steering_lag if steering_lag else 0.0
-        domega = (u1 - q[5]) / speed_lag if speed_lag else 0.0
-        return np.array([dx, dy, dtheta, u2, dphi_w, domega])
-
-    return field
-
-
-def car_trial(plant: CarPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
-    """The final state of one trial of ``plant`` from ``x0`` (task frame) by :func:`reference_trial`."""
-    limit = np.inf if plant.steering_limit is None else plant.steering_limit
-
-    def chart(t: float, x: Array) -> float:
-        return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))
-
-    return reference_trial(car_field(plant, profile, c), x0, profile.breakpoints, limit, rtol, chart)
-
-
-def unicycle_trial(plant: UnicyclePlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
-    """The final state of one trial of the unicycle ``plant`` from ``x0``: the nominal map's
-    ``(v, omega)`` turned into wheel speeds with the nominal geometry, the wheels moving the
-    true robot (its own wheel radius and axle width)."""
-    nominal, true, chained_map = plant.nominal, plant.true, plant.nominal
-
-    def field(t: float, q: Array) -> Array:
-        v1, v2 = profile.evaluate(c, np.array(t))
-        v, omega = chained_map.inputs(q, float(v1), float(v2))
-        right = (v + 0.5 * nominal.axle_width * omega) / nominal.wheel_radius
-        left = (v - 0.5 * nominal.axle_width * omega) / nominal.wheel_radius
-        speed = 0.5 * true.wheel_radius * (right + left)
-        turn = true.wheel_radius * (right - left) / true.axle_width
-        return np.array(unicycle_velocity(q[2], speed, turn), dtype=np.float64)
-
-    def chart(t: float, x: Array) -> float:
-        return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))
-
-    return reference_trial(field, x0, profile.breakpoints, rtol=rtol, chart=chart)
-
-
-def trailer_trial(plant: TrailerPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
-    """The final state of one trial of the car-trailer ``plant`` from ``x0``: the nominal
-    ``u = beta(q) v`` at the measured configuration (the wheel at the stop when saturated), the
-    car and trailer moving with their true geometry."""
-    limit = np.inf if plant.steering_limit is None else plant.steering_limit
-    true = plant.true
-
-    def field(t: float, x: Array) -> Array:
-        v1, v2 = profile.evaluate(c, np.array(t))
-        q = plant.configuration(x)
-        u1, u2 = plant.nominal.inputs(q, float(v1), float(v2))
-        velocity = trailer_velocity(q[2], q[3], q[4], u1, u2, true.wheelbase, true.wheel_radius, true.hitch_length)
-        return np.array(velocity, dtype=np.float64)
-
-    def chart(t: float, x: Array) -> float:
-        return float(np.pi / 2 - CHART_MARGIN - max(abs(x[2]), abs(x[4]), min(abs(x[3]), limit)))
-
+def trial(plant: Plant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
+    """The final state of one trial of ``plant`` from ``x0`` (task frame) by :func:`reference_trial`,
+    on the field the plant's robot module writes from its equations
+    (:meth:`~ilc_steering.core.plants.Plant.reference_field`)."""
+    field, limit, chart = plant.reference_field(profile, c)
     return reference_trial(field, x0, profile.breakpoints, limit, rtol, chart)
 
 

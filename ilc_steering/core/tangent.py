@@ -31,24 +31,31 @@ plants: the robustness sweep's grid of true geometries is one call per trial ind
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
 from ilc_steering.core import dop853
-from ilc_steering.core.plants import CHART_MARGIN
+from ilc_steering.core.plants import CHART_MARGIN, Kernel, KernelLayout
+from ilc_steering.core.stepper import LEFT_CHART, OK, announce_compile, locate
 
-__all__ = ["LANES", "block_full", "block_one", "parallel_batch"]
+__all__ = ["CAR_LAYOUT", "KERNEL", "LANES", "block_full", "block_one", "parallel_batch"]
 
 Array = npt.NDArray[np.float64]
 
 LANES = 64
 """Trials per block: one block's stages (12 x 4 x 64 float64, 24 KB) stay in the L1 cache; 32 lanes
 were up to a tenth slower and 128 no faster, in one timing of the kernel at N = 4096."""
-OK = 0
-LEFT_CHART = 1
+CAR_LAYOUT = KernelLayout(
+    ("x", "y", "theta", "phi_c"), ("wheelbase", "wheel_radius", "true_wheelbase", "true_wheel_radius", "steering_limit")
+)
+"""The car's state (the angle form; the kernel works in ``(x, y, tan theta, sigma)`` inside) and
+parameter row: the nominal geometry (eqs. 4-5), the true one (eq. 3), the stop (``inf``: none)."""
+_ELL, _RHO, _TRUE_ELL, _TRUE_RHO, _LIMIT = (CAR_LAYOUT.index(name) for name in CAR_LAYOUT.params)
+_SINGLE_LANES = 6  # a last, partial block of at most this many trials runs them one by one
 _T_CHART = float(np.tan(np.pi / 2 - CHART_MARGIN))  # |tan| of the chart's edge
-_MAX_ITERATIONS = 60
 # How closely a crossing of the stop is located, relative to the step: a kink misplaced by ds costs
 # O(ds^2), so 1e-10 is below 1e-12 of error (tests/test_integrate.py) and takes half the iterations.
 _CROSSING_TIME = 1e-10
@@ -137,11 +144,18 @@ def _rk_block(p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore
     _rk(LANES, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2)
 
 
+@njit(cache=True, inline="always")
+def _sigma_after(step, state, s):  # type: ignore[no-untyped-def]
+    """``|sigma| - W`` of one lane after a substep of length ``s``."""
+    p, x, tau, coef1, coef, probe, kst, tmp, v1, v2, big_w = state
+    step(p, x, tau, s, coef1, coef, probe, kst, tmp, v1, v2)
+    return abs(probe[3, 0]) - big_w
+
+
 @njit(cache=True)
 def _split_at_limit(p, x, tau, h, coef1, coef, out):  # type: ignore[no-untyped-def]
     """Redo the step of one lane (arrays of one column) from ``x`` to ``out`` whose ``|sigma|``
-    crossed the stop ``W``: two steps, split where it crosses (Illinois regula falsi on
-    ``|sigma(after s)| - W``)."""
+    crossed the stop ``W``: two steps, split where it crosses."""
     big_w = p[4, 0]
     beyond = abs(x[3, 0]) > big_w
     probe = np.empty((4, 1))
@@ -149,27 +163,9 @@ def _split_at_limit(p, x, tau, h, coef1, coef, out):  # type: ignore[no-untyped-
     tmp = np.empty((4, 1))
     v1 = np.empty(1)
     v2 = np.empty(1)
-    lo, hi = 0.0, h
     g_lo, g_hi = abs(x[3, 0]) - big_w, abs(out[3, 0]) - big_w
-    side = 0
-    for _ in range(_MAX_ITERATIONS):
-        if hi - lo <= _CROSSING_TIME * h:
-            break
-        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
-        if not (lo < mid < hi):
-            mid = 0.5 * (lo + hi)
-        _rk_one(p, x, tau, mid, coef1, coef, probe, kst, tmp, v1, v2)
-        g_mid = abs(probe[3, 0]) - big_w
-        if (g_mid > 0) == beyond:
-            lo, g_lo = mid, g_mid
-            if side == -1:
-                g_hi *= 0.5
-            side = -1
-        else:
-            hi, g_hi = mid, g_mid
-            if side == 1:
-                g_lo *= 0.5
-            side = 1
+    state = (p, x, tau, coef1, coef, probe, kst, tmp, v1, v2, big_w)
+    hi = locate(_sigma_after, _rk_one, state, g_lo, g_hi, h, _CROSSING_TIME * h, beyond, False)
     _rk_one(p, x, tau, hi, coef1, coef, probe, kst, tmp, v1, v2)
     _rk_one(p, probe, tau + hi, h - hi, coef1, coef, out, kst, tmp, v1, v2)
 
@@ -296,3 +292,37 @@ def parallel_batch(params, x0, durations, steps, v1c, v2c, out, status, traj, st
     """Trials ``0:stop`` of the batch in blocks of :data:`LANES`, shared among numba's threads."""
     for blk in prange((stop + LANES - 1) // LANES):
         block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, blk * LANES, min(stop, (blk + 1) * LANES))
+
+
+_BLOCKS: tuple[Any, Any, Any] = (block_one, block_full, parallel_batch)
+
+
+def _run(args: tuple[Any, ...], parallel: bool) -> None:
+    """A batch in blocks of :data:`LANES` (shared among numba's threads with ``parallel``), a last
+    partial block of more than a few trials padded, fewer run one by one."""
+    one, block, shared = _BLOCKS
+    batch = args[1].shape[0]
+    full = batch - batch % LANES if batch % LANES <= _SINGLE_LANES else batch
+    if parallel and full > LANES:
+        announce_compile(shared, "batched car")
+        shared(*args, full)
+    elif full:
+        announce_compile(block, "batched car")
+        for start in range(0, full, LANES):
+            block(*args, start, min(full, start + LANES))
+    if full < batch:
+        announce_compile(one, "batched car")
+        for start in range(full, batch):
+            one(*args, start, start + 1)
+
+
+def _serial(*args: Any) -> None:
+    _run(args, False)
+
+
+def _parallel(*args: Any) -> None:
+    _run(args, True)
+
+
+KERNEL = Kernel("batched car", CAR_LAYOUT, _serial, _parallel)
+"""The car without servo perturbations, in tangent coordinates."""

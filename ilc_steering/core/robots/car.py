@@ -1,0 +1,451 @@
+r"""The car-like robot (eq. 3) and its chained form (eqs. 4-5).
+
+Configuration ``q = (x, y, theta, phi)``: rear-axle midpoint [m], body orientation [rad] and
+steering angle [rad]. Inputs: ``u1`` the driving-wheel angular velocity [rad/s], ``u2`` the
+steering rate [rad/s]. The change of coordinates :math:`z = \alpha(q)`,
+
+.. math::
+
+    z_1 = x, \quad z_2 = \frac{\tan\phi}{\ell \cos^3\theta}, \quad z_3 = \tan\theta, \quad z_4 = y,
+
+and the input transformation :math:`u = \beta(q) v` (eqs. 4-5) put the car in the chained form of
+eq. 1 when they use the car's true wheelbase ``ell`` and wheel radius ``rho``. The controller
+only knows *nominal* values; the plant (:class:`CarPlant`, ``plant.model: car``) uses the true ones.
+
+The maths, the plant, its config keys and its drawing are plain numpy, so a learner that needs
+the map pays for no compiler; the car's compiled fields are in
+:mod:`ilc_steering.core.robots.car_fields` (the car with servos and the lab robot) and
+:mod:`ilc_steering.core.tangent` (the batched kernel), imported when a car is first simulated.
+
+The map is defined for ``|theta| < pi/2`` and ``|phi| < pi/2``. A task whose orientations do not
+fit is handled by rotating the x-y frame (the remark at the end of section 4): see
+:func:`frame_angle`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from importlib import import_module
+from math import isfinite, pi
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.checks import renamed, require, require_positive
+from ilc_steering.core.plants import (
+    CHART_MARGIN,
+    Kernel,
+    PlantKind,
+    check_angles,
+    check_limit,
+    check_magnitude,
+    check_steering_limit,
+)
+
+__all__ = [
+    "CAR",
+    "MAX_BACKLASH",
+    "MAX_LAG",
+    "MAX_PULSES",
+    "MAX_STEERING_OFFSET",
+    "CarModel",
+    "CarPlant",
+    "CarPlantConfig",
+    "car_outline",
+    "car_velocity",
+    "chained_inputs",
+    "check_chart",
+    "frame_angle",
+    "rotate",
+]
+
+Array = npt.NDArray[np.float64]
+
+
+def car_velocity(
+    theta: Any, phi: Any, u1: Any, u2: Any, wheelbase: float, wheel_radius: float
+) -> tuple[Any, Any, Any, Any]:
+    """Eq. (3): ``(dx, dy, dtheta, dphi)`` of a rear-wheel-drive car [m/s, m/s, rad/s, rad/s].
+
+    ``theta``, ``phi`` [rad], ``u1`` [rad/s] and ``u2`` [rad/s] are scalars or arrays of one shape.
+    """
+    speed = wheel_radius * u1
+    return np.cos(theta) * speed, np.sin(theta) * speed, np.tan(phi) * speed / wheelbase, u2
+
+
+def chained_inputs(theta: Any, phi: Any, v1: Any, v2: Any, wheelbase: float, wheel_radius: float) -> tuple[Any, Any]:
+    """Eqs. (4)-(5): the car inputs ``(u1, u2)`` [rad/s] that realise chained inputs ``(v1, v2)`` at ``q``."""
+    c = np.cos(theta)
+    s_phi = np.sin(phi)
+    c_phi = np.cos(phi)
+    u1 = v1 / (wheel_radius * c)
+    u2 = -3.0 / wheelbase * np.sin(theta) / c**2 * s_phi**2 * v1 + wheelbase * c**3 * c_phi**2 * v2
+    return u1, u2
+
+
+CAR = PlantKind("car", True, ("x [m]", "y [m]", "θ [rad]", "φ [rad]"), ("u1 [rad/s]", "u2 [rad/s]"))
+MAX_BACKLASH = 0.2
+"""[rad] the largest ``steering_backlash`` of a car plant."""
+MAX_PULSES = 100_000
+"""The largest ``encoder_pulses`` (per wheel turn) of a car plant."""
+MAX_STEERING_OFFSET = 0.5
+"""[rad] the largest ``|steering_offset|`` of a car plant."""
+MAX_LAG = 10.0
+"""[s] the largest servo time constant of a car plant."""
+# Proportions of the drawn car, in wheelbases (the paper's car: 0.2 m between the axles).
+BODY_REAR, BODY_FRONT, BODY_HALF_WIDTH, WHEEL_HALF_LENGTH = -0.3, 1.3, 0.35, 0.2
+
+
+@dataclass(frozen=True)
+class CarModel:
+    """A car-like robot's geometry: ``wheelbase`` ``ell`` [m] and ``wheel_radius`` ``rho`` [m]."""
+
+    wheelbase: float
+    wheel_radius: float
+    robot: ClassVar[str] = "car"
+    has_pose: ClassVar[bool] = True
+
+    def __post_init__(self) -> None:
+        for name in ("wheelbase", "wheel_radius"):
+            require_positive(name, getattr(self, name), "m")
+
+    def to_chained(self, q: Array) -> Array:
+        """The change of coordinates ``z = alpha(q)`` of section 2.1, for ``q`` of shape ``(..., 4)``."""
+        q = np.asarray(q, dtype=np.float64)
+        check_chart(q)
+        z = np.empty(q.shape)
+        z[..., 0] = q[..., 0]
+        z[..., 1] = np.tan(q[..., 3]) / (self.wheelbase * np.cos(q[..., 2]) ** 3)
+        z[..., 2] = np.tan(q[..., 2])
+        z[..., 3] = q[..., 1]
+        return z
+
+    def from_chained(self, z: Array) -> Array:
+        """The inverse map ``q = alpha^{-1}(z)``, for ``z`` of shape ``(..., 4)``."""
+        z = np.asarray(z, dtype=np.float64)
+        z1, z2, z3, z4 = np.moveaxis(z, -1, 0)
+        theta = np.arctan(z3)
+        phi = np.arctan(z2 * self.wheelbase * np.cos(theta) ** 3)
+        return np.stack([z1, z4, theta, phi], axis=-1)
+
+    def inputs(self, q: Array, v1: Array | float, v2: Array | float) -> tuple[Array, Array]:
+        """``u = beta(q) v`` (eqs. 4-5): wheel speed ``u1`` [rad/s] and steering rate ``u2`` [rad/s]."""
+        q = np.asarray(q, dtype=np.float64)
+        u1, u2 = chained_inputs(q[..., 2], q[..., 3], np.asarray(v1), np.asarray(v2), self.wheelbase, self.wheel_radius)
+        return np.asarray(u1), np.asarray(u2)
+
+    def outline(self, q: Array) -> list[tuple[Array, bool]]:
+        """The bicycle model of Fig. 1 [m]: the body, the rear wheel at ``(x, y)`` and the front wheel
+        one wheelbase ahead, turned by ``phi`` (the wheels drawn thick)."""
+        body, rear, front = car_outline(q, self.wheelbase)
+        return [(body, False), (rear, True), (front, True)]
+
+    def curvature_cost(self, q: Array, dt: Array) -> Array:
+        """``int kappa^2 ds`` [1/m] of the rear axle's path, ``kappa = tan(phi) / ell`` at each step's middle."""
+        ds = np.linalg.norm(np.diff(q[..., :2], axis=1), axis=-1)
+        kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / self.wheelbase
+        return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
+
+
+def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
+    """The body polygon ``(5, 2)``, rear wheel ``(2, 2)`` and front wheel ``(2, 2)`` [m] of a car
+    at ``q = (x, y, theta, phi)`` with the given ``wheelbase`` [m]."""
+    x, y, theta, phi = (float(v) for v in q[:4])
+    heading = np.array([np.cos(theta), np.sin(theta)])
+    normal = np.array([-heading[1], heading[0]])
+    rear = np.array([x, y])
+    corners = [(BODY_REAR, -1), (BODY_FRONT, -1), (BODY_FRONT, 1), (BODY_REAR, 1), (BODY_REAR, -1)]
+    body = np.array([rear + wheelbase * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
+    half = WHEEL_HALF_LENGTH * wheelbase
+    front = rear + wheelbase * heading
+    steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
+    return (
+        body,
+        np.array([rear - half * heading, rear + half * heading]),
+        np.array([front - half * steered, front + half * steered]),
+    )
+
+
+def check_chart(q: Array) -> None:
+    """Raise ``ValueError`` where the chained-form map of eq. 4 is undefined (``|theta|`` or ``|phi| >= pi/2``)."""
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape[-1] != 4:
+        raise ValueError(f"a car configuration is (x, y, theta, phi); got shape {q.shape}")
+    if q.size and float(np.abs(q[..., 2:]).max()) < pi / 2 and np.isfinite(q[..., :2]).all():
+        return  # the common case, in one pass; the checks below say what is wrong
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f"configuration must be finite, got {q.tolist()}")
+    theta, phi = q[..., 2], q[..., 3]
+    if np.any(np.abs(theta) >= pi / 2):
+        raise ValueError(
+            f"theta = {np.asarray(theta).tolist()} rad: the chained form needs |theta| < pi/2 "
+            "in the task frame (z3 = tan(theta)); rotate the frame with frame_angle()"
+        )
+    if np.any(np.abs(phi) >= pi / 2):
+        raise ValueError(f"phi = {np.asarray(phi).tolist()} rad: the chained form needs |phi| < pi/2")
+
+
+def frame_angle(*thetas: float) -> float:
+    """The rotation [rad] of the x-y frame that puts all orientations ``thetas`` in ``(-pi/2, pi/2)``.
+
+    Zero when they already are (so the paper's tasks keep their coordinates); otherwise the middle
+    of their range, which works whenever the range is below ``pi`` (end of section 4). Raises
+    ``ValueError`` otherwise, suggesting the intermediate configuration the paper prescribes.
+    """
+    low, high = min(thetas), max(thetas)
+    if high - low >= pi:
+        middle = 0.5 * (low + high)
+        raise ValueError(
+            f"orientations {low:.6g} and {high:.6g} rad are pi or more apart: no frame puts both in the "
+            f"chained-form chart. Split the task at an intermediate configuration with theta = {middle:.6g} rad "
+            "(section 4), or write one orientation 2*pi apart if the same heading by the shorter turn is meant."
+        )
+    if all(abs(t) < pi / 2 for t in thetas):
+        return 0.0
+    return 0.5 * (low + high)
+
+
+def rotate(q: Array, angle: float) -> Array:
+    """Express configurations ``q`` (``(..., 4)``) in a frame rotated by ``angle`` [rad]."""
+    q = np.asarray(q, dtype=np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    out = q.copy()
+    out[..., 0] = c * q[..., 0] + s * q[..., 1]
+    out[..., 1] = -s * q[..., 0] + c * q[..., 1]
+    out[..., 2] = q[..., 2] - angle
+    return out
+
+
+@dataclass(frozen=True)
+class CarPlant:
+    """The car of eq. (3) with its true geometry, steered through the nominal eqs. (4)-(5).
+
+    ``steering_limit`` bounds the wheel angle ``|phi|`` [rad] (``None`` for none). The state's
+    fourth entry is then the servo's commanded angle, which may wind past the limit while the
+    wheel rests at the stop (see :mod:`ilc_steering.core.tangent`); :meth:`configuration`
+    gives the car's ``q``.
+
+    Three perturbations outside any geometry the controller could assume, each 0 (off) by default:
+
+    - ``steering_offset`` [rad]: a misaligned wheel; its true angle is the measured one plus this;
+    - ``steering_lag`` [s]: the wheel follows the (clipped) commanded angle ``phi_c`` through a
+      first-order servo, ``dphi_w/dt = (clip(phi_c) - phi_w) / steering_lag``; the controller
+      measures ``phi_w``;
+    - ``speed_lag`` [s]: the driving wheel's speed follows ``u1`` through a first-order servo,
+      ``domega/dt = (u1 - omega) / speed_lag``, from rest at the start of a trial; the trial is
+      measured at ``T``, before the wheel has spun down.
+
+    With any of them on, the state is ``(x, y, theta, phi_c, phi_w, omega)`` (the servo kernel of
+    :mod:`~ilc_steering.core.robots.car_fields`); without, it is ``(x, y, theta, phi_c)``.
+
+    Two imperfections of section 5's lab robot, each 0 (off) by default:
+
+    - ``steering_backlash`` [rad]: play ``b`` in the steering linkage; the wheel rests while the
+      servo's output ``phi_s`` moves within ``b/2`` of it and is pushed along beyond (the play
+      operator); the controller measures ``phi_s``, not the wheel;
+    - ``encoder_pulses``: pulses per turn of the driving wheel's encoder (0: none); the heading
+      the controller uses in eqs. 4-5 is then dead-reckoned, stepping by the nominal odometry of
+      one pitch of travel at each pulse, from the true one at the start of a trial.
+
+    With either on, the state has twelve entries (the lab kernel of
+    :mod:`~ilc_steering.core.robots.car_fields`); the final
+    configuration is measured externally (true pose, the servo's steering angle), as in the paper.
+    """
+
+    kind: ClassVar[PlantKind] = CAR
+    factor_names: ClassVar[tuple[str, str]] = ("wheelbase_ratio", "wheel_radius_ratio")
+    true: CarModel
+    nominal: CarModel
+    steering_limit: float | None = None
+    steering_offset: float = 0.0
+    steering_lag: float = 0.0
+    speed_lag: float = 0.0
+    steering_backlash: float = 0.0
+    encoder_pulses: int = 0
+
+    @classmethod
+    def nominal_plant(cls, chained_map: Any, dimension: int, steering_limit: float | None) -> CarPlant:
+        """The car the controller assumes: its true geometry the nominal one, with the known steering limit."""
+        return cls(chained_map, chained_map, steering_limit)
+
+    def __post_init__(self) -> None:
+        check_steering_limit(self.steering_limit)
+        offset = self.steering_offset
+        require(
+            isfinite(offset) and abs(offset) <= MAX_STEERING_OFFSET,
+            "steering_offset",
+            f"must be within +-{MAX_STEERING_OFFSET} rad, got {offset}",
+        )
+        for name in ("steering_lag", "speed_lag"):
+            lag = getattr(self, name)
+            require(isfinite(lag) and 0 <= lag <= MAX_LAG, name, f"must be in [0, {MAX_LAG:g}] s, got {lag}")
+        backlash = self.steering_backlash
+        require(
+            isfinite(backlash) and 0 <= backlash <= MAX_BACKLASH,
+            "steering_backlash",
+            f"must be in [0, {MAX_BACKLASH}] rad, got {backlash}",
+        )
+        pulses = self.encoder_pulses
+        require(
+            isinstance(pulses, int) and not isinstance(pulses, bool) and 0 <= pulses <= MAX_PULSES,
+            "encoder_pulses",
+            f"must be a whole number of pulses per turn in [0, {MAX_PULSES}] (0: none), got {pulses!r}",
+        )
+
+    @property
+    def lab(self) -> bool:
+        """Whether a lab-robot imperfection is on (the twelve-state kernel)."""
+        return bool(self.steering_backlash or self.encoder_pulses)
+
+    @property
+    def servo(self) -> bool:
+        """Whether a servo perturbation is on (the six-state kernel, or the lab's)."""
+        return bool(self.steering_offset or self.steering_lag or self.speed_lag) and not self.lab
+
+    @property
+    def state_dim(self) -> int:
+        return 12 if self.lab else 6 if self.servo else 4
+
+    def initial_state(self, q: Array) -> Array:
+        """At rest at ``q``: the commanded and the measured wheel angles are ``phi``, the wheel speed 0;
+        on the lab robot also the play's anchor, the wheel's rotation 0, the estimate ``q``, no pulses."""
+        q = np.asarray(q, dtype=np.float64)
+        if not self.servo and not self.lab:
+            return q.copy()
+        zero = np.zeros_like(q[..., :1])
+        servo = [q, q[..., 3:4], zero]
+        if not self.lab:
+            return np.concatenate(servo, axis=-1)
+        return np.concatenate([*servo, q[..., 3:4], zero, q[..., :3], zero], axis=-1)
+
+    def configuration(self, x: Array) -> Array:
+        """The measured configurations ``q`` of states ``x``: the wheel angle is the clipped command,
+        or the lagging wheel's ``phi_w`` (the lab robot: its servo's output)."""
+        x = np.asarray(x, dtype=np.float64)
+        if self.steering_lag:
+            return np.concatenate([x[..., :3], x[..., 4:5]], axis=-1)
+        q = np.array(x[..., :4], dtype=np.float64)
+        if self.steering_limit is not None:
+            q[..., 3] = np.clip(q[..., 3], -self.steering_limit, self.steering_limit)
+        return q
+
+    def estimate(self, x: Array) -> Array:
+        """The measured configurations, with the dead-reckoned pose ``(x_hat, y_hat, theta_hat)``
+        in place of the true one when the heading comes from encoders."""
+        q = self.configuration(x)
+        if self.encoder_pulses:
+            q = q.copy()
+            q[..., :3] = np.asarray(x, dtype=np.float64)[..., 8:11]
+        return q
+
+    def check_configuration(self, q: Array) -> None:
+        """The chart of eq. 4 (``|theta|, |phi| < pi/2`` in the task frame) and the steering limit."""
+        check_chart(q)
+        check_magnitude(q)
+        check_angles(q, "|theta| and |phi|")
+        check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
+
+    def true_factors(self) -> Array:
+        return np.array(
+            [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
+        )
+
+    def with_true_factors(self, factors: Array) -> CarPlant:
+        true = CarModel(self.true.wheelbase * float(factors[0]), self.true.wheel_radius * float(factors[1]))
+        return replace(self, true=true)
+
+    def kernel(self) -> tuple[Kernel, Array]:
+        """The batched kernel of :mod:`~ilc_steering.core.tangent`, or with a servo perturbation or
+        a lab imperfection on, the servo's or the lab's of :mod:`~ilc_steering.core.robots.car_fields`."""
+        fields = import_module("ilc_steering.core.robots.car_fields")
+        kernel: tuple[Kernel, Array] = fields.car_kernel(self)
+        return kernel
+
+    def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
+        """Eqs. 4-5 with the nominal geometry from the measured wheel angle (the clipped command, or
+        the lagging wheel), eq. 3 with the true geometry, misaligned wheel and lagging drive, the
+        servo integrating ``u2``. Not for the lab robot, whose events need
+        :func:`ilc_steering.core.reference.lab_car_trial`."""
+        if self.lab:
+            raise ValueError("the lab robot's reference is ilc_steering.core.reference.lab_car_trial (its events)")
+        limit = np.inf if self.steering_limit is None else self.steering_limit
+        nominal, true = self.nominal, self.true
+        offset, steering_lag, speed_lag, servo = self.steering_offset, self.steering_lag, self.speed_lag, self.servo
+
+        def field(t: float, q: Array) -> Array:
+            v1, v2 = profile.evaluate(c, np.array(t))
+            commanded = min(max(q[3], -limit), limit)
+            phi = q[4] if steering_lag else commanded
+            u1, u2 = chained_inputs(q[2], phi, float(v1), float(v2), nominal.wheelbase, nominal.wheel_radius)
+            omega = q[5] if speed_lag else u1
+            dx, dy, dtheta, _ = car_velocity(q[2], phi + offset, omega, u2, true.wheelbase, true.wheel_radius)
+            if not servo:
+                return np.array([dx, dy, dtheta, u2])
+            dphi_w = (commanded - q[4]) / steering_lag if steering_lag else 0.0
+            domega = (u1 - q[5]) / speed_lag if speed_lag else 0.0
+            return np.array([dx, dy, dtheta, u2, dphi_w, domega])
+
+        def chart(t: float, x: Array) -> float:
+            return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))
+
+        return field, limit, chart
+
+
+@dataclass(frozen=True)
+class CarPlantConfig:
+    model: Literal["car"]
+    wheelbase: float  # nominal ell [m], known to the controller
+    wheel_radius: float  # nominal rho [m]
+    true_wheelbase: float  # the simulated robot's ell [m]
+    true_wheel_radius: float  # the simulated robot's rho [m]
+    steering_limit: float | None = None  # bound on |phi| [rad]; None for none
+    steering_offset: float = 0.0  # [rad] the wheel's true angle exceeds the measured one by this (misaligned wheel)
+    steering_lag: float = 0.0  # [s] time constant of the steering servo (wheel follows the command); 0: none
+    speed_lag: float = 0.0  # [s] time constant of the drive servo (wheel speed follows u1); 0: none
+    steering_backlash: float = 0.0  # [rad] play in the steering linkage (section 5); 0: none
+    encoder_pulses: int = 0  # pulses per wheel turn; > 0: the heading is dead-reckoned from them; 0: measured
+
+    kind: ClassVar[PlantKind] = CAR
+    plant_class: ClassVar[type[CarPlant]] = CarPlant
+    dimension: ClassVar[int] = 4
+
+    def __post_init__(self) -> None:
+        self.plant()
+
+    def nominal_map(self) -> CarModel:
+        """The geometry the controller assumes (eqs. 4-5)."""
+        return CarModel(self.wheelbase, self.wheel_radius)
+
+    def plant(self) -> CarPlant:
+        """The simulated car: true geometry, steered with the nominal one."""
+        nominal = self.nominal_map()
+        with renamed({"wheelbase": "true_wheelbase", "wheel_radius": "true_wheel_radius"}):
+            true = CarModel(self.true_wheelbase, self.true_wheel_radius)
+        return CarPlant(
+            true,
+            nominal,
+            self.steering_limit,
+            self.steering_offset,
+            self.steering_lag,
+            self.speed_lag,
+            self.steering_backlash,
+            self.encoder_pulses,
+        )
+
+    def check_task(self, max_step: float, cyclic: bool) -> None:
+        """A servo lag the integrator's step resolves; no lab imperfection on a cycle."""
+        for lag in ("steering_lag", "speed_lag"):
+            value = getattr(self, lag)
+            require(
+                value == 0 or value >= max_step,
+                lag,
+                f"{value} s is shorter than the integrator step simulation.max_step = {max_step} s, "
+                "which would not resolve it; lower max_step or set the lag to 0",
+            )
+        if cyclic and (self.steering_backlash or self.encoder_pulses):  # a rule of two keys: named by both
+            raise ValueError(
+                "steering_backlash and encoder_pulses are for one-trial tasks (a cycle would carry the "
+                "dead-reckoned estimate from trial to trial)"
+            )

@@ -1,0 +1,87 @@
+"""A robot defined outside the package (``tests/toy_robot.py``, a module in a temporary folder,
+with its own field, map, chart and config keys) runs through everything after one registry line:
+``register`` in this process, an entry point in the CLI's."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.agents import ILCAgent
+from ilc_steering.config import ConfigError, load_config
+from ilc_steering.core import robots
+from ilc_steering.core.reference import trial
+from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.loop import run_trials
+
+HERE = Path(__file__).parent
+
+
+@pytest.fixture
+def skate(tmp_path, monkeypatch):
+    """The toy robot's module in a folder of its own, importable, installed as a distribution with
+    an entry point (for other processes), and registered here with one line; the YAML path."""
+    shutil.copy(HERE / "toy_robot.py", tmp_path / "toy_robot.py")
+    info = tmp_path / "toy_robot-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: toy-robot\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[ilc_steering.robots]\nskate = toy_robot:SkatePlantConfig\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(robots, "ROBOTS", dict(robots.ROBOTS))
+    monkeypatch.setattr(robots, "_LOADED", dict(robots._LOADED))
+    robots.register("skate", "toy_robot:SkatePlantConfig")  # the one line
+    import toy_robot
+
+    path = tmp_path / "skate_parking.yaml"
+    path.write_text(toy_robot.CONFIG)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    return path
+
+
+def test_an_unregistered_robot_is_refused_by_name(tmp_path):
+    path = tmp_path / "skate_parking.yaml"
+    path.write_text((HERE / "toy_robot.py").read_text().split('CONFIG = """\\\n')[1].split('"""')[0])
+    with pytest.raises(ConfigError, match=r"plant\.model: must be one of \['car', 'chained'.*got 'skate'"):
+        load_config(path)
+
+
+def test_the_robot_runs_through_the_env_and_the_vector_env_and_learns(skate):
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=str(skate))
+    rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), 6)
+    errors = [info["cartesian_error"] for info in rollout.infos]
+    assert errors[-1] < 1e-3 * errors[0]  # eqs. 33-34 contract by the gains' mismatch
+    vector = ChainedSteeringVectorEnv(5, config=str(skate), true_factors=np.linspace(0.8, 1.2, 10).reshape(5, 2))
+    vector.reset(seed=0)
+    obs, reward, *_ = vector.step(np.tile(rollout.infos[0]["action"], (5, 1)).astype(np.float32))
+    assert obs.shape[0] == 5 and np.all(np.isfinite(reward)) and len(set(reward.tolist())) == 5
+
+
+def test_the_robot_s_kernel_matches_its_own_solve_ivp_reference_within_1e_9(skate):
+    scenario = Scenario.from_config(load_config(skate))
+    c = scenario.nominals[0].solve() * np.array([1.05, 0.9, 1.1])
+    final = scenario.run(c[None]).final[0]
+    np.testing.assert_allclose(final, trial(scenario.plant, scenario.profile, scenario.x_start, c), rtol=0, atol=1e-9)
+
+
+def test_the_robot_runs_through_run_sweep_and_compare(skate, tmp_path):
+    def cli(*args):
+        done = subprocess.run(
+            [sys.executable, "-m", "ilc_steering", *args], capture_output=True, text=True, timeout=600, cwd=tmp_path
+        )
+        assert done.returncode == 0, (args, done.stdout[-2000:], done.stderr[-2000:])
+        return done.stdout
+
+    assert "converged at trial" in cli("run", str(skate))  # and exit 0: learning converged
+    cli("sweep", str(skate), "--grid", "3", "--trials", "8", "--out", str(tmp_path / "sweep"), "--workers", "1")
+    assert (tmp_path / "sweep" / "sweep.json").is_file()
+    out = tmp_path / "compare"
+    cli("compare", "--quick", "--scenarios", str(skate), "--methods", "ilc", "newton_ilc", "--priors", "nominal",
+        "--seeds", "0", "--out", str(out), "--workers", "1")  # fmt: skip
+    assert (out / "compare.json").is_file()
