@@ -90,6 +90,10 @@ def kernel_args(name, batch=3):
         (lambda a: a.update(steps=a["steps"][:-1]), "steps"),
         (lambda a: a.update(steps=np.zeros_like(a["steps"])), "steps"),
         (lambda a: a.update(durations=-a["durations"]), "durations"),
+        (lambda a: a.update(durations=a["durations"][None]), "durations"),
+        (lambda a: a.update(steps=-a["steps"]), "steps"),
+        (lambda a: a.update(v1=a["v1"][..., :0]), "v1"),
+        (lambda a: a.update(params=np.full_like(a["params"], np.nan)), "NaN"),
         (lambda a: a.update(x0=np.full_like(a["x0"], np.nan)), "finite"),
     ],
 )

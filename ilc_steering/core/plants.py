@@ -78,7 +78,8 @@ class KernelLayout:
     """
 
     state: tuple[str, ...]
-    """The state's entries; empty for a state of as many entries as the parameter ``dimension`` says."""
+    """The state's entries; empty for a state of as many entries as the parameter ``dimension`` says
+    (the chained form's)."""
     params: tuple[str, ...]
     """The parameter row's entries."""
 
@@ -91,10 +92,6 @@ class KernelLayout:
     def index(self, name: str) -> int:
         """The position of parameter ``name`` in a row (the compiled field reads it there)."""
         return self.params.index(name)
-
-    def state_size(self, row: Array) -> int:
-        """The number of state entries of a trial with parameter row ``row``."""
-        return len(self.state) if self.state else int(row[self.index("dimension")])
 
 
 @dataclass(frozen=True, eq=False)
