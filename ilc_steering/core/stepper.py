@@ -42,9 +42,11 @@ __all__ = [
     "announce_compile",
     "drive",
     "finite",
+    "lanes_rk",
     "locate",
     "poly",
     "rk_step",
+    "run_lanes",
     "step_with_stop",
 ]
 
@@ -55,6 +57,7 @@ CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 MAX_ITERATIONS = 60
 """Of the event locator; a crossing of the steering limit needs about 23."""
 STAGES = dop853.STAGES
+_SINGLE_LANES = 6  # a last, partial block of a lane kernel of at most this many trials runs them one by one
 _A = np.ascontiguousarray(dop853.A)
 _B = np.ascontiguousarray(dop853.B)
 _C = np.ascontiguousarray(dop853.C)
@@ -145,6 +148,69 @@ def step_with_stop(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe, index,
     hi = locate(_stop_event, rhs, state, g_lo, g_hi, h, 4e-16 * h, beyond, False)
     rk_step(rhs, n, params, x, tau, hi, v1c, v2c, probe, work)
     rk_step(rhs, n, params, probe, tau + hi, h - hi, v1c, v2c, out, work)
+
+
+@njit(cache=True, inline="always")
+def lanes_rk(field, nx, n, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
+    """One step of length ``h`` from local time ``tau`` of ``n`` trials at once, laid out lane by lane:
+    ``x`` and ``out`` ``(nx, n)``, ``p`` the lanes' parameters ``(P, n)``, ``coef1`` ``(n, D1)`` and
+    ``coef`` ``(n, D)`` the piece's inputs ``v1`` and ``v2`` (lowest degree first); ``kst``
+    ``(STAGES, nx, n)``, ``tmp`` ``(nx, n)``, ``v1`` and ``v2`` ``(n,)`` scratch.
+    ``field(p, j, state, v1, v2, k)`` writes lane ``j``'s derivative into ``k[:, j]``. Every inner
+    loop runs over the lanes, so a field without transcendental functions vectorizes."""
+    degree, degree1 = coef.shape[1] - 1, coef1.shape[1] - 1
+    for st in range(STAGES):
+        t = tau + _C[st] * h
+        for j in range(n):
+            acc = coef[j, degree]
+            for d in range(degree - 1, -1, -1):
+                acc = acc * t + coef[j, d]
+            v2[j] = acc
+            acc = coef1[j, degree1]
+            for d in range(degree1 - 1, -1, -1):
+                acc = acc * t + coef1[j, d]
+            v1[j] = acc
+        for i in range(nx):
+            for j in range(n):
+                tmp[i, j] = x[i, j]
+        for m in range(st):
+            ah = _A[st, m] * h
+            if ah != 0.0:
+                for i in range(nx):
+                    for j in range(n):
+                        tmp[i, j] += ah * kst[m, i, j]
+        k = kst[st]
+        for j in range(n):
+            field(p, j, tmp, v1[j], v2[j], k)
+    for i in range(nx):
+        for j in range(n):
+            out[i, j] = x[i, j]
+    for st in range(STAGES):
+        bh = _B[st] * h
+        if bh != 0.0:
+            for i in range(nx):
+                for j in range(n):
+                    out[i, j] += bh * kst[st, i, j]
+
+
+def run_lanes(blocks: tuple[Any, Any, Any], args: tuple[Any, ...], parallel: bool, name: str, lanes: int) -> None:
+    """A batch of trials on a lane kernel's compiled ``(one, block, shared)``: blocks of ``lanes``
+    trials (shared among numba's threads with ``parallel``), a last partial block of more than a
+    few trials padded, fewer run one by one with ``one``."""
+    one, block, shared = blocks
+    batch = args[1].shape[0]
+    full = batch - batch % lanes if batch % lanes <= _SINGLE_LANES else batch
+    if parallel and full > lanes:
+        announce_compile(shared, name)
+        shared(*args, full)
+    elif full:
+        announce_compile(block, name)
+        for start in range(0, full, lanes):
+            block(*args, start, min(full, start + lanes))
+    if full < batch:
+        announce_compile(one, name)
+        for start in range(full, batch):
+            one(*args, start, start + 1)
 
 
 @njit(cache=True, inline="always")

@@ -39,7 +39,7 @@ from numba import njit, prange
 
 from ilc_steering.core import dop853
 from ilc_steering.core.plants import CHART_MARGIN, Kernel, KernelLayout
-from ilc_steering.core.stepper import LEFT_CHART, OK, announce_compile, locate
+from ilc_steering.core.stepper import LEFT_CHART, OK, locate, run_lanes
 
 __all__ = ["CAR_LAYOUT", "KERNEL", "LANES", "block_full", "block_one", "parallel_batch"]
 
@@ -54,7 +54,6 @@ CAR_LAYOUT = KernelLayout(
 """The car's state (the angle form; the kernel works in ``(x, y, tan theta, sigma)`` inside) and
 parameter row: the nominal geometry (eqs. 4-5), the true one (eq. 3), the stop (``inf``: none)."""
 _ELL, _RHO, _TRUE_ELL, _TRUE_RHO, _LIMIT = (CAR_LAYOUT.index(name) for name in CAR_LAYOUT.params)
-_SINGLE_LANES = 6  # a last, partial block of at most this many trials runs them one by one
 _T_CHART = float(np.tan(np.pi / 2 - CHART_MARGIN))  # |tan| of the chart's edge
 # How closely a crossing of the stop is located, relative to the step: a kink misplaced by ds costs
 # O(ds^2), so 1e-10 is below 1e-12 of error (tests/test_integrate.py) and takes half the iterations.
@@ -188,8 +187,8 @@ def _angle(p, x, lane, dst):  # type: ignore[no-untyped-def]
 def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
     """Trials ``start:stop`` (at most ``n``) of a batch, laid out lane by lane: the arguments
     are those of :func:`ilc_steering.core.integrate.integrate`'s kernels, with ``params``
-    ``(B, 5)``, one row ``(ell, rho, ell~, rho~, lim)`` per trial. Lanes past ``stop`` repeat
-    its last trial and are dropped."""
+    ``(B, 5)``, a row of :data:`CAR_LAYOUT` per trial. Lanes past ``stop`` repeat its last trial
+    and are dropped."""
     p = np.empty((6, n))  # per lane: k, a, b3, ell, W, lim
     x = np.empty((4, n))
     nxt = np.empty((4, n))
@@ -209,7 +208,8 @@ def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, 
     used = stop - start
     for j in range(n):
         b = start + min(j, used - 1)
-        ell, rho, true_ell, true_rho, lim = params[b, 0], params[b, 1], params[b, 2], params[b, 3], params[b, 4]
+        ell, rho, true_ell, true_rho = params[b, _ELL], params[b, _RHO], params[b, _TRUE_ELL], params[b, _TRUE_RHO]
+        lim = params[b, _LIMIT]
         k = true_rho / rho
         big_w = np.tan(lim) if lim < np.pi / 2 else np.inf
         p[0, j], p[1, j], p[2, j], p[3, j], p[4, j], p[5, j] = k, k / true_ell, 3.0 / ell, ell, big_w, lim
@@ -294,34 +294,15 @@ def parallel_batch(params, x0, durations, steps, v1c, v2c, out, status, traj, st
         block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, blk * LANES, min(stop, (blk + 1) * LANES))
 
 
-_BLOCKS: tuple[Any, Any, Any] = (block_one, block_full, parallel_batch)
-
-
-def _run(args: tuple[Any, ...], parallel: bool) -> None:
-    """A batch in blocks of :data:`LANES` (shared among numba's threads with ``parallel``), a last
-    partial block of more than a few trials padded, fewer run one by one."""
-    one, block, shared = _BLOCKS
-    batch = args[1].shape[0]
-    full = batch - batch % LANES if batch % LANES <= _SINGLE_LANES else batch
-    if parallel and full > LANES:
-        announce_compile(shared, "batched car")
-        shared(*args, full)
-    elif full:
-        announce_compile(block, "batched car")
-        for start in range(0, full, LANES):
-            block(*args, start, min(full, start + LANES))
-    if full < batch:
-        announce_compile(one, "batched car")
-        for start in range(full, batch):
-            one(*args, start, start + 1)
+_BLOCKS = (block_one, block_full, parallel_batch)
 
 
 def _serial(*args: Any) -> None:
-    _run(args, False)
+    run_lanes(_BLOCKS, args, False, "batched car", LANES)
 
 
 def _parallel(*args: Any) -> None:
-    _run(args, True)
+    run_lanes(_BLOCKS, args, True, "batched car", LANES)
 
 
 KERNEL = Kernel("batched car", CAR_LAYOUT, _serial, _parallel)

@@ -51,7 +51,7 @@ from ilc_steering.core.plants import (
     check_magnitude,
     heading_curvature_cost,
 )
-from ilc_steering.core.stepper import CHART_LIMIT, drive, rk_step
+from ilc_steering.core.stepper import CHART_LIMIT, LEFT_CHART, OK, STAGES, lanes_rk, run_lanes
 
 __all__ = [
     "KERNEL",
@@ -140,41 +140,105 @@ LAYOUT = KernelLayout(("x", "y", "theta"), ("wheel_radius", "axle_width", "true_
 _RHO, _B, _TRUE_RHO, _TRUE_B = (LAYOUT.index(name) for name in LAYOUT.params)
 
 
-@njit(cache=True, inline="always")
-def _field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
-    # v = v1 / cos(theta), omega = v2 cos^2(theta) realised by a drive with the true rho~, b~
-    k = params[_TRUE_RHO] / params[_RHO]
-    c = np.cos(x[2])
-    out[0] = k * v1
-    out[1] = k * v1 * np.tan(x[2])
-    out[2] = k * params[_B] / params[_TRUE_B] * v2 * c * c
+# The closed loop in (x, y, s) with s = tan(theta) is linear: with k = rho~/rho, g = k b / b~,
+#     x' = k v1,   y' = k v1 s,   s' = theta' / cos^2(theta) = g v2,
+# no trigonometry, so the Runge-Kutta step vectorizes across trials (LANES per block), as the car's
+# batched kernel does (ilc_steering.core.tangent). The chart |theta| < pi/2 - CHART_MARGIN is
+# |s| < tan(pi/2 - CHART_MARGIN).
+LANES = 64
+_T_CHART = float(np.tan(CHART_LIMIT))
 
 
 @njit(cache=True, inline="always")
-def _step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
-    rk_step(rhs, n, params, x, tau, h, v1c, v2c, out, work)
+def _lane_field(p, j, x, v1, v2, k):  # type: ignore[no-untyped-def]
+    kv = p[0, j] * v1
+    k[0, j] = kv
+    k[1, j] = kv * x[2, j]
+    k[2, j] = p[1, j] * v2
 
 
 @njit(cache=True, inline="always")
-def _chart(params, x):  # type: ignore[no-untyped-def]
-    return abs(x[2]) < CHART_LIMIT
+def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    """Trials ``start:stop`` (at most ``n``) of a batch, lane by lane; lanes past ``stop`` repeat its
+    last trial and are dropped."""
+    p = np.empty((2, n))
+    x = np.empty((3, n))
+    nxt = np.empty((3, n))
+    tmp = np.empty((3, n))
+    kst = np.empty((STAGES, 3, n))
+    v1 = np.empty(n)
+    v2 = np.empty(n)
+    coef1 = np.empty((n, v1c.shape[2]))
+    coef = np.empty((n, v2c.shape[2]))
+    alive = np.empty(n, dtype=np.bool_)
+    record = traj.shape[1] > 0
+    used = stop - start
+    for j in range(n):
+        b = start + min(j, used - 1)
+        k = params[b, _TRUE_RHO] / params[b, _RHO]
+        p[0, j], p[1, j] = k, k * params[b, _B] / params[b, _TRUE_B]
+        x[0, j], x[1, j], x[2, j] = x0[b, 0], x0[b, 1], np.tan(x0[b, 2])
+        alive[j] = True
+    for j in range(used):
+        status[start + j] = OK
+        if record:
+            traj[start + j, 0, 0], traj[start + j, 0, 1], traj[start + j, 0, 2] = x[0, j], x[1, j], np.arctan(x[2, j])
+    row = 1
+    for piece in range(durations.shape[0]):
+        h = durations[piece] / steps[piece]
+        for j in range(n):
+            b = start + min(j, used - 1)
+            for d in range(coef1.shape[1]):
+                coef1[j, d] = v1c[b, piece, d]
+            for d in range(coef.shape[1]):
+                coef[j, d] = v2c[b, piece, d]
+        for step in range(steps[piece]):
+            lanes_rk(_lane_field, 3, n, p, x, step * h, h, coef1, coef, nxt, kst, tmp, v1, v2)
+            for j in range(used):
+                if not alive[j]:
+                    continue
+                ok = np.isfinite(nxt[0, j]) and np.isfinite(nxt[1, j]) and abs(nxt[2, j]) < _T_CHART
+                if ok:
+                    x[0, j], x[1, j], x[2, j] = nxt[0, j], nxt[1, j], nxt[2, j]
+                else:
+                    alive[j] = False
+                    status[start + j] = LEFT_CHART
+            if record:
+                for j in range(used):
+                    r = traj[start + j, row]
+                    r[0], r[1], r[2] = x[0, j], x[1, j], np.arctan(x[2, j])
+                row += 1
+    for j in range(used):
+        out[start + j, 0], out[start + j, 1], out[start + j, 2] = x[0, j], x[1, j], np.arctan(x[2, j])
 
 
 @njit(cache=True)
-def _trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_field, _step, _chart, 3, params, x0, durations, steps, v1c, v2c, out, traj)
+def _block_one(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    _block(1, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
 
 
 @njit(cache=True)
-def _serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+def _block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    _block(LANES, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
 
 
 @njit(cache=True, parallel=True)
-def _parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
+def _block_shared(params, x0, durations, steps, v1c, v2c, out, status, traj, stop):  # type: ignore[no-untyped-def]
+    for blk in prange((stop + LANES - 1) // LANES):
+        _block_full(
+            params, x0, durations, steps, v1c, v2c, out, status, traj, blk * LANES, min(stop, (blk + 1) * LANES)
+        )
+
+
+_BLOCKS = (_block_one, _block_full, _block_shared)
+
+
+def _serial(*args: Any) -> None:
+    run_lanes(_BLOCKS, args, False, "unicycle", LANES)
+
+
+def _parallel(*args: Any) -> None:
+    run_lanes(_BLOCKS, args, True, "unicycle", LANES)
 
 
 KERNEL = Kernel("unicycle", LAYOUT, _serial, _parallel)
