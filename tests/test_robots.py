@@ -7,6 +7,7 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
@@ -156,17 +157,31 @@ def test_ilc_converges_under_a_10_percent_perturbation(name, trials):
     assert last.cartesian_error < 1e-5 and last.orientation_error < 1e-5
 
 
-def test_the_trailer_leaving_its_chart_halts_the_trial():
-    """Coefficients that swing the trailer past its chart in the first step: the trial stops at its
-    last valid configuration (here the start), not with a NaN; at 60 times the nominal ones it
-    comes within 0.04 rad of the edge and stays inside."""
-    config = load_config("trailer_bay")
+@pytest.mark.parametrize("ratio", [0.5, 0.3])
+def test_the_trailer_leaving_its_chart_halts_the_trial(ratio):
+    """A true hitch shorter than the nominal one jackknifes the trailer under the nominal solution:
+    the trial stops at its last valid configuration, the last step before ``solve_ivp`` (on the
+    robot's own field, with the chart as a terminal event) leaves the chart, not with a NaN.
+
+    (Coefficients 100 times the nominal ones, which this test once used, swing the trailer near its
+    edge with rates no fixed step of 1/32 s resolves; the reference stays 5 mrad inside there.)"""
+    data = dataclasses.asdict(load_config("trailer_bay"))
+    data["plant"]["true_hitch_length"] = ratio * data["plant"]["hitch_length"]
+    config = load_config(data)
     scenario = Scenario.from_config(config)
     c = scenario.nominal.solve()
-    c[1:] *= 100.0
-    trials = scenario.run(c[None])
+    c[1:] *= 3.0
+    field, _, chart = scenario.plant.reference_field(scenario.profile, c)
+    chart.terminal = True
+    end = scenario.profile.breakpoints[-1]
+    exit_time = solve_ivp(field, (0, end), scenario.x_start, method="DOP853", rtol=1e-11, atol=1e-11, events=[chart])
+    (t_exit,) = exit_time.t_events[0]
+    trials = scenario.run(c[None], record=True)
     assert trials.status[0] == LEFT_CHART
-    np.testing.assert_array_equal(scenario.plant.configuration(trials.final[0]), np.asarray(config.task.start))
+    last = int(np.searchsorted(trials.times, t_exit)) - 1  # the last step that ends inside
+    np.testing.assert_array_equal(trials.final[0], trials.states[0, last])
+    assert np.all(trials.states[0, last:] == trials.final[0]) and np.all(np.isfinite(trials.final[0]))
+    assert np.any(trials.states[0, last - 1] != trials.final[0])  # it moved until then
     assert scenario.measure(trials.final, trials.status)["left_chart"][0]
 
 

@@ -81,11 +81,12 @@ from ilc_steering.core.plants import (
     heading_curvature_cost,
 )
 from ilc_steering.core.robots.car import BODY_HALF_WIDTH, WHEEL_HALF_LENGTH, CarModel
-from ilc_steering.core.stepper import CHART_LIMIT, drive, step_with_stop
+from ilc_steering.core.stepper import CHART_LIMIT, LEFT_CHART, OK, STAGES, drive, lanes_rk, run_lanes, step_with_stop
 
 __all__ = [
     "CAR_TRAILER",
     "KERNEL",
+    "LANES_KERNEL",
     "TrailerModel",
     "TrailerPlant",
     "TrailerPlantConfig",
@@ -311,6 +312,146 @@ def _parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # typ
 
 
 KERNEL = Kernel("car-trailer", LAYOUT, _serial, _parallel)
+"""The trailer with a steering limit: the angle form, its stop located in each step."""
+
+# Without a steering limit the closed loop is integrated in (x1, y1, s, w, e) with s = tan(theta1),
+# w = tan(phi), e = tan(delta), across trials in blocks of LANES (as the car's batched kernel,
+# ilc_steering.core.tangent): cos(theta1) = 1 / sqrt(1 + s^2), cos(delta) = 1 / sqrt(1 + e^2), and
+# no other transcendental function, so the step vectorizes. The derivatives are those of the angle
+# form: s' = theta1' (1 + s^2), e' = delta' (1 + e^2), and w' = phi' (1 + w^2), in which eq. 5's
+# cos^2(phi) of u2 cancels. A stage outside the chart makes the step not finite: in tangent
+# coordinates a state can pass through infinity (the hitch angle through pi/2) within one step;
+# with numpy's error model a tangent that overflows divides to inf or NaN, which halts the trial,
+# where Python's would raise ZeroDivisionError out of compiled code.
+LANES = 64
+_T_CHART = float(np.tan(CHART_LIMIT))
+
+
+@njit(cache=True, inline="always")
+def _lane_field(p, j, x, v1, v2, k):  # type: ignore[no-untyped-def]
+    ell, rho, d, true_ell, true_rho, true_d = p[0, j], p[1, j], p[2, j], p[3, j], p[4, j], p[5, j]
+    s, w, e = x[2, j], x[3, j], x[4, j]
+    r1 = 1.0 + s * s
+    c = 1.0 / np.sqrt(r1)
+    sn = s * c
+    r2 = 1.0 + e * e
+    cd = 1.0 / np.sqrt(r2)
+    sd = e * cd
+    big_e = w / ell - sd / d
+    c2 = c * c
+    c4 = c2 * c2
+    cd2 = cd * cd
+    cd3 = cd2 * cd
+    dz2_dtheta = 3.0 * e * e * (c2 + 5.0 * sn * sn) / (d * d * c4 * c2) + 4.0 * big_e * sn / (d * cd3 * c4 * c)
+    dz2_ddelta = 6.0 * e * sn / (d * d * cd2 * c4 * c) + (3.0 * big_e * sd / (cd3 * cd) - 1.0 / (d * cd2)) / (d * c4)
+    a = (dz2_dtheta * sd / d + dz2_ddelta * big_e) / (cd * c)
+    v = true_rho * v1 / (rho * cd * c)
+    ahead = v * cd
+    turn = v * sd / true_d
+    k[0, j] = ahead * c
+    k[1, j] = ahead * sn
+    k[2, j] = turn * r1
+    k[3, j] = (v2 - a * v1) * ell * d * cd3 * c4
+    k[4, j] = (v * w / true_ell - turn) * r2
+    if max(abs(s), abs(w), abs(e)) >= _T_CHART:  # a stage past the chart: tan(delta) can blow up within
+        k[0, j] = np.nan  # a step and come back; the step is then not finite, and the trial halts
+
+
+@njit(cache=True, inline="always")
+def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    """Trials ``start:stop`` (at most ``n``) of a batch without a steering limit, lane by lane; lanes
+    past ``stop`` repeat its last trial and are dropped."""
+    p = np.empty((6, n))
+    x = np.empty((5, n))
+    nxt = np.empty((5, n))
+    tmp = np.empty((5, n))
+    kst = np.empty((STAGES, 5, n))
+    v1 = np.empty(n)
+    v2 = np.empty(n)
+    coef1 = np.empty((n, v1c.shape[2]))
+    coef = np.empty((n, v2c.shape[2]))
+    alive = np.empty(n, dtype=np.bool_)
+    record = traj.shape[1] > 0
+    used = stop - start
+    for j in range(n):
+        b = start + min(j, used - 1)
+        p[0, j], p[1, j], p[2, j] = params[b, _ELL], params[b, _RHO], params[b, _D]
+        p[3, j], p[4, j], p[5, j] = params[b, _TRUE_ELL], params[b, _TRUE_RHO], params[b, _TRUE_D]
+        x[0, j], x[1, j] = x0[b, 0], x0[b, 1]
+        x[2, j], x[3, j], x[4, j] = np.tan(x0[b, 2]), np.tan(x0[b, 3]), np.tan(x0[b, 4])
+        alive[j] = True
+    for j in range(used):
+        status[start + j] = OK
+        if record:
+            _angles(x, j, traj[start + j, 0])
+    row = 1
+    for piece in range(durations.shape[0]):
+        h = durations[piece] / steps[piece]
+        for j in range(n):
+            b = start + min(j, used - 1)
+            for d in range(coef1.shape[1]):
+                coef1[j, d] = v1c[b, piece, d]
+            for d in range(coef.shape[1]):
+                coef[j, d] = v2c[b, piece, d]
+        for step in range(steps[piece]):
+            lanes_rk(_lane_field, 5, n, p, x, step * h, h, coef1, coef, nxt, kst, tmp, v1, v2)
+            for j in range(used):
+                if not alive[j]:
+                    continue
+                ok = np.isfinite(nxt[0, j]) and np.isfinite(nxt[1, j])
+                ok = ok and max(abs(nxt[2, j]), abs(nxt[3, j]), abs(nxt[4, j])) < _T_CHART
+                if ok:
+                    for i in range(5):
+                        x[i, j] = nxt[i, j]
+                else:
+                    alive[j] = False
+                    status[start + j] = LEFT_CHART
+            if record:
+                for j in range(used):
+                    _angles(x, j, traj[start + j, row])
+                row += 1
+    for j in range(used):
+        _angles(x, j, out[start + j])
+
+
+@njit(cache=True, inline="always")
+def _angles(x, j, dst):  # type: ignore[no-untyped-def]
+    """Lane ``j`` as ``(x1, y1, theta1, phi, delta)`` into ``dst``."""
+    dst[0], dst[1] = x[0, j], x[1, j]
+    dst[2], dst[3], dst[4] = np.arctan(x[2, j]), np.arctan(x[3, j]), np.arctan(x[4, j])
+
+
+@njit(cache=True, error_model="numpy")
+def _block_one(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    _block(1, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
+
+
+@njit(cache=True, error_model="numpy")
+def _block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    _block(LANES, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _block_shared(params, x0, durations, steps, v1c, v2c, out, status, traj, stop):  # type: ignore[no-untyped-def]
+    for blk in prange((stop + LANES - 1) // LANES):
+        _block_full(
+            params, x0, durations, steps, v1c, v2c, out, status, traj, blk * LANES, min(stop, (blk + 1) * LANES)
+        )
+
+
+_BLOCKS = (_block_one, _block_full, _block_shared)
+
+
+def _lanes_serial(*args: Any) -> None:
+    run_lanes(_BLOCKS, args, False, "batched car-trailer", LANES)
+
+
+def _lanes_parallel(*args: Any) -> None:
+    run_lanes(_BLOCKS, args, True, "batched car-trailer", LANES)
+
+
+LANES_KERNEL = Kernel("batched car-trailer", LAYOUT, _lanes_serial, _lanes_parallel)
+"""The trailer without a steering limit, in tangent coordinates, vectorized across trials."""
 
 
 @dataclass(frozen=True)
@@ -383,7 +524,7 @@ class TrailerPlant:
             hitch_length=n.hitch_length,
             true_hitch_length=t.hitch_length,
         )
-        return KERNEL, row
+        return (KERNEL if self.steering_limit is not None else LANES_KERNEL), row
 
     def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
         """The nominal ``u = beta(q) v`` at the measured configuration (the wheel at the stop when
