@@ -78,7 +78,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
 
     ``render_mode="rgb_array"``: ``render()`` returns a ``(480, 480, 3)`` uint8 frame with the
     waypoint cars (home, q1, ...), the paths of the last cycle's segments and the car at
-    eight instants along the last one, drawn off-screen (matplotlib Agg).
+    eight instants along the last one, drawn off-screen by the package's numpy rasterizer.
 
     ## Arguments
 
@@ -203,9 +203,6 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
             return self._view.frame(f"{self.config.name}: before the first segment")
         cycle, waypoint = self._cycle - (self._segment == 0), self._segment or self.num_segments
         return self._view.frame(f"{self.config.name}: cycle {cycle}, reached waypoint {waypoint}")
-
-    def close(self) -> None:
-        self._view.close()
 
 
 def make_cyclic_env(

@@ -1,9 +1,10 @@
-"""Pictures of a steering task: the robot's outline, the workspace scene and an off-screen canvas.
+"""Pictures of a steering task: the robot's outline, and the paper's figures' drawing on matplotlib axes.
 
-The envs' ``render`` and the paper's figures (:mod:`ilc_steering.plots`) draw with these, on
-matplotlib's Agg canvas, which needs no display. A robot is drawn with its *nominal* map's
-geometry (``robot``, the map, or ``None`` for a chained plant, drawn in the plane ``(z1, zn)`` as
-a point):
+The paper's figures (:mod:`ilc_steering.plots`) draw with the helpers here, on matplotlib's Agg
+canvas, which needs no display; the envs' frames (:mod:`ilc_steering.envs.frames`) draw the same
+outlines with the numpy rasterizer. Importing this module does not import matplotlib: the helpers
+draw on the ``Axes`` they are handed. A robot is drawn with its *nominal* map's geometry
+(``robot``, the map, or ``None`` for a chained plant, drawn in the plane ``(z1, zn)`` as a point):
 
 - the car is the bicycle model of Fig. 1: a body, the rear wheel at ``(x, y)`` and the front
   wheel one wheelbase ahead, turned by ``phi``;
@@ -15,28 +16,27 @@ a point):
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from ilc_steering.core.car import CarModel
 from ilc_steering.core.trailer import TrailerModel, car_position
 from ilc_steering.core.unicycle import UnicycleModel
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
 __all__ = [
-    "Canvas",
     "car_outline",
     "draw_pose",
     "draw_trial",
     "draw_waypoints",
     "plane",
-    "render_scene",
     "robot_outline",
     "setup_workspace",
+    "snapshot_indices",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -46,6 +46,14 @@ BODY_REAR, BODY_FRONT, BODY_HALF_WIDTH, WHEEL_HALF_LENGTH = -0.3, 1.3, 0.35, 0.2
 START, GOAL, PATH, STROBE = "0.45", "tab:green", "tab:blue", "tab:blue"
 
 
+def _box(origin: Array, heading: Array, normal: Array, size: float, back: float, ahead: float) -> Array:
+    """The closed rectangle ``(5, 2)`` [m] from ``back`` to ``ahead`` along ``heading`` and
+    ``BODY_HALF_WIDTH`` to each side, in units of ``size`` [m] from ``origin``."""
+    along = np.array([back, ahead, ahead, back, back])[:, None]
+    side = (np.array([-1.0, -1.0, 1.0, 1.0, -1.0]) * BODY_HALF_WIDTH)[:, None]
+    return origin + size * (along * heading + side * normal)
+
+
 def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
     """The body polygon ``(5, 2)``, rear wheel ``(2, 2)`` and front wheel ``(2, 2)`` [m] of a car
     at ``q = (x, y, theta, phi)`` with the given ``wheelbase`` [m]."""
@@ -53,8 +61,7 @@ def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
     heading = np.array([np.cos(theta), np.sin(theta)])
     normal = np.array([-heading[1], heading[0]])
     rear = np.array([x, y])
-    corners = [(BODY_REAR, -1), (BODY_FRONT, -1), (BODY_FRONT, 1), (BODY_REAR, 1), (BODY_REAR, -1)]
-    body = np.array([rear + wheelbase * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
+    body = _box(rear, heading, normal, wheelbase, BODY_REAR, BODY_FRONT)
     half = WHEEL_HALF_LENGTH * wheelbase
     front = rear + wheelbase * heading
     steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
@@ -91,8 +98,7 @@ def robot_outline(robot: object, q: Array) -> list[tuple[Array, bool]]:
         heading = np.array([np.cos(q[2]), np.sin(q[2])])
         normal = np.array([-heading[1], heading[0]])
         size = robot.wheelbase
-        corners = [(-0.35, -1), (0.45, -1), (0.45, 1), (-0.35, 1), (-0.35, -1)]
-        box = np.array([axle + size * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
+        box = _box(axle, heading, normal, size, -0.35, 0.45)
         half = WHEEL_HALF_LENGTH * size
         wheel = np.array([axle - half * heading, axle + half * heading])
         return [*car, (box, False), (np.array([axle, rear]), False), (wheel, True)]
@@ -103,6 +109,11 @@ def plane(q: Array, has_pose: bool) -> Array:
     """The drawn coordinates of configurations ``(..., nx)``: ``(x, y)`` for a car, ``(z1, zn)`` otherwise."""
     q = np.asarray(q)
     return q[..., :2] if has_pose else q[..., [0, -1]]
+
+
+def snapshot_indices(samples: int, snapshots: int) -> npt.NDArray[np.intp]:
+    """The indices of ``snapshots`` evenly spaced instants among a path's ``samples``, first and last included."""
+    return np.unique(np.linspace(0, samples - 1, snapshots).round().astype(np.intp))
 
 
 def draw_pose(
@@ -146,7 +157,7 @@ def draw_trial(
     path = plane(q, robot is not None)
     ax.plot(*path.T, color=color, linewidth=1.5, label=label)
     if snapshots > 0 and len(q) > 1:
-        for i in np.unique(np.linspace(0, len(q) - 1, snapshots).round().astype(int)):
+        for i in snapshot_indices(len(q), snapshots):
             draw_pose(ax, q[i], robot, STROBE, alpha=0.35)
 
 
@@ -158,38 +169,3 @@ def setup_workspace(ax: Axes, dimension: int | None, title: str) -> None:
     ax.set_ylabel("y [m]" if dimension is None else f"z{dimension}")
     ax.grid(True, linewidth=0.4, alpha=0.5)
     ax.set_title(title, fontsize=9)
-
-
-class Canvas:
-    """An off-screen figure of ``width`` x ``height`` pixels whose ``frame`` is an RGB array."""
-
-    def __init__(self, width: int = 480, height: int = 480, dpi: int = 80) -> None:
-        self.figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
-        FigureCanvasAgg(self.figure)
-        self.ax = self.figure.add_subplot()
-        # Fixed margins (room for the tick labels and a two-line title): tight_layout would
-        # double the time per frame.
-        self.figure.subplots_adjust(left=0.15, right=0.96, bottom=0.11, top=0.9)
-
-    def clear(self) -> Axes:
-        self.ax.clear()
-        return self.ax
-
-    def frame(self) -> npt.NDArray[np.uint8]:
-        """The figure as a ``(height, width, 3)`` uint8 array."""
-        canvas: Any = self.figure.canvas
-        canvas.draw()
-        return np.array(canvas.buffer_rgba())[..., :3]
-
-
-def render_scene(
-    canvas: Canvas, waypoints: Array, robot: object, names: Sequence[str], paths: Sequence[Array], title: str
-) -> npt.NDArray[np.uint8]:
-    """An env's frame: the waypoints, the ``paths`` ``(S, nx)`` of the last trials, the last of
-    them stroboscopic (``robot``: the nominal map it is drawn with, ``None`` for a chained plant)."""
-    ax = canvas.clear()
-    draw_waypoints(ax, waypoints, robot, names)
-    for i, q in enumerate(paths):
-        draw_trial(ax, q, robot, snapshots=8 if i == len(paths) - 1 else 0)
-    setup_workspace(ax, None if robot is not None else waypoints.shape[1], title)
-    return canvas.frame()

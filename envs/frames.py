@@ -1,0 +1,165 @@
+"""The envs' ``rgb_array`` frames, drawn with the numpy rasterizer (:mod:`ilc_steering.envs.raster`).
+
+A frame shows what the paper's trajectory figures show, laid out as matplotlib laid out the
+frames before it: equal axes with a light grid, tick labels and the axes' names, the start
+(grey) and the goal or waypoints (green, dashed), each named below it, the paths of the last
+trials (blue), the robot at :data:`SNAPSHOTS` instants along the last of them (light blue), and a
+title above. The robots' outlines are :func:`~ilc_steering.envs.rendering.robot_outline`'s, the
+ones the figures draw; the widths are the figures' line widths at their 80 dots per inch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.envs.raster import RGB, Raster, WorldToPixels
+from ilc_steering.envs.rendering import plane, robot_outline, snapshot_indices
+
+__all__ = ["GOAL", "PATH", "SNAPSHOTS", "START", "Scene", "draw_scene"]
+
+Array = npt.NDArray[np.float64]
+
+WIDTH, HEIGHT = 480, 480
+"""Pixels of a frame."""
+PLOT = (64, 40, 468, 432)
+"""The axes' rectangle (left, top, right, bottom) [px]: room for the tick labels and a two-line title."""
+MARGIN = 0.05
+"""Room around what is drawn, as a fraction of its extent on each axis (matplotlib's default)."""
+SNAPSHOTS = 8
+"""Instants of the last path at which the robot is drawn."""
+# The figures' colours (rendering.START, GOAL, PATH: "0.45", "tab:green", "tab:blue") in RGB.
+START, GOAL, PATH = (115, 115, 115), (44, 160, 44), (31, 119, 180)
+INK, GRID = (0, 0, 0), (176, 176, 176)
+# Widths [px]: matplotlib's 1, 3 and 1.5 points at 80 dpi, and its "o" marker (6 points across).
+OUTLINE, WHEEL, TRAIL, MARKER = 1.1, 3.3, 1.7, 6.7
+DASH = (4.1, 1.8)
+"""On and off [px] of a dashed outline (matplotlib's ``--`` at 1 point)."""
+STROBE_ALPHA = 0.35
+
+
+@dataclass(frozen=True)
+class Scene:
+    """What an env's frame shows: the waypoints ``(r, nx)`` (world configurations, start first),
+    named ``names``; the ``paths`` ``(S, nx)`` of the last trials, the last drawn stroboscopic;
+    the ``robot`` they are drawn as (its nominal map; ``None`` for a chained plant, a point in the
+    plane ``(z1, zn)``); and the ``title`` (lines split by ``\\n``)."""
+
+    waypoints: Array
+    robot: object
+    names: Sequence[str]
+    paths: Sequence[Array]
+    title: str
+
+
+def draw_scene(scene: Scene) -> npt.NDArray[np.uint8]:
+    """The frame of ``scene``: a ``(480, 480, 3)`` uint8 RGB image."""
+    has_pose = scene.robot is not None
+    last = scene.paths[-1] if scene.paths else scene.waypoints[:0]
+    strobes = [last[i] for i in snapshot_indices(len(last), SNAPSHOTS)] if len(last) else []
+    waypoints, snapshots = (_shapes(scene.robot, poses) for poses in (scene.waypoints, strobes))
+    paths = [plane(q, has_pose) for q in scene.paths]
+    to_pixels = _fit(np.concatenate([line for shapes in (*waypoints, *snapshots) for line, _ in shapes] + paths))
+    raster = Raster(WIDTH, HEIGHT)
+    ticks = _ticks(to_pixels, 0), _ticks(to_pixels, 1)
+    _grid(raster, ticks)
+    for i, shapes in enumerate(waypoints):
+        _draw(raster, to_pixels, [shapes], has_pose, START if i == 0 else GOAL, 1.0, dashed=i > 0)
+    raster.stroke(paths, PATH, TRAIL, transform=to_pixels)
+    _draw(raster, to_pixels, snapshots, has_pose, PATH, STROBE_ALPHA, dashed=False)
+    _axes(raster, ticks, has_pose, scene.waypoints.shape[1])
+    for i, (q, name) in enumerate(zip(scene.waypoints, scene.names)):
+        column, row = to_pixels(plane(q, has_pose))
+        raster.text(name, column - 9, row + 27, START if i == 0 else GOAL)  # matplotlib's (-8, -24) points
+    lines = scene.title.split("\n")
+    for i, line in enumerate(lines):
+        raster.text(line, (PLOT[0] + PLOT[2]) / 2, PLOT[1] - 8 - 12 * (len(lines) - 1 - i), INK, align="centre")
+    return raster.image
+
+
+def _shapes(robot: object, poses: Sequence[Array]) -> list[list[tuple[Array, bool]]]:
+    """For each configuration of ``poses``, the robot's polylines [m], each flagged a wheel (see
+    :func:`~ilc_steering.envs.rendering.robot_outline`), or a chained plant's point ``(1, 2)``."""
+    if robot is None:
+        return [[(plane(q, False)[None], False)] for q in poses]
+    return [robot_outline(robot, q) for q in poses]
+
+
+def _fit(points: Array) -> WorldToPixels:
+    """The map that shows ``points`` ``(k, 2)`` [m] with :data:`MARGIN` around them on equal axes."""
+    lower, upper = points.min(axis=0), points.max(axis=0)
+    span = upper - lower
+    room = np.where(span > 0, MARGIN * span, 0.5 * max(float(span.max()), 1.0))
+    return WorldToPixels(lower - room, upper + room, PLOT)
+
+
+def _draw(
+    raster: Raster,
+    to_pixels: WorldToPixels,
+    poses: Sequence[list[tuple[Array, bool]]],
+    has_pose: bool,
+    colour: RGB,
+    alpha: float,
+    dashed: bool,
+) -> None:
+    """The robot's :func:`_shapes` at some configurations, in one layer: outlines and wheels, or for
+    a chained plant (no pose) a dot, hollow when ``dashed``."""
+    if not poses:
+        return
+    lines = [(line, wheel) for shapes in poses for line, wheel in shapes]
+    if not has_pose and dashed:
+        circle = np.linspace(0.0, 2 * np.pi, 25)
+        ring = (MARKER / 2) * np.stack([np.cos(circle), np.sin(circle)], axis=-1)
+        raster.cover([to_pixels(centre) + ring for centre, _ in lines], OUTLINE)
+    elif not has_pose:
+        raster.cover([centre for centre, _ in lines], MARKER + OUTLINE, transform=to_pixels)
+    else:
+        raster.cover([line for line, wheel in lines if not wheel], OUTLINE, DASH if dashed else None, to_pixels)
+        raster.cover([line for line, wheel in lines if wheel], WHEEL, transform=to_pixels)
+    raster.fill(colour, alpha)
+
+
+Ticks = list[tuple[str, int]]
+
+
+def _axes(raster: Raster, ticks: tuple[Ticks, Ticks], has_pose: bool, size: int) -> None:
+    """The axes' frame, tick marks and labels (``ticks`` of x and y), and the axes' names."""
+    left, top, right, bottom = PLOT
+    raster.hlines([top, bottom], left, right, INK)
+    raster.vlines([left, right], top, bottom, INK)
+    columns, rows = ticks
+    raster.vlines([column for _, column in columns], bottom + 1, bottom + 4, INK)
+    raster.hlines([row for _, row in rows], left - 4, left - 1, INK)
+    for label, column in columns:
+        raster.text(label, column, bottom + 15, INK, align="centre")
+    for label, row in rows:
+        raster.text(label, left - 7, row + 3, INK, align="right")
+    raster.text("x [m]" if has_pose else "z1", (left + right) / 2, bottom + 32, INK, align="centre")
+    raster.text("y [m]" if has_pose else f"z{size}", 12, (top + bottom) / 2, INK, upright=False)
+
+
+def _grid(raster: Raster, ticks: tuple[Ticks, Ticks]) -> None:
+    """Light lines at the ``ticks`` of x and y, under everything else."""
+    left, top, right, bottom = PLOT
+    raster.vlines([column for _, column in ticks[0]], top, bottom, GRID, 0.3)
+    raster.hlines([row for _, row in ticks[1]], left, right, GRID, 0.3)
+
+
+def _ticks(to_pixels: WorldToPixels, axis: int) -> Ticks:
+    """The ticks of ``axis`` (0: x, 1: y), a round distance apart (1, 2, 2.5 or 5 times a power of
+    ten [m], at most eight steps across the axis): their labels, with as many decimals as that
+    distance needs, and pixel columns (x) or rows (y)."""
+    raw = float(to_pixels.upper[axis] - to_pixels.lower[axis]) / 8
+    power = np.floor(np.log10(raw))
+    mantissa = next(m for m in (1.0, 2.0, 2.5, 5.0, 10.0) if m * 10.0**power >= raw * (1 - 1e-9))
+    step = mantissa * 10.0**power
+    decimals = max(0, -int(power) - (mantissa == 10.0)) + (mantissa == 2.5)
+    values = np.arange(np.ceil(to_pixels.lower[axis] / step), np.floor(to_pixels.upper[axis] / step) + 1) * step
+    points = np.zeros((len(values), 2))
+    points[:, axis] = values
+    pixels = np.floor(to_pixels(points)[:, axis]).astype(int)
+    labels = [f"{v:.{decimals}f}" for v in values]
+    return [(text[1:] if text.startswith("-") and float(text) == 0 else text, p) for text, p in zip(labels, pixels)]
