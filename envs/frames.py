@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.envs.raster import RGB, Raster, WorldToPixels
+from ilc_steering.envs.raster import RGB, Pen, Raster, WorldToPixels
 from ilc_steering.envs.rendering import plane, robot_outline, snapshot_indices
 
 __all__ = ["GOAL", "PATH", "SNAPSHOTS", "START", "Scene", "draw_scene"]
@@ -34,10 +34,9 @@ SNAPSHOTS = 8
 # The figures' colours (rendering.START, GOAL, PATH: "0.45", "tab:green", "tab:blue") in RGB.
 START, GOAL, PATH = (115, 115, 115), (44, 160, 44), (31, 119, 180)
 INK, GRID = (0, 0, 0), (176, 176, 176)
-# Widths [px]: matplotlib's 1, 3 and 1.5 points at 80 dpi, and its "o" marker (6 points across).
-OUTLINE, WHEEL, TRAIL, MARKER = 1.1, 3.3, 1.7, 6.7
-DASH = (4.1, 1.8)
-"""On and off [px] of a dashed outline (matplotlib's ``--`` at 1 point)."""
+# Pens: matplotlib's 1, 3 and 1.5 points at 80 dpi, its ``--`` at 1 point; its "o" marker, 6 points across [px].
+OUTLINE, DASHED, WHEEL, TRAIL = Pen(1.1), Pen(1.1, (4.1, 1.8)), Pen(3.3), Pen(1.7)
+MARKER = 6.7
 STROBE_ALPHA = 0.35
 
 
@@ -115,10 +114,10 @@ def _draw(
         ring = (MARKER / 2) * np.stack([np.cos(circle), np.sin(circle)], axis=-1)
         raster.cover([to_pixels(centre) + ring for centre, _ in lines], OUTLINE)
     elif not has_pose:
-        raster.cover([centre for centre, _ in lines], MARKER + OUTLINE, transform=to_pixels)
+        raster.dots(np.concatenate([centre for centre, _ in lines]), MARKER + OUTLINE.width, to_pixels)
     else:
-        raster.cover([line for line, wheel in lines if not wheel], OUTLINE, DASH if dashed else None, to_pixels)
-        raster.cover([line for line, wheel in lines if wheel], WHEEL, transform=to_pixels)
+        pens = [WHEEL if wheel else DASHED if dashed else OUTLINE for _, wheel in lines]
+        raster.cover([line for line, _ in lines], pens, to_pixels)
     raster.fill(colour, alpha)
 
 

@@ -3,54 +3,40 @@
 A :class:`Raster` is a white ``(height, width, 3)`` uint8 image drawn on in pixel coordinates
 ``(column, row)`` (the pixel ``(c, r)`` covers ``[c, c + 1) x [r, r + 1)``; rows grow downwards);
 a :class:`WorldToPixels` maps a box of the plane [m] onto a rectangle of it with equal scales on
-both axes. A stroke is drawn by sampling its polylines every :data:`SAMPLE_SPACING` pixels and
-stamping a disc of the stroke's width at each sample: the pixel's coverage, ``1`` within the half
-width and falling to ``0`` one pixel beyond, is looked up by where the sample falls inside its
-pixel (to an eighth of a pixel), and the strongest coverage of a pixel sets how much of the
-stroke's colour it takes.
+both axes. A line segment is drawn a pixel at a time along its major axis (the one it runs
+farther along): at each pixel centre on that axis, a short run of pixels across it is covered by
+``clip(w / 2 + 1 / 2 - d, 0, 1)``, with ``d`` [px] the distance of the pixel's centre from the
+segment and ``w`` [px] the stroke's width (butt ends, as matplotlib's). A pixel keeps the
+strongest coverage any segment gives it, and takes that much of the stroke's colour.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from functools import lru_cache
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.envs.glyphs import BASELINE, text_mask
 
-__all__ = ["RGB", "SAMPLE_SPACING", "Raster", "WorldToPixels"]
+__all__ = ["RGB", "Pen", "Raster", "WorldToPixels"]
 
 Array = npt.NDArray[np.float64]
 RGB = tuple[int, int, int]
 
-SAMPLE_SPACING = 0.5
-"""Pixels between the samples of a stroke up to 2 pixels wide (wider ones: a quarter of the width),
-close enough that the coverage along a stroke's edge varies by less than a tenth."""
-SUBPIXEL, SHIFT = 8, 3
-"""Positions of a sample inside its pixel, per axis (``2**SHIFT``), each with a precomputed stamp."""
 PAD = 8
-"""Pixels of the coverage layer beyond each side of the image: the widest stamp's reach."""
-NOTHING_MARKED = (2**30, 2**30, -1, -1)
-"""The (left, top, right, bottom) pixels of the samples marked since the last fill: none."""
+"""Pixels of the coverage layer beyond each side of the image: the widest stroke's reach."""
+NOTHING_MARKED = (2**30, -1)
+"""The first and last rows of the pixels covered since the last fill (give or take PAD): none."""
 
 
-@lru_cache(maxsize=16)
-def _stamp(width: float, stride: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.float32]]:
-    """The flat offsets ``(K,)`` (rows of ``stride`` pixels) of the pixels a disc of diameter ``width``
-    [px] can reach from its sample's pixel, and their coverage ``(SUBPIXEL**2, K)`` by where the
-    sample falls in that pixel (row-major eighths)."""
-    reach = int(np.ceil(width / 2 + 1.0))
-    if reach > PAD:
-        raise ValueError(f"a stroke is at most {2 * PAD - 2} pixels wide, got {width}")
-    dr, dc = (a.ravel() for a in np.mgrid[-reach : reach + 1, -reach : reach + 1])
-    fy, fx = ((a.ravel() + 0.5) / SUBPIXEL for a in np.mgrid[:SUBPIXEL, :SUBPIXEL])
-    # Distance from each offset pixel's centre to the sample at (fx, fy) in its own pixel.
-    distance = np.hypot(dr[None] + 0.5 - fy[:, None], dc[None] + 0.5 - fx[:, None])
-    coverage = np.clip(width / 2 + 0.5 - distance, 0.0, 1.0).astype(np.float32)
-    used = np.any(coverage > 0, axis=0)
-    return (dr * stride + dc)[used], np.ascontiguousarray(coverage[:, used])
+@dataclass(frozen=True)
+class Pen:
+    """How a line is drawn: ``width`` [px], and ``dash``, the (on, off) pixels along it, or solid."""
+
+    width: float
+    dash: tuple[float, float] | None = None
 
 
 class WorldToPixels:
@@ -81,82 +67,110 @@ class Raster:
     def __init__(self, width: int, height: int) -> None:
         self.width, self.height = width, height
         self.image = np.full((height, width, 3), 255, dtype=np.uint8)
-        self._pixels = self.image.reshape(-1, 3)
-        self._coverage = np.zeros((height + 2 * PAD) * (width + 2 * PAD), dtype=np.float32)
+        self._channels = [self.image.reshape(-1, 3)[:, c] for c in range(3)]
+        # Coverage in 255ths, the output's own resolution, under marking: a quarter of float32's memory.
+        self._coverage = np.zeros((height + 2 * PAD) * (width + 2 * PAD), dtype=np.uint8)
         self._marked = NOTHING_MARKED
 
     def stroke(
         self,
         lines: Sequence[Array],
         colour: RGB,
-        width: float,
+        pen: Pen | Sequence[Pen],
         alpha: float = 1.0,
-        dash: tuple[float, float] | None = None,
         transform: Callable[[Array], Array] | None = None,
     ) -> None:
         """Draw the polylines ``lines`` in ``colour`` at opacity ``alpha``: :meth:`cover`, then :meth:`fill`."""
-        self.cover(lines, width, dash, transform)
+        self.cover(lines, pen, transform)
         self.fill(colour, alpha)
 
     def cover(
-        self,
-        lines: Sequence[Array],
-        width: float,
-        dash: tuple[float, float] | None = None,
-        transform: Callable[[Array], Array] | None = None,
+        self, lines: Sequence[Array], pen: Pen | Sequence[Pen], transform: Callable[[Array], Array] | None = None
     ) -> None:
         """Mark the pixels the polylines ``lines`` (each ``(k, 2)`` pixel points, or points that
-        ``transform`` maps to pixels, such as a :class:`WorldToPixels`; a single point is a dot)
-        cover when drawn ``width`` pixels wide, ``dash`` = (on, off) pixels along each line or
-        solid. Nothing shows until :meth:`fill`; where marked lines cross, a pixel keeps its
-        strongest coverage."""
-        lines = [line for line in lines if len(line)]
-        if not lines:
+        ``transform`` maps to pixels, such as a :class:`WorldToPixels`) cover when drawn with
+        ``pen`` (one for all, or one per line). Nothing shows until :meth:`fill`; where marked
+        lines cross, a pixel keeps its strongest coverage."""
+        pens = [pen] * len(lines) if isinstance(pen, Pen) else list(pen)
+        if len(pens) != len(lines):
+            raise ValueError(f"one pen for all lines or one per line: {len(pens)} pens for {len(lines)} lines")
+        drawn = [(line, p) for line, p in zip(lines, pens) if len(line) > 1]
+        if not drawn:
             return
-        x, y = _samples(lines, SAMPLE_SPACING * max(1.0, width / 2), dash, transform)
-        keep = (x >= 0) & (x < self.width) & (y >= 0) & (y < self.height)
-        if not np.any(keep):
+        # Across the major axis, a stroke reaches its half width (and half a pixel) over cos(45 deg) at most.
+        reach = int(np.ceil((max(p.width for _, p in drawn) / 2 + 0.5) * np.sqrt(2.0)))
+        if reach > PAD:
+            raise ValueError(f"a stroke is at most {2 * PAD / np.sqrt(2.0) - 1:.0f} pixels wide")
+        runs = _runs([line for line, _ in drawn], [p.dash for _, p in drawn], transform)
+        along, across, steep, stretch, line = runs
+        base = np.floor(across).astype(np.intp)
+        inside = (along >= 0) & (base >= 0) & (along < np.where(steep, self.height, self.width))
+        inside &= base < np.where(steep, self.width, self.height)
+        if not np.any(inside):
             return
-        # Eighths of a pixel: the pixel (>> 3) and where in it the sample falls (& 7).
-        qx, qy = (x[keep] * SUBPIXEL).astype(np.intp), (y[keep] * SUBPIXEL).astype(np.intp)
-        column, row = qx >> SHIFT, qy >> SHIFT
-        offsets, coverage = _stamp(float(width), self.width + 2 * PAD)
-        flat = (row + PAD) * (self.width + 2 * PAD) + (column + PAD)
-        indices = flat[:, None] + offsets[None, :]
-        np.maximum.at(
-            self._coverage, indices.ravel(), coverage[(qy & (SUBPIXEL - 1)) * SUBPIXEL + (qx & (SUBPIXEL - 1))].ravel()
-        )
-        left, top, right, bottom = self._marked
-        self._marked = (
-            min(left, int(column.min())),
-            min(top, int(row.min())),
-            max(right, int(column.max())),
-            max(bottom, int(row.max())),
-        )
+        along, across, steep, stretch, line, base = (a[inside] for a in (along, across, steep, stretch, line, base))
+        # Distance [px] from the segment of the pixel centres across it, within reach, and their coverage.
+        offsets = np.arange(-reach, reach + 1)
+        coverage = np.abs((offsets + 0.5).astype(np.float32)[None, :] - (across - base).astype(np.float32)[:, None])
+        coverage *= (1.0 / stretch).astype(np.float32)[:, None]
+        edge = np.array([p.width / 2 + 0.5 for _, p in drawn], dtype=np.float32)[line]
+        np.subtract(edge[:, None], coverage, out=coverage)
+        stride = self.width + 2 * PAD
+        flat = np.where(steep, along * stride + base, base * stride + along) + PAD * (stride + 1)
+        cells = flat[:, None] + np.where(steep, 1, stride)[:, None] * offsets[None, :]
+        np.maximum.at(self._coverage, cells.ravel(), _levels(coverage).ravel())
+        top, bottom = self._marked
+        self._marked = (min(top, int(flat.min()) // stride - PAD), max(bottom, int(flat.max()) // stride - PAD))
+
+    def dots(self, centres: Array, diameter: float, transform: Callable[[Array], Array] | None = None) -> None:
+        """Mark the pixels that discs of ``diameter`` pixels at ``centres`` ``(k, 2)`` (pixels, or mapped
+        to pixels by ``transform``) cover, as :meth:`cover` marks a line's."""
+        reach = int(np.ceil(diameter / 2 + 1.0))
+        if reach > PAD:
+            raise ValueError(f"a dot is at most {2 * PAD - 2} pixels across, got {diameter}")
+        points = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+        if transform is not None:
+            points = transform(points)
+        points = points[
+            (points[:, 0] >= 0) & (points[:, 0] < self.width) & (points[:, 1] >= 0) & (points[:, 1] < self.height)
+        ]
+        if not len(points):
+            return
+        base = np.floor(points).astype(np.intp)
+        dr, dc = (a.ravel() for a in np.mgrid[-reach : reach + 1, -reach : reach + 1])
+        distance = np.hypot(base[:, 1:] + dr + 0.5 - points[:, 1:], base[:, :1] + dc + 0.5 - points[:, :1])
+        coverage = _levels(diameter / 2 + 0.5 - distance)
+        stride = self.width + 2 * PAD
+        flat = (base[:, 1:] + PAD) * stride + (base[:, :1] + PAD) + (dr * stride + dc)
+        np.maximum.at(self._coverage, flat.ravel(), coverage.ravel())
+        top, bottom = self._marked
+        self._marked = (min(top, int(base[:, 1].min())), max(bottom, int(base[:, 1].max())))
 
     def fill(self, colour: RGB, alpha: float = 1.0) -> None:
-        """Mix ``colour`` at opacity ``alpha`` into the pixels :meth:`cover` marked, as much as each
-        is covered, and clear the marks."""
-        left, top, right, bottom = self._marked
+        """Mix ``colour`` at opacity ``alpha`` into the pixels :meth:`cover` and :meth:`dots` marked, as
+        much as each is covered, and clear the marks."""
+        top, bottom = self._marked
         if top > bottom:
             return
         self._marked = NOTHING_MARKED
-        # The marks lie within a stamp's reach (at most PAD) of the samples' pixels.
-        layer = self._coverage.reshape(self.height + 2 * PAD, self.width + 2 * PAD)
-        window = layer[top : bottom + 2 * PAD + 1, left : right + 2 * PAD + 1]
-        marked = np.flatnonzero(window > 0)  # a boolean test: the fastest search
-        rows, columns = np.divmod(marked, window.shape[1])
-        amount = window[rows, columns] * np.float32(alpha)
-        window[rows, columns] = 0.0
-        rows, columns = rows + (top - PAD), columns + (left - PAD)
+        # The marks lie within a stroke's reach (at most PAD) of the rows top to bottom: a band of
+        # whole rows of the layer, contiguous, where a boolean test finds them fastest.
+        stride = self.width + 2 * PAD
+        band = self._coverage[top * stride : (bottom + 2 * PAD + 1) * stride]
+        marked = np.flatnonzero(band > 0)
+        amount = band[marked] * np.float32(alpha / 255)
+        band[marked] = 0.0
+        rows, columns = np.divmod(marked, stride)
+        rows, columns = rows + (top - PAD), columns - PAD
         inside = (rows >= 0) & (rows < self.height) & (columns >= 0) & (columns < self.width)
         self.mix(rows[inside] * self.width + columns[inside], colour, amount[inside])
 
     def mix(self, pixels: npt.NDArray[np.intp], colour: RGB, amount: npt.NDArray[np.float32] | float) -> None:
         """Move the flat-indexed ``pixels`` towards ``colour`` by ``amount`` (0 to 1 each)."""
-        old = self._pixels[pixels].astype(np.float32)
-        weight = np.reshape(amount, (-1, 1)) if np.ndim(amount) else np.float32(amount)
-        self._pixels[pixels] = (old + (np.asarray(colour, dtype=np.float32) - old) * weight + 0.5).astype(np.uint8)
+        weight = np.asarray(amount, dtype=np.float32)
+        for channel, value in zip(self._channels, colour):  # one plane at a time: 1-d gathers are the fast ones
+            old = channel[pixels].astype(np.float32)
+            channel[pixels] = (old + (np.float32(value) - old) * weight + np.float32(0.5)).astype(np.uint8)
 
     def hlines(self, rows: Sequence[int], left: int, right: int, colour: RGB, alpha: float = 1.0) -> None:
         """One-pixel lines along ``rows``, columns ``left`` to ``right`` (inclusive), ``colour`` at ``alpha``."""
@@ -191,35 +205,45 @@ class Raster:
         self.image[top : top + cut.shape[0], left : left + cut.shape[1]][cut] = colour
 
 
-def _samples(
-    lines: list[Array],
-    spacing: float,
-    dash: tuple[float, float] | None,
-    transform: Callable[[Array], Array] | None,
-) -> tuple[Array, Array]:
-    """Columns and rows of points ``spacing`` pixels apart or closer along each polyline of ``lines``
-    (``(k, 2)`` each, ``k >= 1``, mapped to pixels by ``transform``; a single point is kept as it
-    is), its vertices included, those in the gaps of ``dash`` left out: the pattern starts afresh
-    on every line."""
-    lines = [line if len(line) > 1 else np.repeat(line, 2, axis=0) for line in lines]
+def _levels(coverage: npt.NDArray[np.floating]) -> npt.NDArray[np.uint8]:
+    """Coverage (clipped to 0 to 1) in 255ths."""
+    return (np.clip(coverage, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+
+
+def _runs(
+    lines: list[Array], dashes: list[tuple[float, float] | None], transform: Callable[[Array], Array] | None
+) -> tuple[npt.NDArray[np.intp], Array, npt.NDArray[np.bool_], Array, npt.NDArray[np.intp]]:
+    """The pixel centres along the major axis of every segment of ``lines`` (``(k, 2)`` each, ``k >= 2``,
+    mapped to pixels by ``transform``), those in the gaps of each line's dash (on, off) [px] left out
+    (the pattern starts afresh on every line): each centre's pixel index along that axis; where the
+    segment crosses it on the other axis [px]; whether the segment is steep (runs farther along the
+    rows' axis, y); the segment's length per pixel of its major axis, ``sqrt(1 + slope**2)``; and
+    the index of its line."""
     sizes = np.array([len(line) for line in lines])
     points = np.concatenate(lines)
     if transform is not None:
         points = transform(points)
+    owner = np.repeat(np.arange(len(lines)), sizes - 1)
     joined = np.ones(len(points) - 1, dtype=bool)
     joined[np.cumsum(sizes)[:-1] - 1] = False
-    x0, y0 = points[:-1, 0][joined], points[:-1, 1][joined]
-    dx, dy = np.diff(points[:, 0])[joined], np.diff(points[:, 1])[joined]
-    length = np.hypot(dx, dy)
-    count = (length * (1 / spacing)).astype(np.intp) + 2
-    segment = np.repeat(np.arange(len(x0)), count)
-    t = (np.arange(len(segment)) - (np.cumsum(count) - count)[segment]) / (count - 1)[segment]
-    x, y = x0[segment] + t * dx[segment], y0[segment] + t * dy[segment]
-    if dash is None:
-        return x, y
-    # Arc length [px] at each segment's start, from its line's first vertex.
-    travelled = np.cumsum(length) - length
-    first = np.cumsum(sizes - 1) - (sizes - 1)
-    along = travelled - travelled[first][np.repeat(np.arange(len(sizes)), sizes - 1)]
-    on = (along[segment] + t * length[segment]) % (dash[0] + dash[1]) < dash[0]
-    return x[on], y[on]
+    start, delta = points[:-1][joined], np.diff(points, axis=0)[joined]
+    steep = np.abs(delta[:, 1]) > np.abs(delta[:, 0])
+    major, minor = steep.astype(np.intp), 1 - steep.astype(np.intp)
+    index = np.arange(len(start))
+    a0, b0, da, db = start[index, major], start[index, minor], delta[index, major], delta[index, minor]
+    first = np.ceil(np.minimum(a0, a0 + da) - 0.5).astype(np.intp)
+    count = np.maximum(np.floor(np.maximum(a0, a0 + da) - 0.5).astype(np.intp) - first + 1, 0)
+    segment = np.repeat(index, count)
+    centre = first[segment] + (np.arange(len(segment)) - (np.cumsum(count) - count)[segment]) + 0.5
+    slope = db / np.where(da == 0, 1.0, da)
+    across = b0[segment] + (centre - a0[segment]) * slope[segment]
+    stretch = np.sqrt(1.0 + slope * slope)[segment]
+    if any(dash is not None for dash in dashes):
+        length = np.hypot(delta[:, 0], delta[:, 1])
+        travelled = np.cumsum(length) - length
+        from_line_start = travelled - travelled[np.cumsum(sizes - 1) - (sizes - 1)][owner]
+        on, off = (np.array([np.inf if d is None else d[k] for d in dashes])[owner][segment] for k in (0, 1))
+        s = from_line_start[segment] + np.abs(centre - a0[segment]) * stretch
+        keep = s % (on + off) < on
+        centre, across, stretch, segment = centre[keep], across[keep], stretch[keep], segment[keep]
+    return (centre - 0.5).astype(np.intp), across, steep[segment], stretch, owner[segment]
