@@ -19,7 +19,7 @@ import numpy.typing as npt
 from ilc_steering.envs.raster import RGB, Pen, Raster, WorldToPixels
 from ilc_steering.envs.rendering import plane, robot_outline, snapshot_indices
 
-__all__ = ["GOAL", "PATH", "SNAPSHOTS", "START", "Scene", "draw_scene"]
+__all__ = ["GOAL", "HEIGHT", "PATH", "SNAPSHOTS", "START", "WIDTH", "Scene", "draw_scene", "view"]
 
 Array = npt.NDArray[np.float64]
 
@@ -33,11 +33,12 @@ SNAPSHOTS = 8
 """Instants of the last path at which the robot is drawn."""
 # The figures' colours (rendering.START, GOAL, PATH: "0.45", "tab:green", "tab:blue") in RGB.
 START, GOAL, PATH = (115, 115, 115), (44, 160, 44), (31, 119, 180)
-INK, GRID = (0, 0, 0), (176, 176, 176)
+INK, GRID = (0, 0, 0), (231, 231, 231)  # GRID: matplotlib's grey grid, its alpha over white
 # Pens: matplotlib's 1, 3 and 1.5 points at 80 dpi, its ``--`` at 1 point; its "o" marker, 6 points across [px].
 OUTLINE, DASHED, WHEEL, TRAIL = Pen(1.1), Pen(1.1, (4.1, 1.8)), Pen(3.3), Pen(1.7)
 MARKER = 6.7
 STROBE_ALPHA = 0.35
+"""Opacity of the robot drawn along the last path (the figures' ``alpha``)."""
 
 
 @dataclass(frozen=True)
@@ -54,14 +55,20 @@ class Scene:
     title: str
 
 
+Shapes = list[tuple[Array, bool]]
+"""A robot's polylines [m] at one configuration, each flagged a wheel (see :func:`robot_outline`)."""
+
+
+def view(scene: Scene) -> WorldToPixels:
+    """The map of the scene's plane [m] (``(x, y)``, or ``(z1, zn)`` for a chained plant) onto the
+    frame's axes [px]: all the frame draws, with :data:`MARGIN` around it, on equal axes."""
+    return _layout(scene)[0]
+
+
 def draw_scene(scene: Scene) -> npt.NDArray[np.uint8]:
     """The frame of ``scene``: a ``(480, 480, 3)`` uint8 RGB image."""
     has_pose = scene.robot is not None
-    last = scene.paths[-1] if scene.paths else scene.waypoints[:0]
-    strobes = [last[i] for i in snapshot_indices(len(last), SNAPSHOTS)] if len(last) else []
-    waypoints, snapshots = (_shapes(scene.robot, poses) for poses in (scene.waypoints, strobes))
-    paths = [plane(q, has_pose) for q in scene.paths]
-    to_pixels = _fit(np.concatenate([line for shapes in (*waypoints, *snapshots) for line, _ in shapes] + paths))
+    to_pixels, waypoints, snapshots, paths = _layout(scene)
     raster = Raster(WIDTH, HEIGHT)
     ticks = _ticks(to_pixels, 0), _ticks(to_pixels, 1)
     _grid(raster, ticks)
@@ -79,26 +86,32 @@ def draw_scene(scene: Scene) -> npt.NDArray[np.uint8]:
     return raster.image
 
 
-def _shapes(robot: object, poses: Sequence[Array]) -> list[list[tuple[Array, bool]]]:
-    """For each configuration of ``poses``, the robot's polylines [m], each flagged a wheel (see
-    :func:`~ilc_steering.envs.rendering.robot_outline`), or a chained plant's point ``(1, 2)``."""
+def _layout(scene: Scene) -> tuple[WorldToPixels, list[Shapes], list[Shapes], list[Array]]:
+    """The scene's :func:`view`, the robot's shapes at the waypoints and at the snapshots along the
+    last path, and the paths in the plane [m]."""
+    has_pose = scene.robot is not None
+    last = scene.paths[-1] if scene.paths else scene.waypoints[:0]
+    strobes = [last[i] for i in snapshot_indices(len(last), SNAPSHOTS)] if len(last) else []
+    waypoints, snapshots = _shapes(scene.robot, list(scene.waypoints)), _shapes(scene.robot, strobes)
+    paths = [plane(q, has_pose) for q in scene.paths]
+    points = np.concatenate([line for shapes in (*waypoints, *snapshots) for line, _ in shapes] + paths)
+    lower, upper = points.min(axis=0), points.max(axis=0)
+    span = upper - lower
+    room = np.where(span > 0, MARGIN * span, 0.5 * max(float(span.max()), 1.0))
+    return WorldToPixels(lower - room, upper + room, PLOT), waypoints, snapshots, paths
+
+
+def _shapes(robot: object, poses: Sequence[Array]) -> list[Shapes]:
+    """The robot's :data:`Shapes` at each configuration of ``poses``; a chained plant's is its point ``(1, 2)``."""
     if robot is None:
         return [[(plane(q, False)[None], False)] for q in poses]
     return [robot_outline(robot, q) for q in poses]
 
 
-def _fit(points: Array) -> WorldToPixels:
-    """The map that shows ``points`` ``(k, 2)`` [m] with :data:`MARGIN` around them on equal axes."""
-    lower, upper = points.min(axis=0), points.max(axis=0)
-    span = upper - lower
-    room = np.where(span > 0, MARGIN * span, 0.5 * max(float(span.max()), 1.0))
-    return WorldToPixels(lower - room, upper + room, PLOT)
-
-
 def _draw(
     raster: Raster,
     to_pixels: WorldToPixels,
-    poses: Sequence[list[tuple[Array, bool]]],
+    poses: Sequence[Shapes],
     has_pose: bool,
     colour: RGB,
     alpha: float,
@@ -143,8 +156,8 @@ def _axes(raster: Raster, ticks: tuple[Ticks, Ticks], has_pose: bool, size: int)
 def _grid(raster: Raster, ticks: tuple[Ticks, Ticks]) -> None:
     """Light lines at the ``ticks`` of x and y, under everything else."""
     left, top, right, bottom = PLOT
-    raster.vlines([column for _, column in ticks[0]], top, bottom, GRID, 0.3)
-    raster.hlines([row for _, row in ticks[1]], left, right, GRID, 0.3)
+    raster.vlines([column for _, column in ticks[0]], top, bottom, GRID)
+    raster.hlines([row for _, row in ticks[1]], left, right, GRID)
 
 
 def _ticks(to_pixels: WorldToPixels, axis: int) -> Ticks:

@@ -58,7 +58,8 @@ class WorldToPixels:
 
     def __call__(self, points: Array) -> Array:
         """Pixel ``(column, row)`` of world points ``(..., 2)`` [m]."""
-        return np.asarray(points, dtype=np.float64) * self._factor + self._origin
+        pixels: Array = np.asarray(points, dtype=np.float64) * self._factor + self._origin
+        return pixels
 
 
 class Raster:
@@ -108,7 +109,8 @@ class Raster:
         inside &= base < np.where(steep, self.width, self.height)
         if not np.any(inside):
             return
-        along, across, steep, stretch, line, base = (a[inside] for a in (along, across, steep, stretch, line, base))
+        along, base, line = along[inside], base[inside], line[inside]
+        across, stretch, steep = across[inside], stretch[inside], steep[inside]
         # Distance [px] from the segment of the pixel centres across it, within reach, and their coverage.
         offsets = np.arange(-reach, reach + 1)
         coverage = np.abs((offsets + 0.5).astype(np.float32)[None, :] - (across - base).astype(np.float32)[:, None])
@@ -172,19 +174,15 @@ class Raster:
             old = channel[pixels].astype(np.float32)
             channel[pixels] = (old + (np.float32(value) - old) * weight + np.float32(0.5)).astype(np.uint8)
 
-    def hlines(self, rows: Sequence[int], left: int, right: int, colour: RGB, alpha: float = 1.0) -> None:
-        """One-pixel lines along ``rows``, columns ``left`` to ``right`` (inclusive), ``colour`` at ``alpha``."""
-        self._paint((np.asarray(rows, dtype=np.intp), slice(max(left, 0), max(right + 1, 0))), colour, alpha)
+    def hlines(self, rows: Sequence[int], left: int, right: int, colour: RGB) -> None:
+        """Opaque one-pixel lines along ``rows``, columns ``left`` to ``right`` (inclusive)."""
+        rows = [r for r in rows if 0 <= r < self.height]
+        self.image[rows, max(left, 0) : max(right + 1, 0)] = colour
 
-    def vlines(self, columns: Sequence[int], top: int, bottom: int, colour: RGB, alpha: float = 1.0) -> None:
-        """One-pixel lines down ``columns``, rows ``top`` to ``bottom`` (inclusive), ``colour`` at ``alpha``."""
-        self._paint((slice(max(top, 0), max(bottom + 1, 0)), np.asarray(columns, dtype=np.intp)), colour, alpha)
-
-    def _paint(self, where: tuple[slice | npt.NDArray[np.intp], ...], colour: RGB, alpha: float) -> None:
-        old = self.image[where].astype(np.float32)
-        self.image[where] = (old + (np.asarray(colour, dtype=np.float32) - old) * np.float32(alpha) + 0.5).astype(
-            np.uint8
-        )
+    def vlines(self, columns: Sequence[int], top: int, bottom: int, colour: RGB) -> None:
+        """Opaque one-pixel lines down ``columns``, rows ``top`` to ``bottom`` (inclusive)."""
+        columns = [c for c in columns if 0 <= c < self.width]
+        self.image[max(top, 0) : max(bottom + 1, 0), columns] = colour
 
     def text(
         self, text: str, column: float, row: float, colour: RGB, align: str = "left", upright: bool = True
@@ -207,7 +205,8 @@ class Raster:
 
 def _levels(coverage: npt.NDArray[np.floating]) -> npt.NDArray[np.uint8]:
     """Coverage (clipped to 0 to 1) in 255ths."""
-    return (np.clip(coverage, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+    levels: npt.NDArray[np.uint8] = (np.clip(coverage, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+    return levels
 
 
 def _runs(

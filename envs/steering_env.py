@@ -287,15 +287,19 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         if self.render_mode is None:
             gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
             return None
+        return draw_scene(self.scene())
+
+    def scene(self) -> Scene:
+        """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene` (to draw it otherwise)."""
         count = self._view.count
-        return self._view.frame(f"{self.config.name}: " + (f"trial {count}" if count else "before the first trial"))
+        return self._view.scene(f"{self.config.name}: " + (f"trial {count}" if count else "before the first trial"))
 
 
 class TrialView:
     """What the envs draw: the waypoints (world frame; ``robot`` the nominal map the robot is
     drawn with, ``None`` for a chained plant, drawn as a point) and the paths of the last trials, with a title line of
-    the last trial's errors (Cartesian and orientation where the robot has a pose), drawn by
-    :func:`~ilc_steering.envs.frames.draw_scene`."""
+    the last trial's errors (Cartesian and orientation where the robot has a pose), as a
+    :class:`~ilc_steering.envs.frames.Scene`."""
 
     def __init__(self, waypoints: Array, robot: object, names: list[str], has_pose: bool) -> None:
         self._waypoints = waypoints
@@ -330,10 +334,6 @@ class TrialView:
         """What the frame shows, titled ``label`` and the last trial's errors."""
         title = label + (f"\n{self._errors}" if self.count else "")
         return Scene(self._waypoints, self._robot, self._names, self._paths, title)
-
-    def frame(self, label: str) -> npt.NDArray[np.uint8]:
-        """The ``(480, 480, 3)`` uint8 RGB frame of :meth:`scene`."""
-        return draw_scene(self.scene(label))
 
 
 def reward(info: dict[str, Any]) -> Any:
