@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.envs.raster import RGB, Pen, Raster, WorldToPixels
+from ilc_steering.envs.raster import RGB, Layer, Pen, Raster, WorldToPixels
 from ilc_steering.envs.rendering import plane, robot_outline, snapshot_indices
 
 __all__ = ["GOAL", "HEIGHT", "PATH", "SNAPSHOTS", "START", "WIDTH", "Scene", "draw_scene", "view"]
@@ -37,6 +37,8 @@ INK, GRID = (0, 0, 0), (231, 231, 231)  # GRID: matplotlib's grey grid, its alph
 # Pens: matplotlib's 1, 3 and 1.5 points at 80 dpi, its ``--`` at 1 point; its "o" marker, 6 points across [px].
 OUTLINE, DASHED, WHEEL, TRAIL = Pen(1.1), Pen(1.1, (4.1, 1.8)), Pen(3.3), Pen(1.7)
 MARKER = 6.7
+CIRCLE = np.linspace(0.0, 2 * np.pi, 25)
+"""Angles [rad] of a ring's vertices."""
 STROBE_ALPHA = 0.35
 """Opacity of the robot drawn along the last path (the figures' ``alpha``)."""
 
@@ -72,10 +74,19 @@ def draw_scene(scene: Scene) -> npt.NDArray[np.uint8]:
     raster = Raster(WIDTH, HEIGHT)
     ticks = _ticks(to_pixels, 0), _ticks(to_pixels, 1)
     _grid(raster, ticks)
-    for i, shapes in enumerate(waypoints):
-        _draw(raster, to_pixels, [shapes], has_pose, START if i == 0 else GOAL, 1.0, dashed=i > 0)
-    raster.stroke(paths, PATH, TRAIL, transform=to_pixels)
-    _draw(raster, to_pixels, snapshots, has_pose, PATH, STROBE_ALPHA, dashed=False)
+    colours = [START, *[GOAL] * (len(waypoints) - 1)]
+    if has_pose:  # one pass over every line: the cars, the paths, the cars along the last path
+        layers = [_outlines([shapes], colour, 1.0, i > 0) for i, (shapes, colour) in enumerate(zip(waypoints, colours))]
+        raster.draw([*layers, Layer(paths, TRAIL, PATH), _outlines(snapshots, PATH, STROBE_ALPHA, False)], to_pixels)
+    else:  # a chained plant's point: filled at the start and along the path, a ring at the goal
+        (start,), *goals = waypoints
+        raster.dots(start[0], MARKER + OUTLINE.width, START, transform=to_pixels)
+        ring = (MARKER / 2 / to_pixels.scale) * np.stack([np.cos(CIRCLE), np.sin(CIRCLE)], axis=-1)
+        rings = [Layer([point + ring for ((point, _),) in goals], OUTLINE, GOAL)] if goals else []
+        raster.draw([*rings, Layer(paths, TRAIL, PATH)], to_pixels)
+        if snapshots:
+            centres = np.concatenate([point for ((point, _),) in snapshots])
+            raster.dots(centres, MARKER + OUTLINE.width, PATH, STROBE_ALPHA, to_pixels)
     _axes(raster, ticks, has_pose, scene.waypoints.shape[1])
     for i, (q, name) in enumerate(zip(scene.waypoints, scene.names)):
         column, row = to_pixels(plane(q, has_pose))
@@ -108,30 +119,11 @@ def _shapes(robot: object, poses: Sequence[Array]) -> list[Shapes]:
     return [robot_outline(robot, q) for q in poses]
 
 
-def _draw(
-    raster: Raster,
-    to_pixels: WorldToPixels,
-    poses: Sequence[Shapes],
-    has_pose: bool,
-    colour: RGB,
-    alpha: float,
-    dashed: bool,
-) -> None:
-    """The robot's :func:`_shapes` at some configurations, in one layer: outlines and wheels, or for
-    a chained plant (no pose) a dot, hollow when ``dashed``."""
-    if not poses:
-        return
+def _outlines(poses: Sequence[Shapes], colour: RGB, alpha: float, dashed: bool) -> Layer:
+    """The robot's :data:`Shapes` at some configurations, as one layer: outlines (dashed or solid) and wheels."""
     lines = [(line, wheel) for shapes in poses for line, wheel in shapes]
-    if not has_pose and dashed:
-        circle = np.linspace(0.0, 2 * np.pi, 25)
-        ring = (MARKER / 2) * np.stack([np.cos(circle), np.sin(circle)], axis=-1)
-        raster.cover([to_pixels(centre) + ring for centre, _ in lines], OUTLINE)
-    elif not has_pose:
-        raster.dots(np.concatenate([centre for centre, _ in lines]), MARKER + OUTLINE.width, to_pixels)
-    else:
-        pens = [WHEEL if wheel else DASHED if dashed else OUTLINE for _, wheel in lines]
-        raster.cover([line for line, _ in lines], pens, to_pixels)
-    raster.fill(colour, alpha)
+    pens = [WHEEL if wheel else DASHED if dashed else OUTLINE for _, wheel in lines]
+    return Layer([line for line, _ in lines], pens, colour, alpha)
 
 
 Ticks = list[tuple[str, int]]

@@ -11,7 +11,7 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ADVANCE", "BASELINE", "GLYPH_HEIGHT", "text_mask"]
+__all__ = ["ADVANCE", "BASELINE", "GLYPH_HEIGHT", "text_mask", "text_pixels"]
 
 GLYPH_WIDTH, GLYPH_HEIGHT = 5, 9
 ADVANCE = GLYPH_WIDTH + 1
@@ -143,3 +143,11 @@ def text_mask(text: str) -> npt.NDArray[np.bool_]:
     mask = np.concatenate(cells[:-1], axis=1)
     mask.flags.writeable = False
     return mask
+
+
+@lru_cache(maxsize=256)
+def text_pixels(text: str) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp], int]:
+    """The rows and columns of :func:`text_mask`'s inked pixels, and its width [px]."""
+    mask = text_mask(text)
+    rows, columns = np.nonzero(mask)
+    return rows, columns, mask.shape[1]

@@ -18,17 +18,17 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.envs.glyphs import BASELINE, text_mask
+from ilc_steering.envs.glyphs import BASELINE, GLYPH_HEIGHT, text_pixels
 
-__all__ = ["RGB", "Pen", "Raster", "WorldToPixels"]
+__all__ = ["RGB", "Layer", "Pen", "Raster", "WorldToPixels"]
 
 Array = npt.NDArray[np.float64]
 RGB = tuple[int, int, int]
 
 PAD = 8
-"""Pixels of the coverage layer beyond each side of the image: the widest stroke's reach."""
-NOTHING_MARKED = (2**30, -1)
-"""The first and last rows of the pixels covered since the last fill (give or take PAD): none."""
+"""Rows of the coverage layer above and below the image: the widest stroke's reach. Across a steep
+segment, along a row, a stroke is kept only where the whole run fits in the row: a stroke within
+its reach of the image's left or right edge is cut there."""
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,18 @@ class Pen:
 
     width: float
     dash: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Layer:
+    """Polylines ``lines`` (``(k, 2)`` each; a line of one point draws nothing) drawn with ``pen``
+    (one for all, or one per line) in ``colour`` at opacity ``alpha``. Where its lines cross, a
+    pixel keeps the strongest coverage they give it and takes the colour once."""
+
+    lines: Sequence[Array]
+    pen: Pen | Sequence[Pen]
+    colour: RGB
+    alpha: float = 1.0
 
 
 class WorldToPixels:
@@ -70,8 +82,7 @@ class Raster:
         self.image = np.full((height, width, 3), 255, dtype=np.uint8)
         self._channels = [self.image.reshape(-1, 3)[:, c] for c in range(3)]
         # Coverage in 255ths, the output's own resolution, under marking: a quarter of float32's memory.
-        self._coverage = np.zeros((height + 2 * PAD) * (width + 2 * PAD), dtype=np.uint8)
-        self._marked = NOTHING_MARKED
+        self._coverage = np.zeros((height + 2 * PAD) * width, dtype=np.uint8)
 
     def stroke(
         self,
@@ -81,52 +92,65 @@ class Raster:
         alpha: float = 1.0,
         transform: Callable[[Array], Array] | None = None,
     ) -> None:
-        """Draw the polylines ``lines`` in ``colour`` at opacity ``alpha``: :meth:`cover`, then :meth:`fill`."""
-        self.cover(lines, pen, transform)
-        self.fill(colour, alpha)
+        """Draw the polylines ``lines`` with ``pen`` in ``colour`` at opacity ``alpha``: one :class:`Layer`."""
+        self.draw([Layer(lines, pen, colour, alpha)], transform)
 
-    def cover(
-        self, lines: Sequence[Array], pen: Pen | Sequence[Pen], transform: Callable[[Array], Array] | None = None
-    ) -> None:
-        """Mark the pixels the polylines ``lines`` (each ``(k, 2)`` pixel points, or points that
-        ``transform`` maps to pixels, such as a :class:`WorldToPixels`) cover when drawn with
-        ``pen`` (one for all, or one per line). Nothing shows until :meth:`fill`; where marked
-        lines cross, a pixel keeps its strongest coverage."""
-        pens = [pen] * len(lines) if isinstance(pen, Pen) else list(pen)
-        if len(pens) != len(lines):
-            raise ValueError(f"one pen for all lines or one per line: {len(pens)} pens for {len(lines)} lines")
-        drawn = [(line, p) for line, p in zip(lines, pens) if len(line) > 1]
-        if not drawn:
+    def draw(self, layers: Sequence[Layer], transform: Callable[[Array], Array] | None = None) -> None:
+        """Draw the ``layers`` in order, their lines in pixels or in what ``transform`` (such as a
+        :class:`WorldToPixels`) maps to pixels. The segments of all layers are laid out at once:
+        their pixel runs come out in the layers' order."""
+        lines, pens, owners = [], [], []
+        for k, layer in enumerate(layers):
+            drawn = [layer.pen] * len(layer.lines) if isinstance(layer.pen, Pen) else list(layer.pen)
+            if len(drawn) != len(layer.lines):
+                raise ValueError(
+                    f"one pen for all lines or one per line: {len(drawn)} pens for {len(layer.lines)} lines"
+                )
+            kept = [(line, pen) for line, pen in zip(layer.lines, drawn) if len(line) > 1]
+            lines += [line for line, _ in kept]
+            pens += [pen for _, pen in kept]
+            owners += [k] * len(kept)
+        if not lines:
             return
         # Across the major axis, a stroke reaches its half width (and half a pixel) over cos(45 deg) at most.
-        reach = int(np.ceil((max(p.width for _, p in drawn) / 2 + 0.5) * np.sqrt(2.0)))
+        reach = int(np.ceil((max(pen.width for pen in pens) / 2 + 0.5) * np.sqrt(2.0)))
         if reach > PAD:
             raise ValueError(f"a stroke is at most {2 * PAD / np.sqrt(2.0) - 1:.0f} pixels wide")
-        runs = _runs([line for line, _ in drawn], [p.dash for _, p in drawn], transform)
-        along, across, steep, stretch, line = runs
+        along, across, steep, stretch, line = _runs(lines, [pen.dash for pen in pens], transform)
         base = np.floor(across).astype(np.intp)
-        inside = (along >= 0) & (base >= 0) & (along < np.where(steep, self.height, self.width))
-        inside &= base < np.where(steep, self.width, self.height)
-        if not np.any(inside):
-            return
+        # A run across a steep segment lies along a row: kept whole within the row, a reach from its ends.
+        inside = (along >= 0) & (along < np.where(steep, self.height, self.width))
+        inside &= (base >= np.where(steep, reach, 0)) & (base < np.where(steep, self.width - reach, self.height))
         along, base, line = along[inside], base[inside], line[inside]
         across, stretch, steep = across[inside], stretch[inside], steep[inside]
         # Distance [px] from the segment of the pixel centres across it, within reach, and their coverage.
         offsets = np.arange(-reach, reach + 1)
         coverage = np.abs((offsets + 0.5).astype(np.float32)[None, :] - (across - base).astype(np.float32)[:, None])
         coverage *= (1.0 / stretch).astype(np.float32)[:, None]
-        edge = np.array([p.width / 2 + 0.5 for _, p in drawn], dtype=np.float32)[line]
+        edge = np.array([pen.width / 2 + 0.5 for pen in pens], dtype=np.float32)[line]
         np.subtract(edge[:, None], coverage, out=coverage)
-        stride = self.width + 2 * PAD
-        flat = np.where(steep, along * stride + base, base * stride + along) + PAD * (stride + 1)
+        levels = _levels(coverage)
+        stride = self.width
+        flat = np.where(steep, along * stride + base, base * stride + along) + PAD * stride
         cells = flat[:, None] + np.where(steep, 1, stride)[:, None] * offsets[None, :]
-        np.maximum.at(self._coverage, cells.ravel(), _levels(coverage).ravel())
-        top, bottom = self._marked
-        self._marked = (min(top, int(flat.min()) // stride - PAD), max(bottom, int(flat.max()) // stride - PAD))
+        bounds = np.searchsorted(np.asarray(owners)[line], np.arange(len(layers) + 1))
+        for k, layer in enumerate(layers):
+            part = slice(bounds[k], bounds[k + 1])
+            if part.start == part.stop:
+                continue
+            np.maximum.at(self._coverage, cells[part].ravel(), levels[part].ravel())
+            self._fill(int(flat[part].min()) // stride - PAD, int(flat[part].max()) // stride - PAD, layer)
 
-    def dots(self, centres: Array, diameter: float, transform: Callable[[Array], Array] | None = None) -> None:
-        """Mark the pixels that discs of ``diameter`` pixels at ``centres`` ``(k, 2)`` (pixels, or mapped
-        to pixels by ``transform``) cover, as :meth:`cover` marks a line's."""
+    def dots(
+        self,
+        centres: Array,
+        diameter: float,
+        colour: RGB,
+        alpha: float = 1.0,
+        transform: Callable[[Array], Array] | None = None,
+    ) -> None:
+        """Discs of ``diameter`` pixels at ``centres`` ``(k, 2)`` (pixels, or mapped to pixels by
+        ``transform``) in ``colour`` at opacity ``alpha``, one layer."""
         reach = int(np.ceil(diameter / 2 + 1.0))
         if reach > PAD:
             raise ValueError(f"a dot is at most {2 * PAD - 2} pixels across, got {diameter}")
@@ -134,38 +158,32 @@ class Raster:
         if transform is not None:
             points = transform(points)
         points = points[
-            (points[:, 0] >= 0) & (points[:, 0] < self.width) & (points[:, 1] >= 0) & (points[:, 1] < self.height)
+            (points[:, 0] >= reach)
+            & (points[:, 0] < self.width - reach)
+            & (points[:, 1] >= 0)
+            & (points[:, 1] < self.height)
         ]
         if not len(points):
             return
         base = np.floor(points).astype(np.intp)
         dr, dc = (a.ravel() for a in np.mgrid[-reach : reach + 1, -reach : reach + 1])
         distance = np.hypot(base[:, 1:] + dr + 0.5 - points[:, 1:], base[:, :1] + dc + 0.5 - points[:, :1])
-        coverage = _levels(diameter / 2 + 0.5 - distance)
-        stride = self.width + 2 * PAD
-        flat = (base[:, 1:] + PAD) * stride + (base[:, :1] + PAD) + (dr * stride + dc)
-        np.maximum.at(self._coverage, flat.ravel(), coverage.ravel())
-        top, bottom = self._marked
-        self._marked = (min(top, int(base[:, 1].min())), max(bottom, int(base[:, 1].max())))
+        stride = self.width
+        flat = (base[:, 1:] + PAD) * stride + base[:, :1] + (dr * stride + dc)
+        np.maximum.at(self._coverage, flat.ravel(), _levels(diameter / 2 + 0.5 - distance).ravel())
+        self._fill(int(base[:, 1].min()), int(base[:, 1].max()), Layer([], [], colour, alpha))
 
-    def fill(self, colour: RGB, alpha: float = 1.0) -> None:
-        """Mix ``colour`` at opacity ``alpha`` into the pixels :meth:`cover` and :meth:`dots` marked, as
-        much as each is covered, and clear the marks."""
-        top, bottom = self._marked
-        if top > bottom:
-            return
-        self._marked = NOTHING_MARKED
-        # The marks lie within a stroke's reach (at most PAD) of the rows top to bottom: a band of
-        # whole rows of the layer, contiguous, where a boolean test finds them fastest.
-        stride = self.width + 2 * PAD
-        band = self._coverage[top * stride : (bottom + 2 * PAD + 1) * stride]
+    def _fill(self, top: int, bottom: int, layer: Layer) -> None:
+        """Mix the layer's colour at its opacity into the pixels the coverage marks, as much as each is
+        covered, and clear the marks: they lie within PAD rows of the image's rows ``top`` to ``bottom``, a band
+        of whole rows of the coverage, contiguous, where a boolean test finds them fastest."""
+        band = self._coverage[top * self.width : (bottom + 2 * PAD + 1) * self.width]
         marked = np.flatnonzero(band > 0)
-        amount = band[marked] * np.float32(alpha / 255)
-        band[marked] = 0.0
-        rows, columns = np.divmod(marked, stride)
-        rows, columns = rows + (top - PAD), columns - PAD
-        inside = (rows >= 0) & (rows < self.height) & (columns >= 0) & (columns < self.width)
-        self.mix(rows[inside] * self.width + columns[inside], colour, amount[inside])
+        amount = band[marked] * np.float32(layer.alpha / 255)
+        band[marked] = 0
+        pixels = marked + (top - PAD) * self.width  # the layer's rows are the image's, PAD lower
+        inside = (pixels >= 0) & (pixels < self.height * self.width)
+        self.mix(pixels[inside], layer.colour, amount[inside])
 
     def mix(self, pixels: npt.NDArray[np.intp], colour: RGB, amount: npt.NDArray[np.float32] | float) -> None:
         """Move the flat-indexed ``pixels`` towards ``colour`` by ``amount`` (0 to 1 each)."""
@@ -191,16 +209,16 @@ class Raster:
         centred (``"centre"``) or ending (``"right"``) at ``column``; ``upright=False`` turns it a
         quarter left, reading upwards (an axis label), centred at ``(column, row)``. What falls
         outside the image is cut off."""
-        mask = text_mask(text)
+        rows, columns, width = text_pixels(text)
         if upright:
             top = round(row) - BASELINE
-            left = round(column - mask.shape[1] * {"left": 0.0, "centre": 0.5, "right": 1.0}[align])
+            left = round(column - width * {"left": 0.0, "centre": 0.5, "right": 1.0}[align])
         else:
-            mask = np.rot90(mask)
-            top, left = round(row - mask.shape[0] / 2), round(column - mask.shape[1] / 2)
-        cut = mask[max(-top, 0) : max(self.height - top, 0), max(-left, 0) : max(self.width - left, 0)]
-        top, left = max(top, 0), max(left, 0)
-        self.image[top : top + cut.shape[0], left : left + cut.shape[1]][cut] = colour
+            rows, columns = width - 1 - columns, rows
+            top, left = round(row - width / 2), round(column - GLYPH_HEIGHT / 2)
+        rows, columns = rows + top, columns + left
+        inside = (rows >= 0) & (rows < self.height) & (columns >= 0) & (columns < self.width)
+        self.image[rows[inside], columns[inside]] = colour
 
 
 def _levels(coverage: npt.NDArray[np.floating]) -> npt.NDArray[np.uint8]:

@@ -17,7 +17,7 @@ from ilc_steering.core.reference import car_field, reference_trial
 from ilc_steering.envs import rendering
 from ilc_steering.envs.frames import GOAL, PATH, PLOT, START, Scene, draw_scene, view
 from ilc_steering.envs.glyphs import ADVANCE, GLYPH_HEIGHT, text_mask
-from ilc_steering.envs.raster import Pen, Raster, WorldToPixels
+from ilc_steering.envs.raster import Layer, Pen, Raster, WorldToPixels
 from ilc_steering.envs.rendering import car_outline
 
 STEERING, CYCLIC = "ilc_steering/ChainedSteering-v0", "ilc_steering/CyclicSteering-v0"
@@ -230,22 +230,23 @@ def test_a_dashed_line_leaves_its_gaps_white():
 
 def test_dots_and_crossing_lines_take_their_colour_once():
     raster = Raster(60, 60)
-    raster.dots(np.array([[20.0, 20.0]]), 8.0)
-    raster.cover([np.array([(0.0, 40.5), (60.0, 40.5)]), np.array([(30.5, 0.0), (30.5, 60.0)])], Pen(3.0))
-    raster.fill((0, 0, 255), 0.5)
+    raster.dots(np.array([[20.0, 20.0]]), 8.0, (0, 0, 255), 0.5)
+    crossing = [np.array([(0.0, 40.5), (60.0, 40.5)]), np.array([(30.5, 0.0), (30.5, 60.0)])]
+    raster.draw([Layer(crossing, Pen(3.0), (0, 0, 255), 0.5), Layer([crossing[0][:, ::-1]], Pen(1.0), (0, 0, 0))])
     rows, columns = np.mgrid[:60, :60]
     disc = np.hypot(columns + 0.5 - 20.0, rows + 0.5 - 20.0)
     assert np.all(raster.image[disc < 3.5] == (128, 128, 255))
     assert np.all(raster.image[(disc >= 4.5) & (disc < 7)] == WHITE)
     assert tuple(raster.image[40, 30]) == (128, 128, 255)  # where the lines cross: alpha once, not twice
+    assert tuple(raster.image[30, 40]) == (0, 0, 0)  # the second layer, over the first
 
 
 def test_a_pen_too_wide_and_pens_that_do_not_match_the_lines_are_refused():
     raster = Raster(50, 50)
     with pytest.raises(ValueError, match="pixels wide"):
-        raster.cover([np.array([(0.0, 0.0), (10.0, 10.0)])], Pen(30.0))
+        raster.stroke([np.array([(0.0, 0.0), (10.0, 10.0)])], (0, 0, 0), Pen(30.0))
     with pytest.raises(ValueError, match="one pen"):
-        raster.cover([np.array([(0.0, 0.0), (10.0, 10.0)])], [Pen(1.0), Pen(2.0)])
+        raster.stroke([np.array([(0.0, 0.0), (10.0, 10.0)])], (0, 0, 0), [Pen(1.0), Pen(2.0)])
 
 
 def test_world_to_pixels_has_one_scale_and_centres_the_box():
