@@ -124,12 +124,14 @@ class Raster:
         along, base, line = along[inside], base[inside], line[inside]
         across, stretch, steep = across[inside], stretch[inside], steep[inside]
         # Distance [px] from the segment of the pixel centres across it, within reach, and their coverage.
+        # In 255ths: 255 (w / 2 + 1 / 2 - d), clipped, with d = |offset - where the segment crosses| / stretch.
         offsets = np.arange(-reach, reach + 1)
-        coverage = np.abs((offsets + 0.5).astype(np.float32)[None, :] - (across - base).astype(np.float32)[:, None])
-        coverage *= (1.0 / stretch).astype(np.float32)[:, None]
-        edge = np.array([pen.width / 2 + 0.5 for pen in pens], dtype=np.float32)[line]
-        np.subtract(edge[:, None], coverage, out=coverage)
-        levels = _levels(coverage)
+        levels = (offsets + 0.5).astype(np.float32)[None, :] - (across - base).astype(np.float32)[:, None]
+        np.abs(levels, out=levels)
+        levels *= (255 / stretch).astype(np.float32)[:, None]
+        edge = np.array([255 * (pen.width / 2 + 0.5) + 0.5 for pen in pens], dtype=np.float32)[line]
+        np.subtract(edge[:, None], levels, out=levels)
+        np.clip(levels, 0, 255, out=levels)
         stride = self.width
         flat = np.where(steep, along * stride + base, base * stride + along) + PAD * stride
         cells = flat[:, None] + np.where(steep, 1, stride)[:, None] * offsets[None, :]
@@ -138,7 +140,7 @@ class Raster:
             part = slice(bounds[k], bounds[k + 1])
             if part.start == part.stop:
                 continue
-            np.maximum.at(self._coverage, cells[part].ravel(), levels[part].ravel())
+            np.maximum.at(self._coverage, cells[part].ravel(), levels[part].astype(np.uint8).ravel())
             self._fill(int(flat[part].min()) // stride - PAD, int(flat[part].max()) // stride - PAD, layer)
 
     def dots(
@@ -255,12 +257,15 @@ def _runs(
     slope = db / np.where(da == 0, 1.0, da)
     across = b0[segment] + (centre - a0[segment]) * slope[segment]
     stretch = np.sqrt(1.0 + slope * slope)[segment]
-    if any(dash is not None for dash in dashes):
+    dashed = np.flatnonzero(np.array([dash is not None for dash in dashes])[owner][segment])
+    if len(dashed):  # the runs of dashed lines in their gaps are left out
         length = np.hypot(delta[:, 0], delta[:, 1])
         travelled = np.cumsum(length) - length
         from_line_start = travelled - travelled[np.cumsum(sizes - 1) - (sizes - 1)][owner]
-        on, off = (np.array([np.inf if d is None else d[k] for d in dashes])[owner][segment] for k in (0, 1))
-        s = from_line_start[segment] + np.abs(centre - a0[segment]) * stretch
-        keep = s % (on + off) < on
+        pattern = np.array([dash or (0.0, 0.0) for dash in dashes])[owner[segment[dashed]]]
+        which = segment[dashed]
+        s = from_line_start[which] + np.abs(centre[dashed] - a0[which]) * stretch[dashed]
+        keep = np.ones(len(segment), dtype=bool)
+        keep[dashed[s % pattern.sum(axis=1) >= pattern[:, 0]]] = False
         centre, across, stretch, segment = centre[keep], across[keep], stretch[keep], segment[keep]
     return (centre - 0.5).astype(np.intp), across, steep[segment], stretch, owner[segment]
