@@ -218,9 +218,12 @@ class Raster:
         else:
             rows, columns = width - 1 - columns, rows
             top, left = round(row - width / 2), round(column - GLYPH_HEIGHT / 2)
+        height, across = (GLYPH_HEIGHT, width) if upright else (width, GLYPH_HEIGHT)
         rows, columns = rows + top, columns + left
-        inside = (rows >= 0) & (rows < self.height) & (columns >= 0) & (columns < self.width)
-        self.image[rows[inside], columns[inside]] = colour
+        if top < 0 or left < 0 or top + height > self.height or left + across > self.width:
+            inside = (rows >= 0) & (rows < self.height) & (columns >= 0) & (columns < self.width)
+            rows, columns = rows[inside], columns[inside]
+        self.image[rows, columns] = colour
 
 
 def _levels(coverage: npt.NDArray[np.floating]) -> npt.NDArray[np.uint8]:
