@@ -116,11 +116,12 @@ class Raster:
         reach = int(np.ceil((max(pen.width for pen in pens) / 2 + 0.5) * np.sqrt(2.0)))
         if reach > PAD:
             raise ValueError(f"a stroke is at most {2 * PAD / np.sqrt(2.0) - 1:.0f} pixels wide")
-        along, across, steep, stretch, line = _runs(lines, [pen.dash for pen in pens], transform)
-        base = np.floor(across).astype(np.intp)
+        runs = _runs(lines, [pen.dash for pen in pens], transform, (self.width, self.height))
+        along, across, steep, stretch, line = runs
         # A run across a steep segment lies along a row: kept whole within the row, a reach from its ends.
-        inside = (along >= 0) & (along < np.where(steep, self.height, self.width))
-        inside &= (base >= np.where(steep, reach, 0)) & (base < np.where(steep, self.width - reach, self.height))
+        across = np.clip(across, -1.0, max(self.width, self.height))  # no overflow below; outside stays out
+        base = np.floor(across).astype(np.intp)
+        inside = (base >= np.where(steep, reach, 0)) & (base < np.where(steep, self.width - reach, self.height))
         along, base, line = along[inside], base[inside], line[inside]
         across, stretch, steep = across[inside], stretch[inside], steep[inside]
         # Distance [px] from the segment of the pixel centres across it, within reach, and their coverage.
@@ -233,14 +234,18 @@ def _levels(coverage: npt.NDArray[np.floating]) -> npt.NDArray[np.uint8]:
 
 
 def _runs(
-    lines: list[Array], dashes: list[tuple[float, float] | None], transform: Callable[[Array], Array] | None
+    lines: list[Array],
+    dashes: list[tuple[float, float] | None],
+    transform: Callable[[Array], Array] | None,
+    size: tuple[int, int],
 ) -> tuple[npt.NDArray[np.intp], Array, npt.NDArray[np.bool_], Array, npt.NDArray[np.intp]]:
     """The pixel centres along the major axis of every segment of ``lines`` (``(k, 2)`` each, ``k >= 2``,
-    mapped to pixels by ``transform``), those in the gaps of each line's dash (on, off) [px] left out
-    (the pattern starts afresh on every line): each centre's pixel index along that axis; where the
-    segment crosses it on the other axis [px]; whether the segment is steep (runs farther along the
-    rows' axis, y); the segment's length per pixel of its major axis, ``sqrt(1 + slope**2)``; and
-    the index of its line."""
+    mapped to pixels by ``transform``) within an image of ``size`` (width, height) [px], those in the
+    gaps of each line's dash (on, off) [px] left out (the pattern starts afresh on every line): each
+    centre's pixel index along that axis; where the segment crosses it on the other axis [px];
+    whether the segment is steep (runs farther along the rows' axis, y); the segment's length per
+    pixel of its major axis, ``sqrt(1 + slope**2)``; and the index of its line. A segment with a
+    coordinate that is not finite has none."""
     sizes = np.array([len(line) for line in lines])
     points = np.concatenate(lines)
     if transform is not None:
@@ -248,13 +253,21 @@ def _runs(
     owner = np.repeat(np.arange(len(lines)), sizes - 1)
     joined = np.ones(len(points) - 1, dtype=bool)
     joined[np.cumsum(sizes)[:-1] - 1] = False
-    start, delta = points[:-1][joined], np.diff(points, axis=0)[joined]
+    finite = np.isfinite(points[:, 0]) & np.isfinite(points[:, 1])
+    drawn = joined & finite[:-1] & finite[1:]
+    delta = np.subtract(points[1:], points[:-1], out=np.zeros_like(points[1:]), where=drawn[:, None])
+    start, delta = points[:-1][joined], delta[joined]
     steep = np.abs(delta[:, 1]) > np.abs(delta[:, 0])
     major, minor = steep.astype(np.intp), 1 - steep.astype(np.intp)
     index = np.arange(len(start))
     a0, b0, da, db = start[index, major], start[index, minor], delta[index, major], delta[index, minor]
-    first = np.ceil(np.minimum(a0, a0 + da) - 0.5).astype(np.intp)
-    count = np.maximum(np.floor(np.maximum(a0, a0 + da) - 0.5).astype(np.intp) - first + 1, 0)
+    # Pixel centres on the major axis within the segment and the image; none for a segment not finite.
+    finite = drawn[joined]
+    low = np.where(finite, np.maximum(np.minimum(a0, a0 + da), 0.0), 0.0)
+    high = np.where(finite, np.minimum(np.maximum(a0, a0 + da), np.where(steep, size[1], size[0])), -1.0)
+    first = np.ceil(low - 0.5)
+    count = np.maximum(np.floor(high - 0.5) - first + 1, 0).astype(np.intp)
+    first = first.astype(np.intp)
     segment = np.repeat(index, count)
     centre = first[segment] + (np.arange(len(segment)) - (np.cumsum(count) - count)[segment]) + 0.5
     slope = db / np.where(da == 0, 1.0, da)

@@ -305,3 +305,18 @@ def test_frames_are_deterministic_and_show_the_last_path(env_id, config):
     path = view(scene)(rendering.plane(scene.paths[-1], has_pose))
     columns, rows = np.floor(path[5:-5:7]).T.astype(int)
     assert np.mean(np.any(frames[0][rows, columns] < 200, axis=-1)) > 0.9  # the path is drawn where it runs
+
+
+def test_lines_far_outside_or_not_finite_draw_only_what_is_in_the_image():
+    raster = Raster(100, 80)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow or invalid-value warning either
+        lines = [
+            np.array([(-1e12, 40.5), (1e12, 40.5)]),  # across the whole image
+            np.array([(np.nan, 3.0), (5.0, 5.0)]),
+            np.array([(np.inf, 10.0), (np.inf, 20.0)]),
+            np.array([(1e9, -1e9), (2e9, 1e9)]),  # entirely outside
+        ]
+        raster.stroke(lines, (0, 0, 0), Pen(2.0))
+    inked = np.any(raster.image < 255, axis=-1)
+    assert np.all(raster.image[40] == 0) and np.array_equal(np.flatnonzero(inked.any(axis=1)), [39, 40, 41])
