@@ -102,8 +102,8 @@ def _layout(scene: Scene) -> tuple[WorldToPixels, list[Shapes], list[Shapes], li
     last path, and the paths in the plane [m]."""
     has_pose = scene.robot is not None
     last = scene.paths[-1] if scene.paths else scene.waypoints[:0]
-    strobes = [last[i] for i in snapshot_indices(len(last), SNAPSHOTS)] if len(last) else []
-    waypoints, snapshots = _shapes(scene.robot, list(scene.waypoints)), _shapes(scene.robot, strobes)
+    strobes = last[snapshot_indices(len(last), SNAPSHOTS)] if len(last) else last
+    waypoints, snapshots = _shapes(scene.robot, scene.waypoints), _shapes(scene.robot, strobes)
     paths = [plane(q, has_pose) for q in scene.paths]
     points = np.concatenate([line for shapes in (*waypoints, *snapshots) for line, _ in shapes] + paths)
     lower, upper = points.min(axis=0), points.max(axis=0)
@@ -112,11 +112,13 @@ def _layout(scene: Scene) -> tuple[WorldToPixels, list[Shapes], list[Shapes], li
     return WorldToPixels(lower - room, upper + room, PLOT), waypoints, snapshots, paths
 
 
-def _shapes(robot: object, poses: Sequence[Array]) -> list[Shapes]:
-    """The robot's :data:`Shapes` at each configuration of ``poses``; a chained plant's is its point ``(1, 2)``."""
+def _shapes(robot: object, poses: Array) -> list[Shapes]:
+    """The robot's :data:`Shapes` at each configuration of ``poses`` ``(k, nx)``; a chained plant's is
+    its point ``(1, 2)``."""
     if robot is None:
-        return [[(plane(q, False)[None], False)] for q in poses]
-    return [robot_outline(robot, q) for q in poses]
+        return [[(point[None], False)] for point in plane(poses, False)]
+    lines = robot_outline(robot, poses)  # all configurations at once
+    return [[(line[i], wheel) for line, wheel in lines] for i in range(len(poses))]
 
 
 def _outlines(poses: Sequence[Shapes], colour: RGB, alpha: float, dashed: bool) -> Layer:

@@ -47,61 +47,65 @@ START, GOAL, PATH, STROBE = "0.45", "tab:green", "tab:blue", "tab:blue"
 
 
 def _box(origin: Array, heading: Array, normal: Array, size: float, back: float, ahead: float) -> Array:
-    """The closed rectangle ``(5, 2)`` [m] from ``back`` to ``ahead`` along ``heading`` and
-    ``BODY_HALF_WIDTH`` to each side, in units of ``size`` [m] from ``origin``."""
+    """The closed rectangle ``(..., 5, 2)`` [m] from ``back`` to ``ahead`` along ``heading`` and
+    ``BODY_HALF_WIDTH`` to each side, in units of ``size`` [m] from ``origin`` (each ``(..., 2)``)."""
     along = np.array([back, ahead, ahead, back, back])[:, None]
     side = (np.array([-1.0, -1.0, 1.0, 1.0, -1.0]) * BODY_HALF_WIDTH)[:, None]
-    return origin + size * (along * heading + side * normal)
+    return origin[..., None, :] + size * (along * heading[..., None, :] + side * normal[..., None, :])
+
+
+def _direction(angle: Array) -> tuple[Array, Array]:
+    """The unit vector ``(..., 2)`` at ``angle`` [rad] and the one a quarter turn left of it."""
+    heading = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return heading, np.stack([-heading[..., 1], heading[..., 0]], axis=-1)
+
+
+def _segment(middle: Array, half: Array) -> Array:
+    """The segment ``(..., 2, 2)`` from ``middle - half`` to ``middle + half``."""
+    return np.stack([middle - half, middle + half], axis=-2)
 
 
 def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
-    """The body polygon ``(5, 2)``, rear wheel ``(2, 2)`` and front wheel ``(2, 2)`` [m] of a car
-    at ``q = (x, y, theta, phi)`` with the given ``wheelbase`` [m]."""
-    x, y, theta, phi = (float(v) for v in q[:4])
-    heading = np.array([np.cos(theta), np.sin(theta)])
-    normal = np.array([-heading[1], heading[0]])
-    rear = np.array([x, y])
+    """The body polygon ``(..., 5, 2)``, rear wheel ``(..., 2, 2)`` and front wheel ``(..., 2, 2)`` [m]
+    of a car at ``q = (x, y, theta, phi)`` (or configurations ``(..., 4)``) with the given
+    ``wheelbase`` [m]."""
+    q = np.asarray(q, dtype=np.float64)
+    theta, phi = q[..., 2], q[..., 3]
+    heading, normal = _direction(theta)
+    rear = q[..., :2]
     body = _box(rear, heading, normal, wheelbase, BODY_REAR, BODY_FRONT)
     half = WHEEL_HALF_LENGTH * wheelbase
     front = rear + wheelbase * heading
-    steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
-    return (
-        body,
-        np.array([rear - half * heading, rear + half * heading]),
-        np.array([front - half * steered, front + half * steered]),
-    )
+    steered, _ = _direction(theta + phi)
+    return body, _segment(rear, half * heading), _segment(front, half * steered)
 
 
 def robot_outline(robot: object, q: Array) -> list[tuple[Array, bool]]:
     """The polylines ``(k, 2)`` [m] that draw ``robot`` (a nominal map) at configuration ``q``, each
-    with whether it is a wheel (drawn thick) rather than an outline."""
+    with whether it is a wheel (drawn thick) rather than an outline; for configurations ``(..., nx)``,
+    polylines ``(..., k, 2)``, one per configuration."""
+    q = np.asarray(q, dtype=np.float64)
     if isinstance(robot, CarModel):
         body, rear, front = car_outline(q, robot.wheelbase)
         return [(body, False), (rear, True), (front, True)]
     if isinstance(robot, UnicycleModel):
-        x, y, theta = (float(v) for v in q[:3])
-        centre, b, rho = np.array([x, y]), robot.axle_width, robot.wheel_radius
-        heading = np.array([np.cos(theta), np.sin(theta)])
-        normal = np.array([-heading[1], heading[0]])
+        centre, b, rho = q[..., :2], robot.axle_width, robot.wheel_radius
+        heading, normal = _direction(q[..., 2])
         angles = np.linspace(0.0, 2.0 * np.pi, 33)
-        body = centre + 0.6 * b * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-        wheels = [
-            np.array([c - rho * heading, c + rho * heading])
-            for c in (centre + 0.5 * b * normal, centre - 0.5 * b * normal)
-        ]
-        return [(body, False), (np.array([centre, centre + 0.6 * b * heading]), False), *((w, True) for w in wheels)]
+        body = centre[..., None, :] + 0.6 * b * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+        wheels = [_segment(c, rho * heading) for c in (centre + 0.5 * b * normal, centre - 0.5 * b * normal)]
+        mark = np.stack([centre, centre + 0.6 * b * heading], axis=-2)
+        return [(body, False), (mark, False), *((w, True) for w in wheels)]
     if isinstance(robot, TrailerModel):
-        q = np.asarray(q, dtype=np.float64)
-        rear, theta0 = car_position(q[:5], robot.hitch_length)
-        car = robot_outline(CarModel(robot.wheelbase, robot.wheel_radius), np.array([*rear, theta0, q[3]]))
-        axle = q[:2]
-        heading = np.array([np.cos(q[2]), np.sin(q[2])])
-        normal = np.array([-heading[1], heading[0]])
+        rear, theta0 = car_position(q[..., :5], robot.hitch_length)
+        car_q = np.concatenate([rear, theta0[..., None], q[..., 3:4]], axis=-1)
+        car = robot_outline(CarModel(robot.wheelbase, robot.wheel_radius), car_q)
+        axle = q[..., :2]
+        heading, normal = _direction(q[..., 2])
         size = robot.wheelbase
         box = _box(axle, heading, normal, size, -0.35, 0.45)
-        half = WHEEL_HALF_LENGTH * size
-        wheel = np.array([axle - half * heading, axle + half * heading])
-        return [*car, (box, False), (np.array([axle, rear]), False), (wheel, True)]
+        wheel = _segment(axle, WHEEL_HALF_LENGTH * size * heading)
+        return [*car, (box, False), (np.stack([axle, rear], axis=-2), False), (wheel, True)]
     raise ValueError(f"no drawing for a robot mapped by {type(robot).__name__}")
 
 
