@@ -320,3 +320,14 @@ def test_lines_far_outside_or_not_finite_draw_only_what_is_in_the_image():
         raster.stroke(lines, (0, 0, 0), Pen(2.0))
     inked = np.any(raster.image < 255, axis=-1)
     assert np.all(raster.image[40] == 0) and np.array_equal(np.flatnonzero(inked.any(axis=1)), [39, 40, 41])
+
+
+@pytest.mark.parametrize("config", ["forward_parking", "unicycle_parking", "trailer_bay"])
+def test_the_outline_of_many_configurations_is_each_ones_outline(config):
+    robot = load_config(config).plant.nominal_map()
+    q = np.random.default_rng(3).normal(size=(6, 5))
+    batch = rendering.robot_outline(robot, q)
+    for k in range(6):
+        single = rendering.robot_outline(robot, q[k])
+        assert [w for _, w in single] == [w for _, w in batch]
+        assert all(np.array_equal(line[k], one) for (line, _), (one, _) in zip(batch, single))
