@@ -192,7 +192,7 @@ def measure_task(name: str, args: Args) -> list[dict[str, Any]]:
     rendering = ChainedSteeringEnv(name, render_mode="rgb_array")
     rendering.reset(seed=args.seed)
     rendering.step(trials[0])
-    rendering.render()  # import matplotlib and build the canvas outside the timing
+    rendering.render()  # the first frame (imports, the font's glyphs) outside the timing
     drawn = trials[: args.render_steps]
     per_step = median_seconds(lambda: [(rendering.step(c), rendering.render()) for c in drawn], args.repeats) / len(
         drawn

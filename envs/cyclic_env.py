@@ -13,6 +13,7 @@ from gymnasium.wrappers import TimeLimit
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, reward, trial_info
 
@@ -78,7 +79,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
 
     ``render_mode="rgb_array"``: ``render()`` returns a ``(480, 480, 3)`` uint8 frame with the
     waypoint cars (home, q1, ...), the paths of the last cycle's segments and the car at
-    eight instants along the last one, drawn off-screen (matplotlib Agg).
+    eight instants along the last one, drawn off-screen by the package's numpy rasterizer.
 
     ## Arguments
 
@@ -199,13 +200,14 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         if self.render_mode is None:
             gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
             return None
-        if self._view.count == 0:
-            return self._view.frame(f"{self.config.name}: before the first segment")
-        cycle, waypoint = self._cycle - (self._segment == 0), self._segment or self.num_segments
-        return self._view.frame(f"{self.config.name}: cycle {cycle}, reached waypoint {waypoint}")
+        return draw_scene(self.scene())
 
-    def close(self) -> None:
-        self._view.close()
+    def scene(self) -> Scene:
+        """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene` (to draw it otherwise)."""
+        if self._view.count == 0:
+            return self._view.scene(f"{self.config.name}: before the first segment")
+        cycle, waypoint = self._cycle - (self._segment == 0), self._segment or self.num_segments
+        return self._view.scene(f"{self.config.name}: cycle {cycle}, reached waypoint {waypoint}")
 
 
 def make_cyclic_env(

@@ -1,39 +1,34 @@
-"""Pictures of a steering task: the robot's outline, the workspace scene and an off-screen canvas.
+"""Pictures of a steering task: the robot's outline, and the paper's figures' drawing on matplotlib axes.
 
-The envs' ``render`` and the paper's figures (:mod:`ilc_steering.plots`) draw with these, on
-matplotlib's Agg canvas, which needs no display. A robot is drawn with its *nominal* map's
-geometry (``robot``, the map; its ``outline`` is the drawing, see :mod:`ilc_steering.core.robots`;
-a chained plant has none and is drawn in the plane ``(z1, zn)`` as a point):
-
-- the car is the bicycle model of Fig. 1: a body, the rear wheel at ``(x, y)`` and the front
-  wheel one wheelbase ahead, turned by ``phi``;
-- the unicycle is a round body on its axle, two wheels and a heading mark;
-- the car towing a trailer is the car at the hitch, the trailer's body and axle at ``(x1, y1)``,
-  and the drawbar between them.
+The paper's figures (:mod:`ilc_steering.plots`) draw with the helpers here, on matplotlib's Agg
+canvas, which needs no display; the envs' frames (:mod:`ilc_steering.envs.frames`) draw the same
+outlines with the numpy rasterizer. Importing this module does not import matplotlib: the helpers
+draw on the ``Axes`` they are handed. A robot is drawn with its *nominal* map's geometry
+(``robot``, the map), by the outline its module gives it (:mod:`ilc_steering.core.robots`); a
+chained plant has none and is drawn in the plane ``(z1, zn)`` as a point.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from ilc_steering.core.nominal import ChainedMap
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
 __all__ = [
-    "Canvas",
     "draw_pose",
     "draw_trial",
     "draw_waypoints",
     "plane",
-    "render_scene",
     "robot_outline",
     "setup_workspace",
+    "snapshot_indices",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -43,14 +38,21 @@ START, GOAL, PATH, STROBE = "0.45", "tab:green", "tab:blue", "tab:blue"
 
 def robot_outline(robot: ChainedMap, q: Array) -> list[tuple[Array, bool]]:
     """The polylines ``(k, 2)`` [m] that draw ``robot`` (a nominal map) at configuration ``q``, each
-    with whether it is a wheel (drawn thick) rather than an outline: the map's own drawing."""
-    return robot.outline(q)
+    with whether it is a wheel (drawn thick) rather than an outline; for configurations ``(..., nx)``,
+    polylines ``(..., k, 2)``, one per configuration. The robot's module draws it (its map's
+    ``outline``); a robot without an outline (a chained plant) is drawn as a point."""
+    return robot.outline(np.asarray(q, dtype=np.float64))
 
 
 def plane(q: Array, has_pose: bool) -> Array:
     """The drawn coordinates of configurations ``(..., nx)``: ``(x, y)`` for a car, ``(z1, zn)`` otherwise."""
     q = np.asarray(q)
     return q[..., :2] if has_pose else q[..., [0, -1]]
+
+
+def snapshot_indices(samples: int, snapshots: int) -> npt.NDArray[np.intp]:
+    """The indices of ``snapshots`` evenly spaced instants among a path's ``samples``, first and last included."""
+    return np.unique(np.linspace(0, samples - 1, snapshots).round().astype(np.intp))
 
 
 def draw_pose(
@@ -95,7 +97,7 @@ def draw_trial(
     path = plane(q, robot.has_pose)
     ax.plot(*path.T, color=color, linewidth=1.5, label=label)
     if snapshots > 0 and len(q) > 1:
-        for i in np.unique(np.linspace(0, len(q) - 1, snapshots).round().astype(int)):
+        for i in snapshot_indices(len(q), snapshots):
             draw_pose(ax, q[i], robot, STROBE, alpha=0.35)
 
 
@@ -107,38 +109,3 @@ def setup_workspace(ax: Axes, dimension: int | None, title: str) -> None:
     ax.set_ylabel("y [m]" if dimension is None else f"z{dimension}")
     ax.grid(True, linewidth=0.4, alpha=0.5)
     ax.set_title(title, fontsize=9)
-
-
-class Canvas:
-    """An off-screen figure of ``width`` x ``height`` pixels whose ``frame`` is an RGB array."""
-
-    def __init__(self, width: int = 480, height: int = 480, dpi: int = 80) -> None:
-        self.figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
-        FigureCanvasAgg(self.figure)
-        self.ax = self.figure.add_subplot()
-        # Fixed margins (room for the tick labels and a two-line title): tight_layout would
-        # double the time per frame.
-        self.figure.subplots_adjust(left=0.15, right=0.96, bottom=0.11, top=0.9)
-
-    def clear(self) -> Axes:
-        self.ax.clear()
-        return self.ax
-
-    def frame(self) -> npt.NDArray[np.uint8]:
-        """The figure as a ``(height, width, 3)`` uint8 array."""
-        canvas: Any = self.figure.canvas
-        canvas.draw()
-        return np.array(canvas.buffer_rgba())[..., :3]
-
-
-def render_scene(
-    canvas: Canvas, waypoints: Array, robot: ChainedMap, names: Sequence[str], paths: Sequence[Array], title: str
-) -> npt.NDArray[np.uint8]:
-    """An env's frame: the waypoints, the ``paths`` ``(S, nx)`` of the last trials, the last of
-    them stroboscopic (``robot``: the nominal map it is drawn with)."""
-    ax = canvas.clear()
-    draw_waypoints(ax, waypoints, robot, names)
-    for i, q in enumerate(paths):
-        draw_trial(ax, q, robot, snapshots=8 if i == len(paths) - 1 else 0)
-    setup_workspace(ax, None if robot.has_pose else waypoints.shape[1], title)
-    return canvas.frame()

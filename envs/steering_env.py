@@ -15,6 +15,7 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import ChainedMap, NominalModel
 from ilc_steering.core.score import TRUE_KEYS, trial_cost
 from ilc_steering.core.trajectory import Trajectory
+from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
 
 __all__ = [
@@ -189,7 +190,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
 
     ``render_mode="rgb_array"``: ``render()`` returns a ``(480, 480, 3)`` uint8 frame of the
     workspace with the start (grey) and goal (green, dashed) cars, the last trial's path and the
-    car with its steered front wheel at eight instants along it, drawn off-screen (matplotlib Agg).
+    car with its steered front wheel at eight instants along it, drawn off-screen by the package's
+    numpy rasterizer (:mod:`ilc_steering.envs.raster`; no display, no matplotlib).
 
     ## Arguments
 
@@ -285,18 +287,19 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         if self.render_mode is None:
             gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
             return None
-        count = self._view.count
-        return self._view.frame(f"{self.config.name}: " + (f"trial {count}" if count else "before the first trial"))
+        return draw_scene(self.scene())
 
-    def close(self) -> None:
-        self._view.close()
+    def scene(self) -> Scene:
+        """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene` (to draw it otherwise)."""
+        count = self._view.count
+        return self._view.scene(f"{self.config.name}: " + (f"trial {count}" if count else "before the first trial"))
 
 
 class TrialView:
     """What the envs draw: the waypoints (world frame; ``robot`` the nominal map the robot is
     drawn with, ``None`` for a chained plant, drawn as a point) and the paths of the last trials, with a title line of
-    the last trial's errors (Cartesian and orientation where the robot has a pose). Matplotlib is
-    imported at the first frame."""
+    the last trial's errors (Cartesian and orientation where the robot has a pose), as a
+    :class:`~ilc_steering.envs.frames.Scene`."""
 
     def __init__(self, waypoints: Array, robot: ChainedMap, names: list[str], has_pose: bool) -> None:
         self._waypoints = waypoints
@@ -306,7 +309,6 @@ class TrialView:
         self._paths: list[Array] = []
         self._errors = ""
         self.count = 0
-        self._canvas: Any = None
 
     @classmethod
     def of(cls, scenario: Scenario, names: list[str]) -> TrialView:
@@ -314,7 +316,7 @@ class TrialView:
         return cls(scenario.waypoints, scenario.nominal.chained_map, names, scenario.kind.has_pose)
 
     def clear(self) -> None:
-        """Forget the trials (the canvas stays)."""
+        """Forget the trials."""
         self._paths, self._errors, self.count = [], "", 0
 
     def add(self, trajectory: Trajectory, info: dict[str, Any], keep: int) -> None:
@@ -328,16 +330,10 @@ class TrialView:
         if info["left_chart"]:
             self._errors += ", left the chart"
 
-    def frame(self, label: str) -> npt.NDArray[np.uint8]:
-        from ilc_steering.envs.rendering import Canvas, render_scene
-
-        if self._canvas is None:
-            self._canvas = Canvas()
+    def scene(self, label: str) -> Scene:
+        """What the frame shows, titled ``label`` and the last trial's errors."""
         title = label + (f"\n{self._errors}" if self.count else "")
-        return render_scene(self._canvas, self._waypoints, self._robot, self._names, self._paths, title)
-
-    def close(self) -> None:
-        self._canvas = None
+        return Scene(self._waypoints, self._robot, self._names, self._paths, title)
 
 
 def reward(info: dict[str, Any]) -> Any:

@@ -14,6 +14,10 @@ from ilc_steering.agents import CyclicILCAgent
 from ilc_steering.config import load_config
 from ilc_steering.core.reference import reference_trial
 from ilc_steering.core.robots.car import car_outline, chained_inputs
+from ilc_steering.envs import rendering
+from ilc_steering.envs.frames import GOAL, PATH, PLOT, START, Scene, draw_scene, view
+from ilc_steering.envs.glyphs import ADVANCE, GLYPH_HEIGHT, text_mask
+from ilc_steering.envs.raster import Layer, Pen, Raster, WorldToPixels
 
 STEERING, CYCLIC = "ilc_steering/ChainedSteering-v0", "ilc_steering/CyclicSteering-v0"
 DOCUMENTED = ("symmetric and normalized space", "observation space minimum", "observation space maximum")
@@ -171,3 +175,158 @@ def test_equal_relative_perturbation_of_wheelbase_and_radius_leaves_theta_and_ph
     perturbed, exact = runs
     assert np.max(np.abs(perturbed[:, 2:] - exact[:, 2:])) < 1e-12
     assert np.max(np.abs(perturbed[:, :2] - exact[:, :2])) > 0.01  # the path itself differs
+
+
+# The rasterizer behind the frames: pixels that must and must not be inked, and the scene it draws.
+
+WHITE = np.array([255, 255, 255])
+
+
+def distance_to_segment(points, a, b):
+    """Distance [px] of points ``(..., 2)`` from the segment ``a``-``b``."""
+    ab = b - a
+    t = np.clip(((points - a) @ ab) / (ab @ ab), 0.0, 1.0)
+    return np.linalg.norm(points - (a + t[..., None] * ab), axis=-1)
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "width"),
+    [
+        ((10.0, 40.5), (90.0, 40.5), 2.0),  # horizontal
+        ((30.2, 5.0), (30.2, 75.0), 1.1),  # vertical
+        ((12.3, 70.1), (85.7, 9.6), 3.3),  # shallow, rising to the right
+        ((40.0, 4.0), (55.0, 76.0), 1.7),  # steep
+    ],
+)
+def test_a_segment_inks_the_pixels_near_it_and_no_others(a, b, width):
+    raster = Raster(100, 80)
+    colour = (200, 30, 10)
+    raster.stroke([np.array([a, b])], colour, Pen(width))
+    rows, columns = np.mgrid[:80, :100]
+    centres = np.stack([columns + 0.5, rows + 0.5], axis=-1)
+    distance = distance_to_segment(centres, np.array(a), np.array(b))
+    # Away from the ends (butt caps): the colour mixed in by clip(w / 2 + 1 / 2 - d, 0, 1), d from the segment.
+    ab = np.array(b) - np.array(a)
+    along = ((centres - np.array(a)) @ ab) / (ab @ ab)
+    middle = (along > 0.05) & (along < 0.95)
+    coverage = np.clip(width / 2 + 0.5 - distance, 0.0, 1.0)[middle][:, None]
+    expected = 255 + (np.array(colour) - 255) * coverage
+    assert np.max(np.abs(raster.image[middle] - expected)) <= 1.5
+    assert np.sum(coverage > 0.5) > 60  # the line is there
+    # Beyond the half width plus half a pixel: untouched white (past the ends, where the butt cap
+    # is cut square to the major axis, beyond the width plus a pixel).
+    far = (distance >= width / 2 + 0.5) & (((along > 0) & (along < 1)) | (distance > width + 1))
+    assert np.all(raster.image[far] == WHITE)
+
+
+def test_a_dashed_line_leaves_its_gaps_white():
+    raster = Raster(120, 20)
+    raster.stroke([np.array([(0.0, 10.5), (120.0, 10.5)])], (0, 0, 0), Pen(1.0, (6.0, 4.0)))
+    inked = raster.image[10, :, 0] < 128
+    assert np.array_equal(inked, (np.arange(120) + 0.5) % 10.0 < 6.0)
+    assert np.all(raster.image[:8] == 255) and np.all(raster.image[13:] == 255)
+
+
+def test_dots_and_crossing_lines_take_their_colour_once():
+    raster = Raster(60, 60)
+    raster.dots(np.array([[20.0, 20.0]]), 8.0, (0, 0, 255), 0.5)
+    crossing = [np.array([(0.0, 40.5), (60.0, 40.5)]), np.array([(30.5, 0.0), (30.5, 60.0)])]
+    raster.draw([Layer(crossing, Pen(3.0), (0, 0, 255), 0.5), Layer([crossing[0][:, ::-1]], Pen(1.0), (0, 0, 0))])
+    rows, columns = np.mgrid[:60, :60]
+    disc = np.hypot(columns + 0.5 - 20.0, rows + 0.5 - 20.0)
+    assert np.all(raster.image[disc < 3.5] == (128, 128, 255))
+    assert np.all(raster.image[(disc >= 4.5) & (disc < 7)] == WHITE)
+    assert tuple(raster.image[40, 30]) == (128, 128, 255)  # where the lines cross: alpha once, not twice
+    assert tuple(raster.image[30, 40]) == (0, 0, 0)  # the second layer, over the first
+
+
+def test_a_pen_too_wide_and_pens_that_do_not_match_the_lines_are_refused():
+    raster = Raster(50, 50)
+    with pytest.raises(ValueError, match="pixels wide"):
+        raster.stroke([np.array([(0.0, 0.0), (10.0, 10.0)])], (0, 0, 0), Pen(30.0))
+    with pytest.raises(ValueError, match="one pen"):
+        raster.stroke([np.array([(0.0, 0.0), (10.0, 10.0)])], (0, 0, 0), [Pen(1.0), Pen(2.0)])
+
+
+def test_world_to_pixels_has_one_scale_and_centres_the_box():
+    to_pixels = WorldToPixels(np.array([-1.0, 0.0]), np.array([1.0, 0.5]), (10, 20, 210, 120))
+    assert to_pixels.scale == 100.0  # the wide axis fills the 200 px
+    assert np.allclose(to_pixels(np.array([[-1.0, 0.25], [1.0, 0.25], [0.0, 0.0]])), [[10, 70], [210, 70], [110, 95]])
+    assert np.allclose(to_pixels.lower, [-1.0, -0.25]) and np.allclose(to_pixels.upper, [1.0, 0.75])
+
+
+def test_the_font_has_every_character_of_the_titles_and_a_box_for_the_rest():
+    title = "forward_parking: trial 12, error 1.30e-01 m [rad] (z5)"
+    assert text_mask(title).shape == (GLYPH_HEIGHT, ADVANCE * len(title) - 1)
+    assert np.array_equal(text_mask("θ"), text_mask("?"))
+    assert not np.array_equal(text_mask("0"), text_mask("O"))
+    assert all(text_mask(c).any() for c in "0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ.,:-_[]()")
+
+
+def test_the_frame_puts_the_car_where_it_is_and_nothing_far_from_it():
+    car = load_config("forward_parking").plant.nominal_map()
+    start, goal = np.array([0.0, 0.0, 0.0, 0.0]), np.array([1.0, 0.6, 0.5, 0.3])
+    scene = Scene(np.array([start, goal]), car, ["start", "goal"], [], "a title")
+    frame = draw_scene(scene)
+    to_pixels = view(scene)
+    for q, colour in ((start, START), (goal, GOAL)):
+        body, rear, front = car_outline(q, car.wheelbase)
+        for wheel in (rear, front):  # a wheel's middle: solid, its colour
+            column, row = np.floor(to_pixels(wheel.mean(axis=0))).astype(int)
+            assert tuple(frame[row, column]) == colour
+        inked = [frame[r, c] for c, r in np.floor(to_pixels((body[:-1] + body[1:]) / 2)).astype(int)]
+        assert sum(np.any(p < 200) for p in inked) >= 3  # the body's sides (the goal's are dashed)
+    # Between the two cars, where nothing is drawn (a grid line at most): white or the grid's grey.
+    column, row = np.floor(to_pixels(np.array([0.5, -0.3]))).astype(int)
+    assert np.all(frame[row - 3 : row + 4, column - 3 : column + 4] >= 231)
+    assert np.any(frame[: PLOT[1] - 5] < 128)  # the title, above the axes
+
+
+def test_the_frames_colours_are_the_figures():
+    from matplotlib.colors import to_rgb
+
+    for name, rgb in ((rendering.START, START), (rendering.GOAL, GOAL), (rendering.PATH, PATH)):
+        assert np.allclose(np.array(to_rgb(name)) * 255, rgb, atol=0.5)
+
+
+@pytest.mark.parametrize(("env_id", "config"), [(STEERING, "trailer_bay"), (CYCLIC, "cyclic_pickup_dropoff")])
+def test_frames_are_deterministic_and_show_the_last_path(env_id, config):
+    frames = []
+    for _ in range(2):
+        env = gym.make(env_id, config=config, render_mode="rgb_array")
+        env.reset(seed=0)
+        models = getattr(env.unwrapped, "nominal_models", None) or [env.unwrapped.nominal_model]
+        env.step(models[0].solve() * 1.01)
+        frames += [env.render(), env.render()]
+    assert all(np.array_equal(frames[0], f) for f in frames[1:])
+    scene = env.unwrapped.scene()
+    has_pose = scene.robot is not None
+    path = view(scene)(rendering.plane(scene.paths[-1], has_pose))
+    columns, rows = np.floor(path[5:-5:7]).T.astype(int)
+    assert np.mean(np.any(frames[0][rows, columns] < 200, axis=-1)) > 0.9  # the path is drawn where it runs
+
+
+def test_lines_far_outside_or_not_finite_draw_only_what_is_in_the_image():
+    raster = Raster(100, 80)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow or invalid-value warning either
+        lines = [
+            np.array([(-1e12, 40.5), (1e12, 40.5)]),  # across the whole image
+            np.array([(np.nan, 3.0), (5.0, 5.0)]),
+            np.array([(np.inf, 10.0), (np.inf, 20.0)]),
+            np.array([(1e9, -1e9), (2e9, 1e9)]),  # entirely outside
+        ]
+        raster.stroke(lines, (0, 0, 0), Pen(2.0))
+    inked = np.any(raster.image < 255, axis=-1)
+    assert np.all(raster.image[40] == 0) and np.array_equal(np.flatnonzero(inked.any(axis=1)), [39, 40, 41])
+
+
+@pytest.mark.parametrize("config", ["forward_parking", "unicycle_parking", "trailer_bay"])
+def test_the_outline_of_many_configurations_is_each_ones_outline(config):
+    robot = load_config(config).plant.nominal_map()
+    q = np.random.default_rng(3).normal(size=(6, 5))
+    batch = rendering.robot_outline(robot, q)
+    for k in range(6):
+        single = rendering.robot_outline(robot, q[k])
+        assert [w for _, w in single] == [w for _, w in batch]
+        assert all(np.array_equal(line[k], one) for (line, _), (one, _) in zip(batch, single))

@@ -53,12 +53,15 @@ __all__ = [
     "CarModel",
     "CarPlant",
     "CarPlantConfig",
+    "box",
     "car_outline",
     "car_velocity",
     "chained_inputs",
     "check_chart",
+    "direction",
     "frame_angle",
     "rotate",
+    "segment",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -138,7 +141,8 @@ class CarModel:
 
     def outline(self, q: Array) -> list[tuple[Array, bool]]:
         """The bicycle model of Fig. 1 [m]: the body, the rear wheel at ``(x, y)`` and the front wheel
-        one wheelbase ahead, turned by ``phi`` (the wheels drawn thick)."""
+        one wheelbase ahead, turned by ``phi`` (the wheels drawn thick); for configurations
+        ``(..., 4)``, polylines ``(..., k, 2)``."""
         body, rear, front = car_outline(q, self.wheelbase)
         return [(body, False), (rear, True), (front, True)]
 
@@ -149,23 +153,38 @@ class CarModel:
         return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
 
 
+def box(origin: Array, heading: Array, normal: Array, size: float, back: float, ahead: float) -> Array:
+    """The closed rectangle ``(..., 5, 2)`` [m] from ``back`` to ``ahead`` along ``heading`` and
+    ``BODY_HALF_WIDTH`` to each side, in units of ``size`` [m] from ``origin`` (each ``(..., 2)``)."""
+    along = np.array([back, ahead, ahead, back, back])[:, None]
+    side = (np.array([-1.0, -1.0, 1.0, 1.0, -1.0]) * BODY_HALF_WIDTH)[:, None]
+    return origin[..., None, :] + size * (along * heading[..., None, :] + side * normal[..., None, :])
+
+
+def direction(angle: Array) -> tuple[Array, Array]:
+    """The unit vector ``(..., 2)`` at ``angle`` [rad] and the one a quarter turn left of it."""
+    heading = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return heading, np.stack([-heading[..., 1], heading[..., 0]], axis=-1)
+
+
+def segment(middle: Array, half: Array) -> Array:
+    """The segment ``(..., 2, 2)`` from ``middle - half`` to ``middle + half``."""
+    return np.stack([middle - half, middle + half], axis=-2)
+
+
 def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
-    """The body polygon ``(5, 2)``, rear wheel ``(2, 2)`` and front wheel ``(2, 2)`` [m] of a car
-    at ``q = (x, y, theta, phi)`` with the given ``wheelbase`` [m]."""
-    x, y, theta, phi = (float(v) for v in q[:4])
-    heading = np.array([np.cos(theta), np.sin(theta)])
-    normal = np.array([-heading[1], heading[0]])
-    rear = np.array([x, y])
-    corners = [(BODY_REAR, -1), (BODY_FRONT, -1), (BODY_FRONT, 1), (BODY_REAR, 1), (BODY_REAR, -1)]
-    body = np.array([rear + wheelbase * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
+    """The body polygon ``(..., 5, 2)``, rear wheel ``(..., 2, 2)`` and front wheel ``(..., 2, 2)`` [m]
+    of a car at ``q = (x, y, theta, phi)`` (or configurations ``(..., 4)``) with the given
+    ``wheelbase`` [m]."""
+    q = np.asarray(q, dtype=np.float64)
+    theta, phi = q[..., 2], q[..., 3]
+    heading, normal = direction(theta)
+    rear = q[..., :2]
+    body = box(rear, heading, normal, wheelbase, BODY_REAR, BODY_FRONT)
     half = WHEEL_HALF_LENGTH * wheelbase
     front = rear + wheelbase * heading
-    steered = np.array([np.cos(theta + phi), np.sin(theta + phi)])
-    return (
-        body,
-        np.array([rear - half * heading, rear + half * heading]),
-        np.array([front - half * steered, front + half * steered]),
-    )
+    steered, _ = direction(theta + phi)
+    return body, segment(rear, half * heading), segment(front, half * steered)
 
 
 def check_chart(q: Array) -> None:

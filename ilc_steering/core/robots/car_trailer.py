@@ -80,7 +80,7 @@ from ilc_steering.core.plants import (
     check_steering_limit,
     heading_curvature_cost,
 )
-from ilc_steering.core.robots.car import BODY_HALF_WIDTH, WHEEL_HALF_LENGTH, CarModel
+from ilc_steering.core.robots.car import WHEEL_HALF_LENGTH, CarModel, box, direction, segment
 from ilc_steering.core.stepper import CHART_LIMIT, LEFT_CHART, OK, STAGES, drive, lanes_rk, run_lanes, step_with_stop
 
 __all__ = [
@@ -220,19 +220,18 @@ class TrailerModel:
         return np.asarray(u1), np.asarray(u2)
 
     def outline(self, q: Array) -> list[tuple[Array, bool]]:
-        """The car at the hitch, the trailer's body and axle at ``(x1, y1)`` and the drawbar [m]."""
+        """The car at the hitch, the trailer's body and axle at ``(x1, y1)`` and the drawbar [m]; for
+        configurations ``(..., 5)``, polylines ``(..., k, 2)``."""
         q = np.asarray(q, dtype=np.float64)
-        rear, theta0 = car_position(q[:5], self.hitch_length)
-        car = CarModel(self.wheelbase, self.wheel_radius).outline(np.array([*rear, theta0, q[3]]))
-        axle = q[:2]
-        heading = np.array([np.cos(q[2]), np.sin(q[2])])
-        normal = np.array([-heading[1], heading[0]])
+        rear, theta0 = car_position(q[..., :5], self.hitch_length)
+        car_q = np.concatenate([rear, theta0[..., None], q[..., 3:4]], axis=-1)
+        car = CarModel(self.wheelbase, self.wheel_radius).outline(car_q)
+        axle = q[..., :2]
+        heading, normal = direction(q[..., 2])
         size = self.wheelbase
-        corners = [(-0.35, -1), (0.45, -1), (0.45, 1), (-0.35, 1), (-0.35, -1)]
-        box = np.array([axle + size * (a * heading + s * BODY_HALF_WIDTH * normal) for a, s in corners])
-        half = WHEEL_HALF_LENGTH * size
-        wheel = np.array([axle - half * heading, axle + half * heading])
-        return [*car, (box, False), (np.array([axle, rear]), False), (wheel, True)]
+        body = box(axle, heading, normal, size, -0.35, 0.45)
+        wheel = segment(axle, WHEEL_HALF_LENGTH * size * heading)
+        return [*car, (body, False), (np.stack([axle, rear], axis=-2), False), (wheel, True)]
 
     def curvature_cost(self, q: Array, dt: Array) -> Array:
         """``int kappa^2 ds`` [1/m] of the trailer axle's path, from its heading's turn."""

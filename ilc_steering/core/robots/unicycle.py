@@ -51,6 +51,7 @@ from ilc_steering.core.plants import (
     check_magnitude,
     heading_curvature_cost,
 )
+from ilc_steering.core.robots.car import direction, segment
 from ilc_steering.core.stepper import CHART_LIMIT, LEFT_CHART, OK, STAGES, lanes_rk, run_lanes
 
 __all__ = [
@@ -118,18 +119,16 @@ class UnicycleModel:
         return np.asarray(np.asarray(v1) / c), np.asarray(np.asarray(v2) * c * c)
 
     def outline(self, q: Array) -> list[tuple[Array, bool]]:
-        """A round body on its axle [m], a heading mark and the two wheels (drawn thick)."""
-        x, y, theta = (float(v) for v in q[:3])
-        centre, b, rho = np.array([x, y]), self.axle_width, self.wheel_radius
-        heading = np.array([np.cos(theta), np.sin(theta)])
-        normal = np.array([-heading[1], heading[0]])
+        """A round body on its axle [m], a heading mark and the two wheels (drawn thick); for
+        configurations ``(..., 3)``, polylines ``(..., k, 2)``."""
+        q = np.asarray(q, dtype=np.float64)
+        centre, b, rho = q[..., :2], self.axle_width, self.wheel_radius
+        heading, normal = direction(q[..., 2])
         angles = np.linspace(0.0, 2.0 * np.pi, 33)
-        body = centre + 0.6 * b * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-        wheels = [
-            np.array([c - rho * heading, c + rho * heading])
-            for c in (centre + 0.5 * b * normal, centre - 0.5 * b * normal)
-        ]
-        return [(body, False), (np.array([centre, centre + 0.6 * b * heading]), False), *((w, True) for w in wheels)]
+        body = centre[..., None, :] + 0.6 * b * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+        wheels = [segment(c, rho * heading) for c in (centre + 0.5 * b * normal, centre - 0.5 * b * normal)]
+        mark = np.stack([centre, centre + 0.6 * b * heading], axis=-2)
+        return [(body, False), (mark, False), *((w, True) for w in wheels)]
 
     def curvature_cost(self, q: Array, dt: Array) -> Array:
         """``int kappa^2 ds`` [1/m] of the axle midpoint's path, from the heading's turn."""
