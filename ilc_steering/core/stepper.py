@@ -42,6 +42,7 @@ __all__ = [
     "announce_compile",
     "drive",
     "finite",
+    "lane_block",
     "lanes_rk",
     "locate",
     "poly",
@@ -191,6 +192,65 @@ def lanes_rk(field, nx, n, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  #
             for i in range(nx):
                 for j in range(n):
                     out[i, j] += bh * kst[st, i, j]
+
+
+@njit(cache=True, inline="always")
+def lane_block(  # type: ignore[no-untyped-def]
+    load, field, chart, store, nx, nparams, n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop
+):
+    """Trials ``start:stop`` (at most ``n``) of a batch on a lane kernel, laid out lane by lane (lanes
+    past ``stop`` repeat its last trial and are dropped): ``load(row, x0, p, x, j)`` puts a trial's
+    parameter row and start state into lane ``j`` of the lanes' parameters ``p`` ``(nparams, n)`` and
+    state ``x`` ``(nx, n)`` (in the kernel's coordinates); ``field`` is :func:`lanes_rk`'s;
+    ``chart(x, j)`` says whether lane ``j``'s state is finite and inside the chart; ``store(x, j,
+    dst)`` writes it back in the robot's state layout. The arguments after ``n`` are those of
+    :func:`ilc_steering.core.integrate.integrate`'s kernels."""
+    p = np.empty((nparams, n))
+    x = np.empty((nx, n))
+    nxt = np.empty((nx, n))
+    tmp = np.empty((nx, n))
+    kst = np.empty((STAGES, nx, n))
+    v1 = np.empty(n)
+    v2 = np.empty(n)
+    coef1 = np.empty((n, v1c.shape[2]))
+    coef = np.empty((n, v2c.shape[2]))
+    alive = np.empty(n, dtype=np.bool_)
+    record = traj.shape[1] > 0
+    used = stop - start
+    for j in range(n):
+        b = start + min(j, used - 1)
+        load(params[b], x0[b], p, x, j)
+        alive[j] = True
+    for j in range(used):
+        status[start + j] = OK
+        if record:
+            store(x, j, traj[start + j, 0])
+    row = 1
+    for piece in range(durations.shape[0]):
+        h = durations[piece] / steps[piece]
+        for j in range(n):
+            b = start + min(j, used - 1)
+            for d in range(coef1.shape[1]):
+                coef1[j, d] = v1c[b, piece, d]
+            for d in range(coef.shape[1]):
+                coef[j, d] = v2c[b, piece, d]
+        for step in range(steps[piece]):
+            lanes_rk(field, nx, n, p, x, step * h, h, coef1, coef, nxt, kst, tmp, v1, v2)
+            for j in range(used):
+                if not alive[j]:
+                    continue
+                if chart(nxt, j):
+                    for i in range(nx):
+                        x[i, j] = nxt[i, j]
+                else:
+                    alive[j] = False
+                    status[start + j] = LEFT_CHART
+            if record:
+                for j in range(used):
+                    store(x, j, traj[start + j, row])
+                row += 1
+    for j in range(used):
+        store(x, j, out[start + j])
 
 
 def run_lanes(blocks: tuple[Any, Any, Any], args: tuple[Any, ...], parallel: bool, name: str, lanes: int) -> None:

@@ -81,7 +81,7 @@ from ilc_steering.core.plants import (
     heading_curvature_cost,
 )
 from ilc_steering.core.robots.car import WHEEL_HALF_LENGTH, CarModel, box, direction, segment
-from ilc_steering.core.stepper import CHART_LIMIT, LEFT_CHART, OK, STAGES, drive, lanes_rk, run_lanes, step_with_stop
+from ilc_steering.core.stepper import CHART_LIMIT, drive, lane_block, run_lanes, step_with_stop
 
 __all__ = [
     "CAR_TRAILER",
@@ -357,67 +357,49 @@ def _lane_field(p, j, x, v1, v2, k):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    """Trials ``start:stop`` (at most ``n``) of a batch without a steering limit, lane by lane; lanes
-    past ``stop`` repeat its last trial and are dropped."""
-    p = np.empty((6, n))
-    x = np.empty((5, n))
-    nxt = np.empty((5, n))
-    tmp = np.empty((5, n))
-    kst = np.empty((STAGES, 5, n))
-    v1 = np.empty(n)
-    v2 = np.empty(n)
-    coef1 = np.empty((n, v1c.shape[2]))
-    coef = np.empty((n, v2c.shape[2]))
-    alive = np.empty(n, dtype=np.bool_)
-    record = traj.shape[1] > 0
-    used = stop - start
-    for j in range(n):
-        b = start + min(j, used - 1)
-        p[0, j], p[1, j], p[2, j] = params[b, _ELL], params[b, _RHO], params[b, _D]
-        p[3, j], p[4, j], p[5, j] = params[b, _TRUE_ELL], params[b, _TRUE_RHO], params[b, _TRUE_D]
-        x[0, j], x[1, j] = x0[b, 0], x0[b, 1]
-        x[2, j], x[3, j], x[4, j] = np.tan(x0[b, 2]), np.tan(x0[b, 3]), np.tan(x0[b, 4])
-        alive[j] = True
-    for j in range(used):
-        status[start + j] = OK
-        if record:
-            _angles(x, j, traj[start + j, 0])
-    row = 1
-    for piece in range(durations.shape[0]):
-        h = durations[piece] / steps[piece]
-        for j in range(n):
-            b = start + min(j, used - 1)
-            for d in range(coef1.shape[1]):
-                coef1[j, d] = v1c[b, piece, d]
-            for d in range(coef.shape[1]):
-                coef[j, d] = v2c[b, piece, d]
-        for step in range(steps[piece]):
-            lanes_rk(_lane_field, 5, n, p, x, step * h, h, coef1, coef, nxt, kst, tmp, v1, v2)
-            for j in range(used):
-                if not alive[j]:
-                    continue
-                ok = np.isfinite(nxt[0, j]) and np.isfinite(nxt[1, j])
-                ok = ok and max(abs(nxt[2, j]), abs(nxt[3, j]), abs(nxt[4, j])) < _T_CHART
-                if ok:
-                    for i in range(5):
-                        x[i, j] = nxt[i, j]
-                else:
-                    alive[j] = False
-                    status[start + j] = LEFT_CHART
-            if record:
-                for j in range(used):
-                    _angles(x, j, traj[start + j, row])
-                row += 1
-    for j in range(used):
-        _angles(x, j, out[start + j])
+def _load(row, q, p, x, j):  # type: ignore[no-untyped-def]
+    p[0, j], p[1, j], p[2, j] = row[_ELL], row[_RHO], row[_D]
+    p[3, j], p[4, j], p[5, j] = row[_TRUE_ELL], row[_TRUE_RHO], row[_TRUE_D]
+    x[0, j], x[1, j] = q[0], q[1]
+    x[2, j], x[3, j], x[4, j] = np.tan(q[2]), np.tan(q[3]), np.tan(q[4])
 
 
 @njit(cache=True, inline="always")
-def _angles(x, j, dst):  # type: ignore[no-untyped-def]
+def _lane_chart(x, j):  # type: ignore[no-untyped-def]
+    inside = max(abs(x[2, j]), abs(x[3, j]), abs(x[4, j])) < _T_CHART
+    return np.isfinite(x[0, j]) and np.isfinite(x[1, j]) and inside
+
+
+@njit(cache=True, inline="always")
+def _store(x, j, dst):  # type: ignore[no-untyped-def]
     """Lane ``j`` as ``(x1, y1, theta1, phi, delta)`` into ``dst``."""
     dst[0], dst[1] = x[0, j], x[1, j]
     dst[2], dst[3], dst[4] = np.arctan(x[2, j]), np.arctan(x[3, j]), np.arctan(x[4, j])
+
+
+@njit(cache=True, inline="always")
+def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
+    """Trials ``start:stop`` of a batch without a steering limit, lane by lane."""
+    lane_block(
+        _load,
+        _lane_field,
+        _lane_chart,
+        _store,
+        5,
+        6,
+        n,
+        params,
+        x0,
+        durations,
+        steps,
+        v1c,
+        v2c,
+        out,
+        status,
+        traj,
+        start,
+        stop,
+    )
 
 
 @njit(cache=True, error_model="numpy")

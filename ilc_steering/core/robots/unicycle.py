@@ -52,7 +52,7 @@ from ilc_steering.core.plants import (
     heading_curvature_cost,
 )
 from ilc_steering.core.robots.car import direction, segment
-from ilc_steering.core.stepper import CHART_LIMIT, LEFT_CHART, OK, STAGES, lanes_rk, run_lanes
+from ilc_steering.core.stepper import CHART_LIMIT, lane_block, run_lanes
 
 __all__ = [
     "KERNEL",
@@ -157,58 +157,44 @@ def _lane_field(p, j, x, v1, v2, k):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
+def _load(row, q, p, x, j):  # type: ignore[no-untyped-def]
+    k = row[_TRUE_RHO] / row[_RHO]
+    p[0, j], p[1, j] = k, k * row[_B] / row[_TRUE_B]
+    x[0, j], x[1, j], x[2, j] = q[0], q[1], np.tan(q[2])
+
+
+@njit(cache=True, inline="always")
+def _lane_chart(x, j):  # type: ignore[no-untyped-def]
+    return np.isfinite(x[0, j]) and np.isfinite(x[1, j]) and abs(x[2, j]) < _T_CHART
+
+
+@njit(cache=True, inline="always")
+def _store(x, j, dst):  # type: ignore[no-untyped-def]
+    dst[0], dst[1], dst[2] = x[0, j], x[1, j], np.arctan(x[2, j])
+
+
+@njit(cache=True, inline="always")
 def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    """Trials ``start:stop`` (at most ``n``) of a batch, lane by lane; lanes past ``stop`` repeat its
-    last trial and are dropped."""
-    p = np.empty((2, n))
-    x = np.empty((3, n))
-    nxt = np.empty((3, n))
-    tmp = np.empty((3, n))
-    kst = np.empty((STAGES, 3, n))
-    v1 = np.empty(n)
-    v2 = np.empty(n)
-    coef1 = np.empty((n, v1c.shape[2]))
-    coef = np.empty((n, v2c.shape[2]))
-    alive = np.empty(n, dtype=np.bool_)
-    record = traj.shape[1] > 0
-    used = stop - start
-    for j in range(n):
-        b = start + min(j, used - 1)
-        k = params[b, _TRUE_RHO] / params[b, _RHO]
-        p[0, j], p[1, j] = k, k * params[b, _B] / params[b, _TRUE_B]
-        x[0, j], x[1, j], x[2, j] = x0[b, 0], x0[b, 1], np.tan(x0[b, 2])
-        alive[j] = True
-    for j in range(used):
-        status[start + j] = OK
-        if record:
-            traj[start + j, 0, 0], traj[start + j, 0, 1], traj[start + j, 0, 2] = x[0, j], x[1, j], np.arctan(x[2, j])
-    row = 1
-    for piece in range(durations.shape[0]):
-        h = durations[piece] / steps[piece]
-        for j in range(n):
-            b = start + min(j, used - 1)
-            for d in range(coef1.shape[1]):
-                coef1[j, d] = v1c[b, piece, d]
-            for d in range(coef.shape[1]):
-                coef[j, d] = v2c[b, piece, d]
-        for step in range(steps[piece]):
-            lanes_rk(_lane_field, 3, n, p, x, step * h, h, coef1, coef, nxt, kst, tmp, v1, v2)
-            for j in range(used):
-                if not alive[j]:
-                    continue
-                ok = np.isfinite(nxt[0, j]) and np.isfinite(nxt[1, j]) and abs(nxt[2, j]) < _T_CHART
-                if ok:
-                    x[0, j], x[1, j], x[2, j] = nxt[0, j], nxt[1, j], nxt[2, j]
-                else:
-                    alive[j] = False
-                    status[start + j] = LEFT_CHART
-            if record:
-                for j in range(used):
-                    r = traj[start + j, row]
-                    r[0], r[1], r[2] = x[0, j], x[1, j], np.arctan(x[2, j])
-                row += 1
-    for j in range(used):
-        out[start + j, 0], out[start + j, 1], out[start + j, 2] = x[0, j], x[1, j], np.arctan(x[2, j])
+    lane_block(
+        _load,
+        _lane_field,
+        _lane_chart,
+        _store,
+        3,
+        2,
+        n,
+        params,
+        x0,
+        durations,
+        steps,
+        v1c,
+        v2c,
+        out,
+        status,
+        traj,
+        start,
+        stop,
+    )
 
 
 @njit(cache=True)
