@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ilc_steering.compare import add_arguments as add_compare_arguments
-from ilc_steering.config import ConfigError, SteeringConfig, load_config, packaged_configs
+from ilc_steering.config import MAX_TRIALS, ConfigError, SteeringConfig, load_config, packaged_configs
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
     CycleRecord,
@@ -134,8 +134,8 @@ def _save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Pa
 
 def _run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    if args.trials is not None and args.trials < 1:
-        raise ValueError(f"--trials must be >= 1, got {args.trials}")
+    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
+        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
     if args.json is not None:
         check_output_file(args.json, "--json")
     if args.plots is not None:
