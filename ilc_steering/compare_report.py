@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ilc_steering.output import write_figure
 from ilc_steering.tables import markdown_table, write_results
 
 __all__ = ["LADDER", "LADDER_NAMES", "bootstrap_median", "quartiles", "ratios", "summarize", "write_report"]
@@ -242,7 +243,7 @@ def plot_scenario(cells: list[dict[str, Any]], scenario: str, path: Path) -> Non
         fontsize=9,
     )
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    write_figure(path, figure, dpi=100)
 
 
 def _finite(data: Any) -> Any:

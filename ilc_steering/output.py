@@ -1,21 +1,34 @@
 """Output paths: checked before a run starts, written inside the folder the user named, atomically.
 
 A run whose results cannot be written must fail before its first trial, not after its last, so
-the CLI checks every output path first (exit 2, naming the option). Files are written to a
-unique temporary name in the same folder, flushed to disk, then renamed: a reader sees the whole
-file or none of it, and two writers never share a temporary file.
+the CLI checks every output path first (exit 2, naming the option). :func:`write_atomic` is the
+one writer of every output file (JSON, CSV, Markdown, PNG): it refuses a target that exists and
+is not a regular file (a device node, a FIFO, a folder), writes to a unique temporary name in the
+same folder, flushes it to disk, then renames it: a reader sees the whole file or none of it, and
+two writers never share a temporary file. A new file gets the mode the umask gives (0644 under
+umask 022), a replaced one keeps its mode; a symbolic link to a regular file is written through.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["check_output_dir", "check_output_file", "check_run_settings", "safe_name", "write_atomic", "write_json"]
+__all__ = [
+    "check_output_dir",
+    "check_output_file",
+    "check_run_settings",
+    "safe_name",
+    "write_atomic",
+    "write_figure",
+    "write_json",
+]
 
 
 def _problem(error: OSError) -> str:
@@ -36,12 +49,29 @@ def check_output_dir(path: Path, option: str) -> Path:
     return path
 
 
+def _not_regular(path: Path) -> str | None:
+    """What ``path`` is, when it exists and is not a regular file (symbolic links followed)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return None  # absent, or a dangling link: refused by the rename's folder check or written anew
+    if stat.S_ISREG(mode):
+        return None
+    kinds = [(stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device")]
+    kinds += [(stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")]
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
 def check_output_file(path: Path, option: str) -> Path:
-    """Check that the file ``path`` can be written (its folder is created if needed)."""
+    """Check that the file ``path`` can be written (its folder is created if needed): it must be
+    absent or a regular file."""
     if "\x00" in str(path):
         raise ValueError(f"{option}: a path cannot hold a NUL character")
-    if path.is_dir():
+    kind = _not_regular(path)
+    if kind == "a folder":
         raise ValueError(f"{option} {path}: is a folder, not a file")
+    if kind is not None:
+        raise ValueError(f"{option} {path}: is {kind}, not a regular file; give a file path")
     folder = path.parent
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{option} {path}: {folder} is not a folder")
@@ -62,13 +92,31 @@ def safe_name(name: str) -> str:
     return cleaned[:100] or "run"
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a unique temporary file, flushed to disk before the rename."""
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def write_atomic(path: Path, content: str | bytes) -> None:
+    """Write ``content`` to ``path`` through a unique temporary file, flushed to disk before the
+    rename; ``ValueError`` if ``path`` exists and is not a regular file."""
+    path = Path(path)
+    kind = _not_regular(path)
+    if kind is not None:
+        raise ValueError(f"{path}: is {kind}, not a regular file; it is not replaced")
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))  # write the file the link names, keep the link
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        mode = 0o666 & ~_umask()
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(handle, "w") as file:
-            file.write(text)
+        with os.fdopen(handle, "wb") as file:
+            file.write(content.encode("utf-8") if isinstance(content, str) else content)
             file.flush()
+            os.fchmod(file.fileno(), mode)
             os.fsync(file.fileno())
         os.replace(temporary, path)
     except BaseException:
@@ -79,6 +127,13 @@ def write_atomic(path: Path, text: str) -> None:
 def write_json(path: Path, data: Any) -> None:
     """:func:`write_atomic` of ``data`` as JSON."""
     write_atomic(path, json.dumps(data))
+
+
+def write_figure(path: Path, figure: Any, dpi: float | str = "figure") -> None:
+    """:func:`write_atomic` of a Matplotlib ``figure`` as PNG."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi)
+    write_atomic(path, buffer.getvalue())
 
 
 def check_run_settings(folder: Path, settings: dict[str, Any], results: Path) -> bool:

@@ -29,7 +29,7 @@ from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
 from ilc_steering.inputs import read_json
-from ilc_steering.output import safe_name
+from ilc_steering.output import safe_name, write_figure
 
 __all__ = ["Run", "load_run", "write_plots"]
 
@@ -348,6 +348,6 @@ def write_plots(source: Run | Path | dict[str, Any], out: Path) -> list[Path]:
     paths = []
     for kind, figure in figures:
         path = out / f"{safe_name(run.name)}_{kind}.png"  # inside out, whatever the run's name
-        figure.savefig(path)
+        write_figure(path, figure)  # the one writer: a special file is refused, the umask kept
         paths.append(path)
     return paths

@@ -31,7 +31,7 @@ from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.config import load_config
 from ilc_steering.core.score import TRUE_KEYS, within_tolerance
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.output import check_output_dir, check_run_settings, safe_name, write_json
+from ilc_steering.output import check_output_dir, check_run_settings, safe_name, write_figure, write_json
 
 __all__ = ["SweepArgs", "lockstep", "main", "run_row"]
 
@@ -275,7 +275,7 @@ def plot_map(
     ax.set_ylabel(f"{names[0]} (true / nominal)")
     ax.set_title(f"{load_config(args.config).name}: {method}, nu_b = {gain:g}")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    write_figure(path, fig, dpi=90)
 
 
 def main(args: SweepArgs) -> list[dict[str, Any]]:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+import os
+import stat
 import tracemalloc
 from pathlib import Path
 
@@ -95,3 +98,52 @@ def test_a_config_mapping_is_bounded_in_depth_too():
 def test_run_trials_is_bounded(capsys):
     assert main(["run", "forward_parking", "--trials", "1000000000"]) == 2
     assert "--trials" in capsys.readouterr().err
+
+
+# One writer for every output
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder"])
+def test_run_json_onto_a_special_file_is_refused_and_the_file_kept(tmp_path, capsys, kind):
+    target = tmp_path / "out.json"
+    if kind == "fifo":
+        os.mkfifo(target)
+    else:
+        target.mkdir()
+    assert main(["run", "forward_parking", "--trials", "1", "--json", str(target)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--json" in err and ("regular file" in err or "folder" in err)
+    assert (stat.S_ISFIFO if kind == "fifo" else stat.S_ISDIR)(os.lstat(target).st_mode)
+
+
+def test_the_writer_refuses_a_special_file_it_is_handed(tmp_path):
+    from ilc_steering.output import write_atomic, write_json
+
+    fifo = tmp_path / "f"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="is a FIFO, not a regular file"):
+        write_json(fifo, {})
+    link = tmp_path / "link.json"
+    (tmp_path / "real.json").write_text("old")
+    link.symlink_to(tmp_path / "real.json")
+    write_atomic(link, "new")
+    assert link.is_symlink() and (tmp_path / "real.json").read_text() == "new"
+
+
+@pytest.mark.parametrize(("mask", "mode"), [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_outputs_keep_the_umask_and_a_replaced_file_its_mode(tmp_path, mask, mode):
+    from ilc_steering.output import write_json
+    from ilc_steering.tables import write_results
+
+    old = os.umask(mask)
+    try:
+        write_json(tmp_path / "a.json", {"x": 1})
+        write_results([{"a": 1}], tmp_path / "t", "s", "| a |\n")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(os.stat(tmp_path / "a.json").st_mode) == mode
+    assert {stat.S_IMODE(p.stat().st_mode) for p in (tmp_path / "t").iterdir()} == {mode}
+    os.chmod(tmp_path / "a.json", 0o640)
+    write_json(tmp_path / "a.json", {"x": 2})
+    assert stat.S_IMODE(os.stat(tmp_path / "a.json").st_mode) == 0o640
+    assert json.loads((tmp_path / "a.json").read_text()) == {"x": 2}
