@@ -4,9 +4,14 @@
 simulations. ``plot RUN.json`` draws the paper's figures of a run. ``compare`` runs (or resumes)
 the benchmark of ILC against RL and black-box learners. ``list`` shows the packaged configs.
 
-Exit codes: 0 converged (or done), 1 not converged, 2 bad input (a config, an argument, a run
-file, an unusable output path: all checked before any trial runs), 3 an internal error. Errors
-are one line; ``--debug`` adds the traceback.
+Exit codes (:data:`EXIT_CODES`): 0 converged (or done), 1 not converged, 2 bad input (a config,
+an argument, a run file, an unusable output path: all checked before any trial runs), 3 an
+internal error (a bug of the library), 4 a learner failed: in ``run``, a learner raised or acted
+with an action the env refused (the message names it and the trial; the trials it completed are
+written to ``--json`` / ``--plots``); in ``compare`` and ``sweep``, some cells or rows failed (or
+outlived ``--cell-timeout``): each is recorded with its error under ``failed/``, the others are
+finished and reported, and the last line says how many failed. 130: interrupted. Errors are
+one line; ``--debug`` adds the traceback.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from pathlib import Path
 
 from ilc_steering.compare import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, ConfigError, SteeringConfig, load_config, packaged_configs
+from ilc_steering.loop import LearnerError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
     CycleRecord,
@@ -32,7 +38,18 @@ from ilc_steering.runner import (
 )
 from ilc_steering.sweep import add_arguments as add_sweep_arguments
 
-__all__ = ["main"]
+__all__ = ["EXIT_CODES", "main"]
+
+EXIT_CODES = {
+    0: "converged (or done)",
+    1: "not converged",
+    2: "bad input: a config, an argument, a run file or an output path, refused before any trial",
+    3: "internal error: a bug of ilc-steering (please report it; --debug prints the traceback)",
+    4: "a learner failed: run wrote the trials before it; compare and sweep recorded each failed cell "
+    "or row (its error, or --cell-timeout) under failed/ and finished the others",
+    130: "interrupted",
+}
+"""The CLI's exit codes, as its ``--help`` prints them."""
 
 # Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
 PAPER: dict[str, tuple[int | None, str]] = {
@@ -140,7 +157,12 @@ def _run(args: argparse.Namespace) -> int:
         check_output_file(args.json, "--json")
     if args.plots is not None:
         check_output_dir(args.plots, "--plots")
-    result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
+    try:
+        result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
+    except LearnerError as error:
+        if isinstance(error.partial, RunResult) and error.partial.trials:
+            _save(error.partial, args.json, args.plots)  # the trials it completed are kept
+        raise
     _save(result, args.json, args.plots)
     return 0 if result.converged_at is not None else 1
 
@@ -212,7 +234,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ilc-steering",
         description="Iterative learning control of nonholonomic robots (Oriolo, Panzieri, Ulivi 1998).",
-        epilog="Exit codes: 0 converged, 1 not converged, 2 bad input, 3 internal error.",
+        epilog="Exit codes: " + "; ".join(f"{code} {meaning}" for code, meaning in EXIT_CODES.items()) + ".",
     )
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -268,19 +290,17 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from ilc_steering.compare import from_namespace
-    from ilc_steering.compare import main as compare
+    from ilc_steering.compare import from_namespace, main_with_failures
 
-    compare(from_namespace(args))
-    return 0
+    _, failed = main_with_failures(from_namespace(args))
+    return 4 if failed else 0
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from ilc_steering.sweep import from_namespace
-    from ilc_steering.sweep import main as sweep
+    from ilc_steering.sweep import from_namespace, main_with_failures
 
-    sweep(from_namespace(args))
-    return 0
+    _, failed = main_with_failures(from_namespace(args))
+    return 4 if failed else 0
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -305,6 +325,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ilc-steering: interrupted", file=sys.stderr)
         return 130
+    except LearnerError as error:  # the learner's fault, named: neither bad input nor a bug
+        if args.debug:
+            traceback.print_exc()
+        print(f"ilc-steering: {_one_line(error)}", file=sys.stderr)
+        return 4
     except ValueError as error:  # ConfigError included: bad input
         if args.debug:
             traceback.print_exc()

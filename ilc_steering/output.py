@@ -11,19 +11,25 @@ umask 022), a replaced one keeps its mode; a symbolic link to a regular file is 
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import os
 import re
 import stat
 import tempfile
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
+
+from ilc_steering.inputs import read_json
 
 __all__ = [
     "check_output_dir",
     "check_output_file",
     "check_run_settings",
+    "content_hash",
+    "injective_name",
     "safe_name",
     "write_atomic",
     "write_figure",
@@ -136,23 +142,75 @@ def write_figure(path: Path, figure: Any, dpi: float | str = "figure") -> None:
     write_atomic(path, buffer.getvalue())
 
 
-def check_run_settings(folder: Path, settings: dict[str, Any], results: Path) -> bool:
-    """Record ``settings`` in ``folder/run.json``; ``ValueError`` if the folder was written with
-    others, or holds results (``results/*.json``) but no record of their settings. Returns whether
-    the folder was a run already (a resume)."""
+MAX_RESULT_BYTES = 16 << 20
+"""The largest run record, cell or row read back from a run folder [bytes]."""
+
+
+def content_hash(data: Any) -> str:
+    """16 hex digits of the SHA-256 of ``data`` as canonical JSON (sorted keys): equal content, equal hash."""
+    text = json.dumps(data, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def injective_name(name: str, taken: Collection[str] = ()) -> str:
+    """A file-name part for ``name`` that no other name maps to.
+
+    ``safe_name(name)`` when it is ``name`` itself; a user's ``module:attr`` whose ``attr`` has no
+    ``_`` becomes ``module_attr`` (its last ``_`` marks the colon, so it decodes; ``taken``, the
+    library's ids, is avoided); any other name gets ``-`` and a hash of ``name`` appended, so
+    ``x_y:z`` (``x_y_z``) and ``x:y_z`` (``x_y_z-<hash>``) never share a file."""
+    cleaned = safe_name(name)
+    if cleaned == name and "__" not in name:
+        return name
+    module, colon, attr = name.partition(":")
+    plain = f"{module}_{attr}"
+    if colon and attr.isidentifier() and "_" not in attr and safe_name(plain) == plain and "__" not in plain:
+        if plain not in taken:
+            return plain
+    return f"{re.sub('_+', '_', cleaned)[:80]}-{content_hash(name)[:8]}"
+
+
+def _differences(stored: dict[str, Any], settings: dict[str, Any]) -> str:
+    keys = sorted(set(stored) | set(settings))
+    return "; ".join(
+        f"{k} {stored.get(k, 'unset')!r}, not {settings.get(k, 'unset')!r}"
+        for k in keys
+        if stored.get(k) != settings.get(k)
+    )
+
+
+def check_run_settings(
+    folder: Path, settings: dict[str, Any], results: Path, configs: dict[str, str] | None = None
+) -> bool:
+    """Record ``settings`` and the content hash of each config (``configs``: name -> hash) in
+    ``folder/run.json``; ``ValueError``, saying which setting or config differs, if the folder was
+    written with other settings or another config of one of these names, or holds results
+    (``results/*.json``) but no record of their settings. Returns whether the folder was a run
+    already (a resume). Configs of new names are added: a resume may add scenarios."""
     stored_path = folder / "run.json"
     resumed = stored_path.exists()
+    known: dict[str, str] = {}
     if resumed:
-        try:
-            stored = json.loads(stored_path.read_bytes().decode("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-            raise ValueError(f"{stored_path}: not readable ({error}); use another --out folder") from None
+        stored = read_json(stored_path, MAX_RESULT_BYTES)
+        if not isinstance(stored, dict):
+            raise ValueError(f"{stored_path}: not a run record (a JSON object); use another --out folder")
+        known = stored.pop("configs", {})
         if stored != settings:
-            raise ValueError(f"{stored_path} was written with {stored}, not {settings}: use another --out folder")
+            raise ValueError(
+                f"{stored_path} was written with other settings: {_differences(stored, settings)}; "
+                "use another --out folder"
+            )
+        for name, digest in (configs or {}).items():
+            if isinstance(known, dict) and known.get(name, digest) != digest:
+                raise ValueError(
+                    f"{stored_path}: its results are of another config named {name!r} (content hash "
+                    f"{known[name]}, not {digest}): the same name, another content; use another --out folder"
+                )
     elif results.is_dir() and any(results.glob("*.json")):
         raise ValueError(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
             "use another --out folder"
         )
-    write_json(stored_path, settings)
+    merged = {**(known if isinstance(known, dict) else {}), **(configs or {})}
+    write_json(stored_path, {**settings, **({"configs": merged} if configs is not None else {})})
     return resumed

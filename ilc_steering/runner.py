@@ -18,7 +18,7 @@ from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.loop import run_trials
+from ilc_steering.loop import LearnerError, run_trials
 
 __all__ = [
     "LEARNERS",
@@ -131,6 +131,9 @@ def run_ilc(
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
+
+    A learner that fails raises :class:`~ilc_steering.loop.LearnerError` naming it (``learner``),
+    its ``partial`` the :class:`RunResult` of the trials run before.
     """
     config = load_config(config)
     make = learner_factory(learner)
@@ -145,7 +148,10 @@ def run_ilc(
         nu_b=config.learning.nu_b,
         cost=config.learning.cost,
     )
-    agent = make(context)
+    try:
+        agent = make(context)
+    except Exception as error:
+        raise LearnerError(f"learner {learner}: its factory raised {type(error).__name__}: {error}") from error
     if config.learning.cost != "none":
         from ilc_steering.agents.costs import with_cost
 
@@ -162,8 +168,13 @@ def run_ilc(
         if not converged and within_tolerance(config.learning.tolerance, info):
             converged.append(k)
 
-    run_trials(env, agent, count, seed=seed, callbacks=[keep])
-    env.close()
+    try:
+        run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
+    except LearnerError as error:
+        error.partial = RunResult(config, records, converged[0] if converged else None)
+        raise
+    finally:
+        env.close()
     return RunResult(config, records, converged[0] if converged else None)
 
 

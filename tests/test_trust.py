@@ -7,6 +7,7 @@ import os
 import stat
 import tracemalloc
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -147,3 +148,342 @@ def test_outputs_keep_the_umask_and_a_replaced_file_its_mode(tmp_path, mask, mod
     write_json(tmp_path / "a.json", {"x": 2})
     assert stat.S_IMODE(os.stat(tmp_path / "a.json").st_mode) == 0o640
     assert json.loads((tmp_path / "a.json").read_text()) == {"x": 2}
+
+
+# Results keyed by content; collisions refused; names injective
+
+TINY = {"priors": ("nominal",), "scenarios": ("forward_parking",), "seeds": (0,), "model_trials": 3, "workers": 1}
+
+
+def test_a_compare_resumed_with_another_config_of_the_same_name_is_refused(tmp_path, capsys):
+    from ilc_steering.compare import Args, run_cells
+
+    scenario = tmp_path / "same.yaml"
+    scenario.write_text(FORWARD)
+    args = Args(out=tmp_path / "run", methods=("ilc",), **{**TINY, "scenarios": (str(scenario),)})
+    first = run_cells(args)
+    assert first[0]["config_sha"] and len(first) == 1
+    assert run_cells(args) == first  # the same content resumes
+    scenario.write_text(FORWARD.replace("true_wheelbase: 0.22", "true_wheelbase: 0.3"))
+    with pytest.raises(ValueError, match=r"another config named 'forward_parking' \(content hash"):
+        run_cells(args)
+    argv = ["compare", "--out", str(tmp_path / "run"), "--methods", "ilc", "--priors", "nominal"]
+    assert main([*argv, "--scenarios", str(scenario), "--seeds", "0", "--model-trials", "3", "--workers", "1"]) == 2
+    assert "another config named 'forward_parking'" in capsys.readouterr().err
+
+
+def test_a_resume_by_another_version_is_refused_saying_so(tmp_path, monkeypatch):
+    from ilc_steering import compare
+
+    args = compare.Args(out=tmp_path, methods=("ilc",), **TINY)
+    compare.run_cells(args)
+    monkeypatch.setattr(compare, "__version__", "9.9.9")
+    with pytest.raises(ValueError, match=r"version '0\.1\.0', not '9\.9\.9'"):
+        compare.run_cells(args)
+
+
+def test_a_sweep_resumed_with_another_config_of_the_same_name_is_refused(tmp_path):
+    from ilc_steering.sweep import SweepArgs, run_rows
+
+    scenario = tmp_path / "same.yaml"
+    scenario.write_text(FORWARD)
+    args = SweepArgs(config=str(scenario), grid=2, trials=2, workers=1, out=tmp_path / "s")
+    run_rows(args)
+    scenario.write_text(FORWARD.replace("nu_a: 1.0 ", "nu_a: 0.3 "))
+    with pytest.raises(ValueError, match="another config named 'forward_parking'"):
+        run_rows(args)
+
+
+@pytest.mark.parametrize(("option", "values"), [("--methods", ["ilc", "ilc"]), ("--nu-b", ["1", "1.0"])])
+def test_a_sweep_refuses_a_repeated_method_or_gain(tmp_path, capsys, option, values):
+    assert main(["sweep", "forward_parking", option, *values, "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert f"{option}: " in err and "given twice" in err and len(err.strip().splitlines()) == 1
+
+
+def test_file_names_are_injective_in_methods_and_gains(tmp_path):
+    from ilc_steering.compare import METHODS, cell_path
+    from ilc_steering.output import injective_name
+    from ilc_steering.sweep import gain_text, row_path
+
+    methods = ["x_y:z", "x:y_z", "x_y_z:w", "newton:ilc", "a b:c", "a_b:c", "pkg.mod:make", "pkg:mod_make", *METHODS]
+    names = [injective_name(m, METHODS) for m in methods]
+    assert len(set(names)) == len(names)
+    assert injective_name("user_learners:make", METHODS) == "user_learners_make"  # readable where it can be
+    assert injective_name("newton:ilc", METHODS) != "newton_ilc"  # never a library id's name
+    assert len({cell_path(tmp_path, "none", m, "s", 0) for m in methods}) == len(methods)
+    gains = [0.1234567, 0.1234568, 1.0, 0.5, 1 / 3]
+    assert [gain_text(g) for g in gains[2:4]] == ["1", "0.5"]
+    assert len({row_path(tmp_path, "ilc", g, 0) for g in gains}) == len(gains)
+
+
+def test_users_methods_that_safe_names_would_merge_keep_their_own_cells(tmp_path, monkeypatch):
+    from ilc_steering.compare import Args, run_cells
+
+    (tmp_path / "x_y.py").write_text("from ilc_steering.agents.ilc import make_ilc as z\n")
+    (tmp_path / "x.py").write_text("from ilc_steering.agents.ilc import make_ilc_paper as y_z\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    args = Args(out=tmp_path / "run", methods=("x_y:z", "x:y_z"), **{**TINY, "custom_trials": 3, "priors": ("none",)})
+    cells = run_cells(args)
+    assert [c["method"] for c in cells] == ["x_y:z", "x:y_z"]
+    assert cells[0]["curve"] != cells[1]["curve"]  # without a prior, ilc and the paper's ilc start apart
+    assert len(list((tmp_path / "run" / "cells").glob("*.json"))) == 2
+    assert run_cells(args) == cells  # and the folder resumes
+
+
+# Resumed data validated
+
+
+def _one_cell(tmp_path: Path) -> tuple[Any, Path]:
+    from ilc_steering.compare import Args, run_cells
+
+    args = Args(out=tmp_path, methods=("ilc",), **TINY)
+    run_cells(args)
+    (path,) = (tmp_path / "cells").glob("*.json")
+    return args, path
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        ({"best_error": float("nan")}, "best_error nan is not a finite error"),
+        ({"wall_s": -1.0}, "wall_s -1.0 is not a time >= 0 s"),
+        ({"off_chart_fraction": 7.0}, "off_chart_fraction 7.0 is not a fraction in"),
+        ({"trials_to": {"10cm": 999, "1cm": None, "1mm": None, "0.5mm": None}}, "'trials_to' needs"),
+        ({"curve": [[1, -1.0]]}, "curve is not increasing in trials with finite errors >= 0"),
+        ({"curve": [[99, 1.0]]}, "curve holds a trial outside"),
+        ({"fragile": ["2cm"]}, "fragile holds a level"),
+        ({"config_sha": "0" * 16}, "holds the content hash of its config"),
+    ],
+)
+def test_a_hand_edited_cell_is_refused_naming_the_file(tmp_path, edit, message):
+    from ilc_steering.compare import run_cells
+
+    args, path = _one_cell(tmp_path)
+    path.write_text(json.dumps({**json.loads(path.read_text()), **edit}))
+    with pytest.raises(ValueError, match=message) as error:
+        run_cells(args)
+    assert path.name in str(error.value)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda row: row["trials_to"].__setitem__(0, 999), "trials_to holds a value outside"),
+        (lambda row: row["error"].__setitem__(0, float("nan")), "error holds a value that is not an error"),
+        (lambda row: row["left_chart"].__setitem__(0, 7.0), "left_chart holds a value outside"),
+        (lambda row: row.__setitem__("wall_s", -5.0), "wall_s -5.0 is not a time"),
+        (lambda row: row.__setitem__("row", 1), "holds row 1, not 0"),
+    ],
+)
+def test_a_hand_edited_sweep_row_is_refused_naming_the_file(tmp_path, capsys, edit, message):
+    argv = ["sweep", "forward_parking", "--grid", "2", "--trials", "3", "--workers", "1", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    path = sorted((tmp_path / "rows").glob("*.json"))[0]
+    row = json.loads(path.read_text())
+    edit(row)
+    path.write_text(json.dumps(row))
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and path.name in err and len(err.strip().splitlines()) == 1
+
+
+# Nothing finished is lost; bounds in time; errors name the culprit
+
+LEARNERS = """
+import time
+
+import numpy as np
+
+from ilc_steering.agents.ilc import make_ilc
+from ilc_steering.core.checks import ParameterError
+
+
+class Failing:
+    def __init__(self, context, when):
+        self.inner, self.trial, self.when, self.seed = make_ilc(context), 0, when, context.seed
+
+    def act(self, observation):
+        self.trial += 1
+        self.when(self)
+        return self.inner.act(observation)
+
+    def learn(self, info):
+        self.inner.learn(info)
+
+    def reset(self):
+        self.inner.reset()
+
+
+def _seed1(self):
+    if self.seed == 1:
+        raise RuntimeError("seed 1 breaks")
+
+
+def _svd(self):
+    if self.trial == 2:
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+
+def _parameter(self):
+    raise ParameterError("my_gain", "must be below 1")
+
+
+def _forever(self):
+    while True:
+        time.sleep(0.05)
+
+
+def seed1(context):
+    return Failing(context, _seed1)
+
+
+def svd(context):
+    return Failing(context, _svd)
+
+
+def parameter(context):
+    return Failing(context, _parameter)
+
+
+def forever(context):
+    return Failing(context, _forever)
+
+
+def broken_factory(context):
+    raise KeyError("no such thing")
+
+
+class NanAt3(Failing):
+    def __init__(self, context):
+        super().__init__(context, lambda self: None)
+
+    def act(self, observation):
+        action = super().act(observation)
+        return action * np.nan if self.trial == 3 else action
+"""
+
+
+@pytest.fixture
+def learners(tmp_path, monkeypatch):
+    (tmp_path / "trust_learners.py").write_text(LEARNERS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return tmp_path
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_failing_cell_is_recorded_and_the_others_finish(learners, capsys, workers):
+    out = learners / "run"
+    argv = ["compare", "--quick", "--out", str(out), "--priors", "nominal", "--scenarios", "forward_parking"]
+    argv += ["--methods", "ilc", "trust_learners:seed1", "--seeds", "0", "1", "--custom-trials", "3"]
+    assert main([*argv, "--workers", workers]) == 4
+    printed = capsys.readouterr()
+    assert printed.out.strip().splitlines()[-1].startswith("1 of 4 cells failed")
+    assert "bug" not in printed.out + printed.err
+    assert len(list((out / "cells").glob("*.json"))) == 3  # every finished cell kept
+    (failure,) = (out / "failed").glob("*.json")
+    record = json.loads(failure.read_text())
+    assert (record["method"], record["seed"], record["prior"], record["scenario"]) == (
+        "trust_learners:seed1",
+        1,
+        "nominal",
+        "forward_parking",
+    )
+    assert "learner trust_learners:seed1: act() raised in trial 1: RuntimeError: seed 1 breaks" in record["error"]
+    report = json.loads((out / "compare.json").read_text())
+    assert len(report["cells"]) == 3 and report["failed"] == [record]
+    assert "1 failed cells" in (out / "compare.md").read_text()
+
+
+@pytest.mark.parametrize(
+    ("method", "message"),
+    [
+        ("trust_learners:svd", "act() raised in trial 2: LinAlgError: SVD did not converge"),
+        ("trust_learners:parameter", "act() raised in trial 1: ParameterError: my_gain: must be below 1"),
+        ("trust_learners:broken_factory", "its factory raised KeyError"),
+    ],
+)
+def test_a_users_learner_error_crosses_processes_and_names_the_learner_and_the_cell(learners, method, message):
+    from ilc_steering.compare import Args, run_all
+
+    args = Args(out=learners / "run", methods=(method,), **{**TINY, "seeds": (0, 1), "workers": 2})
+    cells, failed = run_all(args)
+    assert cells == [] and [f["seed"] for f in failed] == [0, 1]
+    assert all(message in f["error"] and method in f["error"] for f in failed)
+
+
+def test_a_cell_that_never_returns_is_stopped_by_the_cell_timeout(learners):
+    import time
+
+    from ilc_steering.compare import Args, run_all
+
+    args = Args(out=learners / "run", methods=("ilc", "trust_learners:forever"), cell_timeout=2.0, **TINY)
+    start = time.perf_counter()
+    cells, failed = run_all(args)
+    assert time.perf_counter() - start < 30
+    assert [c["method"] for c in cells] == ["ilc"]
+    assert len(failed) == 1 and "took longer than the time limit of 2 s" in failed[0]["error"]
+
+
+def test_a_failed_sweep_row_is_recorded_and_its_map_left_out(learners, capsys):
+    out = learners / "s"
+    argv = ["sweep", "forward_parking", "--methods", "ilc", "trust_learners:svd", "--grid", "2", "--trials", "3"]
+    assert main([*argv, "--workers", "1", "--out", str(out)]) == 4
+    assert capsys.readouterr().out.strip().splitlines()[-1].startswith("2 of 4 rows failed")
+    assert len(list((out / "failed").glob("*.json"))) == 2 and len(list((out / "rows").glob("*.json"))) == 2
+    assert list(json.loads((out / "sweep.json").read_text())["maps"]) == ["ilc__nu1"]
+
+
+def test_run_names_the_failing_learner_and_writes_the_trials_it_ran(learners, capsys):
+    target = learners / "nan.json"
+    assert main(["run", "forward_parking", "--learner", "trust_learners:NanAt3", "--json", str(target)]) == 4
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "learner trust_learners:NanAt3: the env refused its action in trial 3" in err
+    assert "bug" not in err
+    assert [t["trial"] for t in json.loads(target.read_text())["trials"]] == [1, 2]
+
+
+def test_workers_are_capped(tmp_path, capsys):
+    from ilc_steering.backends import MAX_WORKERS
+
+    for command in (["compare", "--methods", "ilc"], ["sweep", "forward_parking"]):
+        argv = [*command, "--workers", str(MAX_WORKERS + 1), "--out", str(tmp_path / command[0])]
+        assert main(argv) == 2
+        assert f"--workers: a whole number in [0, {MAX_WORKERS}]" in capsys.readouterr().err
+
+
+def test_an_unreachable_ray_address_is_refused_quickly(monkeypatch):
+    # (an address that answers but is no Ray is bounded by a time limit on ray.init: bad_inputs replays it)
+    import time
+
+    from ilc_steering import backends
+
+    monkeypatch.setattr(backends, "RAY_CONNECT_TIMEOUT", 1.0)
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match=r"RAY_ADDRESS 127\.0\.0\.1:1: no Ray cluster answers there within 1 s"):
+        backends._check_ray_address("127.0.0.1:1")  # nothing listens on port 1
+    assert time.perf_counter() - start < 5
+    with pytest.raises(ValueError, match="give host:port"):
+        backends._check_ray_address("nonsense")
+    backends._check_ray_address("auto")  # nothing to reach: ray.init finds it
+
+
+def test_exit_codes_are_documented():
+    from ilc_steering.cli import EXIT_CODES, _parser
+
+    assert sorted(EXIT_CODES) == [0, 1, 2, 3, 4, 130]
+    assert "4 a learner failed" in (_parser().epilog or "")
+
+
+def test_the_librarys_errors_survive_pickling():
+    import pickle
+
+    import ilc_steering.backends  # noqa: F401  (registers ParameterError's reduction)
+    from ilc_steering.core.checks import ParameterError
+    from ilc_steering.loop import LearnerError
+
+    for error in (ParameterError("nu_b", "must be in (0, 2)"), ConfigError("a.yaml: x: y"), LearnerError("learner z")):
+        back = pickle.loads(pickle.dumps(error))
+        assert type(back) is type(error) and str(back) == str(error)
+    assert pickle.loads(pickle.dumps(ParameterError("nu_b", "bad"))).problem == "bad"
