@@ -487,3 +487,78 @@ def test_the_librarys_errors_survive_pickling():
         back = pickle.loads(pickle.dumps(error))
         assert type(back) is type(error) and str(back) == str(error)
     assert pickle.loads(pickle.dumps(ParameterError("nu_b", "bad"))).problem == "bad"
+
+
+# The property suite: derandomized in CI, extended to sweep's and compare's arguments
+
+
+def test_the_property_suite_is_derandomized_in_ci():
+    import subprocess
+    import sys
+
+    code = "import tests.conftest, hypothesis; print(hypothesis.settings.default.derandomize)"
+    root = Path(__file__).resolve().parents[1]
+    local = {k: v for k, v in os.environ.items() if k not in ("CI", "GITHUB_ACTIONS", "TF_BUILD")}
+    for env, expected in (({**local, "CI": "true"}, "True"), (local, "False")):
+        result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root)
+        assert result.stdout.strip() == expected, result.stderr
+
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+gains = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.5, 1.0, 2.0, 0.0, -1.0]))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    methods=st.lists(st.sampled_from(["ilc", "ilc_paper", "newton", "ppo", "nope", "x:y"]), max_size=3),
+    nu_b=st.lists(gains, max_size=3),
+    grid=st.one_of(st.integers(-5, 300), st.booleans()),
+    trials=st.integers(-5, 200_000),
+    workers=st.integers(-3, 1000),
+    timeout=st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True)),
+)
+def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_b, grid, trials, workers, timeout):
+    from ilc_steering.backends import MAX_WORKERS
+    from ilc_steering.sweep import SweepArgs, _validate
+
+    args = SweepArgs(
+        methods=tuple(methods), nu_b=tuple(nu_b), grid=grid, trials=trials, workers=workers, cell_timeout=timeout
+    )
+    try:
+        _validate(args)
+    except ValueError as error:
+        assert str(error) and "\n" not in str(error)
+        return
+    assert len(set(methods)) == len(methods) > 0 and len(set(nu_b)) == len(nu_b)
+    assert all(0 < g <= 2 for g in nu_b) and 2 <= grid <= 201 and 0 <= workers <= MAX_WORKERS
+    assert timeout is None or 0 < timeout < float("inf")
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    methods=st.lists(st.sampled_from(["ilc", "newton", "least_squares", "nope"]), max_size=3),
+    seeds=st.lists(st.integers(-2, 2**33), max_size=3),
+    budget=st.integers(-2, 2_000_000),
+    workers=st.integers(-3, 1000),
+    timeout=st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True)),
+)
+def test_compare_arguments_are_accepted_or_refused_with_a_value_error(methods, seeds, budget, workers, timeout):
+    from ilc_steering.compare import MAX_BUDGET, Args, validate
+
+    args = Args(
+        methods=tuple(methods),
+        scenarios=("forward_parking",),
+        seeds=tuple(seeds),
+        model_trials=budget,
+        workers=workers,
+        cell_timeout=timeout,
+    )
+    try:
+        validate(args)
+    except ValueError as error:
+        assert str(error) and "\n" not in str(error)
+        return
+    assert len(set(methods)) == len(methods) > 0 and len(set(seeds)) == len(seeds) > 0
+    assert 1 <= budget <= MAX_BUDGET and all(0 <= s < 2**32 for s in seeds)
