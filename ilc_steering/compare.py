@@ -62,6 +62,7 @@ from ilc_steering.output import (
     injective_name,
     write_json,
 )
+from ilc_steering.runner import check_task
 
 __all__ = [
     "LADDER",
@@ -301,8 +302,9 @@ def validate(args: Args) -> dict[str, str]:
 
     ``ValueError`` names the argument: unknown or repeated priors, methods, scenarios or seeds, a
     user's learner that cannot be imported, a seed outside ``[0, 2**32)``, a cyclic config
-    (``compare`` runs one-trial tasks), two scenarios of one name, a budget below 1, a negative
-    worker count.
+    (``compare`` runs one-trial tasks), two scenarios of one name, a budget outside ``[1,
+    MAX_BUDGET]``, a worker count outside ``[0, MAX_WORKERS]``, a ``cell_timeout`` that is not a
+    time > 0 s.
     """
     from ilc_steering.config import load_config
 
@@ -348,6 +350,9 @@ def validate(args: Args) -> dict[str, str]:
             )
         if config.name in names.values():
             raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
+        env = gym.make(ENV_ID, config=config)
+        check_task(env, f"--scenarios {scenario}")
+        env.close()
         names[scenario] = config.name
     for prior in args.priors:
         for method in args.methods:

@@ -6,8 +6,7 @@ statistics, so a seed that never got there stays ``inf``), a 95 % bootstrap conf
 of the median, how many seeds got there, and how many of those counts are fragile (a relative
 change of 1e-6 in the error would move them: marked ``†`` in the tables); the best true cost, the
 off-chart fraction and the wall time. Failed cells are listed apart, never summarized. The ratios
-compare ILC (``ilc``) with the best method of each family (black-box, RL)
-at each tolerance.
+compare ILC (``ilc``) with the best method of each family (black-box, RL) at each tolerance.
 """
 
 from __future__ import annotations

@@ -26,6 +26,7 @@ __all__ = [
     "CyclicRunResult",
     "RunResult",
     "TrialRecord",
+    "check_task",
     "learner_factory",
     "run_cyclic_ilc",
     "run_ilc",
@@ -36,6 +37,42 @@ CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
 LEARNERS = ("ilc", "newton_ilc")
 """``run --learner``: the paper's eqs. 33-34 (its fictitious zero iteration first, as ``compare``'s
 ``ilc_paper``), or the re-identifying learner of :mod:`ilc_steering.agents.newton_ilc`."""
+
+
+MAX_NOMINAL_MISS = 1e-6
+"""The largest miss of the nominal model's own exact solution, relative to the distance from the
+start to the goal in chained coordinates, of a well-posed task."""
+
+
+def check_task(env: gym.Env[Any, Any], where: str) -> None:
+    """``ValueError`` naming ``where`` (the config) when the task is ill-posed for its nominal
+    model: its exact solution (section 2.2) misses the goal, because ``W`` of eq. (23) is singular
+    at the solution's ``c11``, or needs an action beyond the env's action box. Either way every
+    learner's updates would be clipped or useless in every trial, and a run could only say "not
+    converged"."""
+    import numpy as np
+
+    model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
+    c = model.solve()
+    distance = float(np.linalg.norm(model.z_goal - model.z_start))
+    miss = float(np.linalg.norm(model.final_state(c) - model.z_goal)) / max(distance, 1e-12)
+    if not np.isfinite(miss) or miss > MAX_NOMINAL_MISS:
+        _, W = model.transition(c[0])
+        singular = np.linalg.svd(W, compute_uv=False)
+        raise ValueError(
+            f"{where}: an ill-posed task: the nominal model's exact solution misses the goal by {miss:.2g} of the "
+            f"distance to it, W (eq. 23) being singular at c11 = {c[0]:.3g} (singular values down to "
+            f"{singular[-1]:.2g}); change task.pieces or task.v1_fixed (v1 on one piece undone by another "
+            "makes W singular) or raise task.v2_terms"
+        )
+    high = np.asarray(env.action_space.high, dtype=np.float64)  # type: ignore[attr-defined]
+    beyond = np.flatnonzero(np.abs(c) > high)
+    if beyond.size:
+        i = int(beyond[0])
+        raise ValueError(
+            f"{where}: the nominal solution needs |c[{i}]| = {abs(c[i]):.3g}, beyond the action box "
+            f"({high[i]:.3g}, task.action_bound); raise task.action_bound or leave it out (10x the nominal scale)"
+        )
 
 
 def learner_factory(name: str) -> LearnerFactory:
@@ -139,6 +176,7 @@ def run_ilc(
     make = learner_factory(learner)
     count = config.learning.trials if trials is None else trials
     env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
+    check_task(env, config.name)
     context = LearnerContext(
         env.unwrapped.nominal_model,  # type: ignore[attr-defined]
         env.action_space,  # type: ignore[arg-type]

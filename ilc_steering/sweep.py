@@ -171,6 +171,13 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
     if config.is_cyclic:
         raise ValueError(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
     Scenario.from_config(config).refuse_disturbances("sweep")
+    import gymnasium as gym
+
+    from ilc_steering.runner import ENV_ID, check_task
+
+    env = gym.make(ENV_ID, config=config)
+    check_task(env, args.config)
+    env.close()
     for name, value, lo, hi in (("--grid", args.grid, 2, MAX_GRID), ("--trials", args.trials, 1, 100_000)):
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
             raise ValueError(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")

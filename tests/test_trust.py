@@ -562,3 +562,47 @@ def test_compare_arguments_are_accepted_or_refused_with_a_value_error(methods, s
         return
     assert len(set(methods)) == len(methods) > 0 and len(set(seeds)) == len(seeds) > 0
     assert 1 <= budget <= MAX_BUDGET and all(0 <= s < 2**32 for s in seeds)
+
+
+# Ill-posed tasks found before any trial
+
+CHAINED = (CONFIGS / "chained_perturbed.yaml").read_text()
+
+
+def _mirrored(tmp_path: Path) -> Path:
+    # v1 = 0.5 on piece 1 and -0.5 on piece 2 (the goal shares z1): W of eq. 23 is singular there
+    text = CHAINED.replace("goal:  [1.0,", "goal:  [0.0,").replace("v1_fixed: [0.5]", "v1_fixed: [-0.5]")
+    assert text != CHAINED
+    path = tmp_path / "mirrored.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("command", ["run", "compare", "sweep"])
+def test_an_ill_posed_task_is_refused_before_any_trial_naming_what_to_change(tmp_path, capsys, command):
+    path = _mirrored(tmp_path)
+    argv = {
+        "run": ["run", str(path)],
+        "compare": ["compare", "--scenarios", str(path), "--methods", "ilc", "--out", str(tmp_path / "c")],
+        "sweep": ["sweep", str(path), "--out", str(tmp_path / "s")],
+    }[command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "an ill-posed task" in err and "task.v1_fixed" in err
+    assert "misses the goal by 0.78 of the distance" in err
+    assert not (tmp_path / "c" / "cells").exists() or not any((tmp_path / "c" / "cells").iterdir())
+
+
+def test_every_packaged_one_trial_task_is_well_posed():
+    import gymnasium as gym
+
+    from ilc_steering.config import packaged_configs
+    from ilc_steering.runner import ENV_ID, check_task
+
+    checked = 0
+    for name in packaged_configs():
+        config = load_config(name)
+        if not config.is_cyclic:
+            check_task(gym.make(ENV_ID, config=config), name)
+            checked += 1
+    assert checked >= 9
