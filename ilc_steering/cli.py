@@ -35,6 +35,7 @@ from ilc_steering.runner import (
     learner_factory,
     run_cyclic_ilc,
     run_ilc,
+    step_warning,
 )
 from ilc_steering.sweep import add_arguments as add_sweep_arguments
 
@@ -157,6 +158,9 @@ def _run(args: argparse.Namespace) -> int:
         check_output_file(args.json, "--json")
     if args.plots is not None:
         check_output_dir(args.plots, "--plots")
+    warning = step_warning(config)
+    if warning is not None:
+        print(f"ilc-steering: {warning}", file=sys.stderr)
     try:
         result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
     except LearnerError as error:

@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import fcntl
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -62,7 +63,7 @@ from ilc_steering.output import (
     injective_name,
     write_json,
 )
-from ilc_steering.runner import check_task
+from ilc_steering.runner import check_task, step_warning
 
 __all__ = [
     "LADDER",
@@ -544,6 +545,10 @@ def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]]
 
     names = validate(args)
     configs = {name: content_hash(asdict(load_config(scenario))) for scenario, name in names.items()}
+    for scenario in names:
+        warning = step_warning(load_config(scenario))
+        if warning is not None:
+            print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
     _check_run_folder(args, configs)
     keys: list[dict[str, Any]] = [
         {

@@ -30,6 +30,7 @@ __all__ = [
     "learner_factory",
     "run_cyclic_ilc",
     "run_ilc",
+    "step_warning",
 ]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
@@ -73,6 +74,40 @@ def check_task(env: gym.Env[Any, Any], where: str) -> None:
             f"{where}: the nominal solution needs |c[{i}]| = {abs(c[i]):.3g}, beyond the action box "
             f"({high[i]:.3g}, task.action_bound); raise task.action_bound or leave it out (10x the nominal scale)"
         )
+
+
+MAX_STEP_MISS = 0.01
+"""The largest change of a trial's final configuration, as a fraction of the tightest tolerance,
+when ``simulation.max_step`` is halved, for the step to be fine enough (:func:`step_warning`)."""
+
+
+def step_warning(config: SteeringConfig) -> str | None:
+    """A warning when ``simulation.max_step`` is too coarse for the task (None when it is fine):
+    the step-halving test. The nominal solution is simulated on the true plant at the step and
+    at half of it; a final configuration that moves by more than :data:`MAX_STEP_MISS` of the
+    tightest tolerance means the counts would be the integrator's, not the plant's. (A warning,
+    not an error: a coarse step is a legitimate way to provoke a trial that leaves the chart.)"""
+    import numpy as np
+
+    from ilc_steering.envs.scenario import Scenario
+
+    if config.is_cyclic:
+        return None
+    step = config.simulation.max_step
+    finer = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, max_step=step / 2))
+    coarse, fine = Scenario.from_config(config), Scenario.from_config(finer)
+    c = coarse.nominals[0].solve()[None]
+    configurations = [s.plant.configuration(s.run(c).final)[0] for s in (coarse, fine)]
+    miss = float(np.max(np.abs(configurations[0] - configurations[1])))
+    tolerance = config.learning.tolerance
+    tightest = min(v for v in (tolerance.cartesian, tolerance.orientation, tolerance.error) if v is not None)
+    if np.isfinite(miss) and miss <= MAX_STEP_MISS * tightest:
+        return None
+    return (
+        f"warning: {config.name}: simulation.max_step = {step:g} s is too coarse: halving it moves the final "
+        f"configuration by {miss:.2g}, over {MAX_STEP_MISS:.0%} of the tolerance {tightest:g}, so the counts are "
+        "the integrator's, not the plant's; lower simulation.max_step (default 1/32 s)"
+    )
 
 
 def learner_factory(name: str) -> LearnerFactory:

@@ -24,6 +24,7 @@ and the others are finished.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -290,8 +291,12 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
     """The complete maps, and the rows that failed (each written to ``failed/`` with its error);
     each finished row is written the moment it finishes."""
     from ilc_steering.backends import run_calls
+    from ilc_steering.runner import step_warning
 
     _validate(args)
+    warning = step_warning(load_config(args.config))
+    if warning is not None:
+        print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
     digest = _check_folder(args)
     gains: list[float | None] = list(args.nu_b) or [None]
     config_gain = load_config(args.config).learning.nu_b

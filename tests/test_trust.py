@@ -597,12 +597,26 @@ def test_every_packaged_one_trial_task_is_well_posed():
     import gymnasium as gym
 
     from ilc_steering.config import packaged_configs
-    from ilc_steering.runner import ENV_ID, check_task
+    from ilc_steering.runner import ENV_ID, check_task, step_warning
 
     checked = 0
     for name in packaged_configs():
         config = load_config(name)
         if not config.is_cyclic:
             check_task(gym.make(ENV_ID, config=config), name)
+            assert step_warning(config) is None, name  # and its step is fine enough
             checked += 1
     assert checked >= 9
+
+
+def test_a_coarse_integrator_step_is_found_by_halving_it(tmp_path, capsys):
+    from ilc_steering.runner import step_warning
+
+    assert step_warning(load_config("forward_parking")) is None  # 1/32 s: within 1e-12 of half of it
+    path = tmp_path / "coarse.yaml"
+    path.write_text(FORWARD + "simulation: {max_step: 1.0}\n")
+    warning = step_warning(load_config(path))
+    assert warning is not None and "simulation.max_step = 1 s is too coarse" in warning
+    assert main(["run", str(path), "--trials", "1"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "lower simulation.max_step" in err
