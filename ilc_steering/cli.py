@@ -107,9 +107,11 @@ def _print_row(record: TrialRecord | CycleRecord) -> None:
     if isinstance(record, CycleRecord):
         index, values = record.cycle, [v for w in record.waypoints for v in _values(w)]
         left = any(w.left_chart for w in record.waypoints)
+        clipped = any(w.clipped for w in record.waypoints)
     else:
-        index, values, left = record.trial, _values(record), record.left_chart
+        index, values, left, clipped = record.trial, _values(record), record.left_chart, record.clipped
     note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
+    note += "  action clipped to the box (task.action_bound)" if clipped else ""
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 
@@ -130,6 +132,10 @@ def _learn(
         result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories, learner=learner)
     unit = "cycles" if config.is_cyclic else "trials"
     done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
+    records = result.trials if isinstance(result, RunResult) else [w for c in result.cycles for w in c.waypoints]
+    clipped = sum(r.clipped for r in records)
+    if clipped:
+        print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
     if result.converged_at is None:
         print(f"not converged within {done} {unit}")
     else:

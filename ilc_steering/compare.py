@@ -140,19 +140,21 @@ class TrialLog:
     """A trial-loop callback that keeps every trial's *true* errors: Cartesian [m] and orientation
     [rad] for a robot with a pose, the chained error norm for a chained plant (``cartesian`` holds
     it then, ``orientation`` zeros), the true cost (:func:`~ilc_steering.core.score.true_cost`,
-    the off-chart penalty included), and whether it left the chart."""
+    the off-chart penalty included), whether it left the chart and whether the env clipped its action."""
 
     def __init__(self) -> None:
         self.cartesian: list[float] = []
         self.orientation: list[float] = []
         self.cost: list[float] = []
         self.left_chart: list[bool] = []
+        self.clipped: list[bool] = []
 
     def __call__(self, k: int, info: dict[str, Any]) -> None:
         self.cartesian.append(float(info.get("true_cartesian_error", info["true_error_norm"])))
         self.orientation.append(float(info.get("true_orientation_error", 0.0)))
         self.cost.append(float(true_cost(info)))
         self.left_chart.append(bool(info["left_chart"]))
+        self.clipped.append(bool(info.get("clipped", False)))
 
 
 def first_within(log: TrialLog, tolerance: float, scale: float = 1.0) -> int | None:
@@ -255,6 +257,7 @@ def measure(
     return {
         "trials": len(log.cost),
         "off_chart_fraction": float(np.mean(log.left_chart)),
+        "clipped_fraction": float(np.mean(log.clipped)),
         "trials_to": {level: first_within(log, tolerance) for level, tolerance in LADDER.items()},
         "fragile": fragile_levels(log),
         "best_error": curve[-1][1],
@@ -406,6 +409,9 @@ def _check_values(cell: dict[str, Any], path: Path, hint: str) -> None:
             isinstance(e, (int, float)) and _finite(e) and e >= 0 for e in errors
         ):
             problems.append("curve is not increasing in trials with finite errors >= 0")
+    clipped = cell.get("clipped_fraction", 0.0)
+    if not (isinstance(clipped, (int, float)) and _finite(clipped) and 0 <= clipped <= 1):
+        problems.append(f"clipped_fraction {clipped!r} is not a fraction in [0, 1]")
     if not set(cell["fragile"]) <= set(LADDER):
         problems.append(f"fragile holds a level outside {sorted(LADDER)}")
     if problems:

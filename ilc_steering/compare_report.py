@@ -75,6 +75,7 @@ def summarize(cells: list[dict[str, Any]]) -> list[dict[str, Any]]:
             }
         row["best_error_q1_median_q3"] = quartiles([c["best_error"] for c in group])
         row["off_chart_fraction_median"] = float(np.median([c["off_chart_fraction"] for c in group]))
+        row["clipped_fraction_median"] = float(np.median([c.get("clipped_fraction", 0.0) for c in group]))
         row["wall_s_median"] = float(np.median([c["wall_s"] for c in group]))
         rows.append(row)
     return rows
@@ -100,6 +101,7 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
         *(f"trials to {LADDER_NAMES[level]}" for level in LADDER),
         "best error",
         "off chart",
+        "clipped",
         "wall [s]",
     ]
     lines = []
@@ -113,6 +115,7 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
                 *(_reached(row[f"trials_to_{level}"], row["budget"], row["seeds"]) for level in LADDER),
                 f"{b2:.1e} [{b1:.1e}, {b3:.1e}]",
                 f"{100 * row['off_chart_fraction_median']:.0f}%",
+                f"{100 * row['clipped_fraction_median']:.0f}%",
                 f"{row['wall_s_median']:.3g}",
             ]
         )
@@ -180,7 +183,8 @@ NOTE = (
     "within the budget. Every trial counts: probes, random exploration and RL's deterministic trials included. "
     "Errors are those of the true final configuration (the noisy scenario measures with noise). Best error: the "
     "lowest true Cartesian error [m] + orientation error [rad] (a chained plant: error norm) of any trial, "
-    "1000 added for a trial that left the chart. Off chart: the median fraction of trials that left the chart. "
+    "1000 added for a trial that left the chart. Off chart: the median fraction of trials that left the chart; "
+    "clipped: of actions the env clipped to its box. "
     "A level is met when the error is at most the level; †: in some seed, a relative change of 1e-6 in the "
     "error would move this count (the error lands on the level, and the integrator's last digits decide).\n"
 )

@@ -139,6 +139,7 @@ class TrialRecord:
     error: list[float]
     action: list[float]
     left_chart: bool = False  # the trial stopped where eqs. 4-5 break down (see the env's Episode End)
+    clipped: bool = False  # the env clipped the learner's action to its box (task.action_bound)
     trajectory: Trajectory | None = None
 
     def to_json(self) -> dict[str, Any]:
@@ -187,6 +188,7 @@ def _record(index: int, info: dict[str, Any]) -> TrialRecord:
         error=info["error"].tolist(),
         action=info["action"].tolist(),
         left_chart=bool(info["left_chart"]),
+        clipped=bool(info.get("clipped", False)),
     )
 
 

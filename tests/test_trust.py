@@ -620,3 +620,20 @@ def test_a_coarse_integrator_step_is_found_by_halving_it(tmp_path, capsys):
     assert main(["run", str(path), "--trials", "1"]) == 1
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "lower simulation.max_step" in err
+
+
+def test_clipped_actions_are_reported_by_run_and_compare(tmp_path, capsys):
+    from ilc_steering.compare import Args, run_cells
+
+    # a box just around the nominal solution's c2 (-12, 14.4, -2.88): every learned update leaves it
+    boxed = tmp_path / "boxed.yaml"
+    bound = "v2_terms: 3\n  action_bound: [1.0, 12.000001, 14.400001, 2.880001] "
+    boxed.write_text(FORWARD.replace("v2_terms: 3 ", bound))
+    cells = run_cells(Args(out=tmp_path / "c", methods=("ilc",), **{**TINY, "scenarios": (str(boxed),)}))
+    assert cells[0]["clipped_fraction"] == pytest.approx(2 / 3)  # all but the first of 3 trials
+    capsys.readouterr()
+    assert main(["run", str(boxed), "--trials", "4"]) == 1
+    out = capsys.readouterr().out
+    assert out.count("action clipped to the box") == 3 and "3 of 4 actions were clipped" in out
+    assert main(["run", "forward_parking", "--trials", "2"]) == 1
+    assert "clipped" not in capsys.readouterr().out
