@@ -63,7 +63,7 @@ from ilc_steering.output import (
     injective_name,
     write_json,
 )
-from ilc_steering.runner import check_task, step_warning
+from ilc_steering.runner import check_task, step_warning, working_directory_importable
 
 __all__ = [
     "LADDER",
@@ -189,7 +189,9 @@ def is_custom(method: str) -> bool:
 
 
 def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
-    """The factory named ``module:attr``; ``ValueError`` if it cannot be imported or called."""
+    """The factory named ``module:attr`` (a module in the working directory included); ``ValueError``
+    if it cannot be imported or called."""
+    working_directory_importable()
     return load_factory(method, "--methods")
 
 

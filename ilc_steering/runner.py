@@ -6,6 +6,8 @@ Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`.
 from __future__ import annotations
 
 import dataclasses
+import os
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,8 +112,18 @@ def step_warning(config: SteeringConfig) -> str | None:
     )
 
 
+def working_directory_importable() -> None:
+    """Put the working directory on ``sys.path`` (last, so it shadows nothing installed): a user's
+    learner module sits there (``my_learners.py``), where ``python -m ilc_steering`` finds it and
+    the ``ilc-steering`` script would not. Spawned workers inherit the path."""
+    cwd = os.getcwd()
+    if cwd not in sys.path and "" not in sys.path:
+        sys.path.append(cwd)
+
+
 def learner_factory(name: str) -> LearnerFactory:
-    """The factory of ``run --learner name``: one of :data:`LEARNERS`, or ``module:attr``."""
+    """The factory of ``run --learner name``: one of :data:`LEARNERS`, or ``module:attr`` (a
+    module in the working directory included)."""
     if name == "ilc":
         from ilc_steering.agents.ilc import make_ilc_paper
 
@@ -121,6 +133,7 @@ def learner_factory(name: str) -> LearnerFactory:
 
         return make_newton_ilc
     if ":" in name:
+        working_directory_importable()
         return load_factory(name, "--learner")
     raise ValueError(f"--learner: unknown learner {name!r}; choose from {list(LEARNERS)} or give module:attr")
 

@@ -637,3 +637,18 @@ def test_clipped_actions_are_reported_by_run_and_compare(tmp_path, capsys):
     assert out.count("action clipped to the box") == 3 and "3 of 4 actions were clipped" in out
     assert main(["run", "forward_parking", "--trials", "2"]) == 1
     assert "clipped" not in capsys.readouterr().out
+
+
+def test_a_users_learner_in_the_working_directory_is_found_by_the_installed_script(tmp_path):
+    import subprocess
+    import sys
+
+    (tmp_path / "here_learners.py").write_text("from ilc_steering.agents.ilc import make_ilc as make\n")
+    script = Path(sys.executable).with_name("ilc-steering")
+    run = [str(script), "run", "forward_parking", "--learner", "here_learners:make", "--trials", "5"]
+    result = subprocess.run(run, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert result.returncode == 0 and "converged at trial" in result.stdout, result.stderr
+    compare = [str(script), "compare", "--methods", "here_learners:make", "--priors", "nominal", "--seeds", "0"]
+    compare += ["--scenarios", "forward_parking", "--custom-trials", "3", "--workers", "1", "--out", "c"]
+    result = subprocess.run(compare, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert result.returncode == 0 and "all 1 cells finished" in result.stdout, result.stderr
