@@ -1,11 +1,17 @@
-"""Bad inputs, replayed: issue 12's defect lines against an installed ilc-steering, each outcome classified.
+"""Bad inputs, replayed: issues 12's and 26's defect lines against an installed ilc-steering, each outcome classified.
 
 Each attack runs in a fresh interpreter (``--python``, default: this one) with a 60 s limit and
 is classified as ``clear`` (a one-line error that names the file, key or option, exit 2, or a
-``ValueError``; or, for the few valid inputs once refused, a normal run), ``traceback``,
-``hang``, ``silent`` (bad input taken without a word, or a wrong result), ``unclear`` (an error
-that names no file), ``late`` (found after work was done) or ``refused a valid input``. Point
-``--python`` at another install (an older version in its own virtual environment) to compare.
+``ValueError``; or, for the few valid inputs once refused, a normal run; for issue 26's
+multi-step attacks, the check the attack states: a recorded failure and exit 4, a recomputed or
+refused resume, ...), ``warned`` (run, with a one-line warning that names the key; counted as
+clear), ``traceback``, ``hang`` (no bound in time), ``blow-up`` (peak memory above the attack's
+bound, :data:`MEMORY_BOUND`), ``silent`` (bad input taken without a word, a wrong result, a
+result lost), ``unclear`` (an error that names no file), ``late`` (found after work was done) or
+``refused a valid input``. Point ``--python`` at another install (an older version in its own
+virtual environment, or a source tree on ``PYTHONPATH``) to compare: ``docs/bad_inputs/before``
+holds the run against the commit before issue 26's changes (373f0ec), ``docs/bad_inputs`` the
+run after.
 
     python benchmarks/bad_inputs.py [--quick] [--python PY] [--out DIR]
 """
@@ -379,31 +385,414 @@ def attacks(tmp: str) -> list[tuple[str, str, str, Any]]:
         except ValueError as x: print("VALUEERROR", x)
     """,
     )
+    attacks += issue26_attacks(tmp, cfg)
     return attacks
 
 
+LEARNERS = """
+import time
+import numpy as np
+from ilc_steering.agents.ilc import make_ilc
+from ilc_steering.core.checks import ParameterError
+
+
+class Wrapped:
+    def __init__(self, context, fail=None):
+        self.inner, self.trial, self.fail, self.seed = make_ilc(context), 0, fail, context.seed
+
+    def act(self, observation):
+        self.trial += 1
+        if self.fail is not None:
+            self.fail(self)
+        return self.inner.act(observation)
+
+    def learn(self, info):
+        self.inner.learn(info)
+
+    def reset(self):
+        self.inner.reset()
+
+
+def _svd(self):
+    if self.trial == 2:
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+
+def _runtime(self):
+    if self.trial == 2:
+        raise RuntimeError("my learner broke")
+
+
+def _parameter(self):
+    raise ParameterError("my_gain", "must be below 1")
+
+
+def _forever(self):
+    while True:
+        time.sleep(0.1)
+
+
+def _seed1_fails(self):
+    if self.seed == 1:
+        raise RuntimeError("seed 1 fails")
+    time.sleep(1.0)
+
+
+svd = lambda context: Wrapped(context, _svd)
+runtime = lambda context: Wrapped(context, _runtime)
+parameter = lambda context: Wrapped(context, _parameter)
+forever = lambda context: Wrapped(context, _forever)
+seed1_fails = lambda context: Wrapped(context, _seed1_fails)
+
+
+class NanAt3(Wrapped):
+    def act(self, observation):
+        action = super().act(observation)
+        return action * np.nan if self.trial == 3 else action
+
+
+nan_at_3 = NanAt3
+"""
+
+# A py attack prints ACCEPTED for bad input taken (or a wrong result), HANG for no bound in time.
+SHELL = """
+import json, os, shutil, subprocess, sys
+from pathlib import Path
+
+
+def cli(*argv, env=None, timeout=55):
+    try:
+        p = subprocess.run([sys.executable, "-m", "ilc_steering", *argv], capture_output=True, text=True,
+                           timeout=timeout, env={**os.environ, **(env or {})})
+    except subprocess.TimeoutExpired:
+        print("HANG"); raise SystemExit
+    if "Traceback" in p.stderr:
+        print(p.stderr, file=sys.stderr)
+    return p.returncode, p.stderr.strip(), p.stdout.strip()
+
+
+def one_line(err):
+    return len(err.splitlines()) == 1
+
+
+def verdict(ok):
+    print("CLEAR" if ok else "ACCEPTED")
+"""
+
+Q = ["--quick", "--no-progress-bar", "--priors", "nominal", "--scenarios", "forward_parking"]
+
+
+def issue26_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
+    """Issue 26's classes: YAML surprises, the reader, outputs, keys, resumed data, lost results,
+    bounds, culprits, round-off."""
+    Path(tmp, "mylearners.py").write_text(LEARNERS)
+    Path(tmp, "x_y.py").write_text("from ilc_steering.agents.ilc import make_ilc as z\n")
+    Path(tmp, "x.py").write_text("from ilc_steering.agents.ilc import make_ilc_paper as y_z\n")
+    out: list[tuple[str, str, str, Any]] = []
+
+    def cli(cls: str, desc: str, *argv: str) -> None:
+        out.append((cls, desc, "cli", list(argv)))
+
+    def shell(cls: str, desc: str, code: str) -> None:
+        out.append((cls, desc, "py", SHELL + textwrap.dedent(code)))
+
+    q = " ".join(repr(a) + "," for a in Q)
+    # YAML: integers strictly, merge keys, size before reading, depth
+    cli("yaml", "trials: 010 (YAML 1.1 octal)", "run", cfg("y1.yaml", [("trials: 10 ", "trials: 010 ")]))
+    cli("yaml", "trials: 1:30 (sexagesimal)", "run", cfg("y2.yaml", [("trials: 10 ", "trials: 1:30 ")]))
+    merge = "  tolerance: {cartesian: 5.0e-4, orientation: 5.0e-4}"
+    cli(
+        "yaml",
+        "a valid merge key <<",
+        "run",
+        cfg("y3.yaml", [(merge, "  tolerance:\n    <<: {cartesian: 5.0e-4}\n    orientation: 5.0e-4")]),
+        "--trials",
+        "5",
+    )
+    big = os.path.join(tmp, "huge.yaml")
+    with open(big, "wb") as f:
+        f.write((CONFIGS / "forward_parking.yaml").read_bytes())
+        f.truncate(600 << 20)  # sparse: 600 MB of zero bytes after the config
+    cli("yaml", "a 600 MB config", "run", big)
+    deep = os.path.join(tmp, "deep.yaml")
+    Path(deep).write_text("name: " + "[" * 20000 + "]" * 20000 + "\n")
+    cli("yaml", "nesting 20000 deep", "run", deep)
+    # The reader of run files
+    deep_json = os.path.join(tmp, "deep.json")
+    Path(deep_json).write_text('{"kind": "trials", "x": ' + "[" * 100000 + "]" * 100000 + "}")
+    cli("reader", "plot on JSON nested 100000 deep", "plot", deep_json, "--out", os.path.join(tmp, "p3"))
+    huge_json = os.path.join(tmp, "huge.json")
+    with open(huge_json, "wb") as f:
+        f.write(b'{"kind": "trials", "x": "')
+        f.truncate(400 << 20)  # sparse: 400 MB
+    cli("reader", "plot on a 400 MB JSON", "plot", huge_json, "--out", os.path.join(tmp, "p4"))
+    # Outputs: special files refused, the umask kept
+    shell(
+        "outputs",
+        "--json onto a FIFO",
+        """
+        os.mkfifo("fifo.json")
+        rc, err, _ = cli("run", "forward_parking", "--trials", "1", "--json", "fifo.json")
+        import stat
+        verdict(stat.S_ISFIFO(os.lstat("fifo.json").st_mode) and rc == 2 and one_line(err))
+        """,
+    )
+    shell(
+        "outputs",
+        "--json mode under umask 022",
+        """
+        os.umask(0o022)
+        rc, err, _ = cli("run", "forward_parking", "--trials", "1", "--json", "mode.json")
+        verdict(os.stat("mode.json").st_mode & 0o777 == 0o644)
+        """,
+    )
+    # Results keyed by content
+    shell(
+        "keys",
+        "compare resumed with another YAML of the same name",
+        f"""
+        text = Path({str(CONFIGS / "forward_parking.yaml")!r}).read_text()
+        Path("same.yaml").write_text(text)
+        args = [{q} "--methods", "ilc", "--seeds", "0", "--model-trials", "3", "--out", "k1"]
+        args[args.index("forward_parking")] = "same.yaml"
+        cli("compare", *args)
+        first = json.loads(Path("k1/compare.json").read_text())["cells"][0]["best_error"]
+        Path("same.yaml").write_text(text.replace("true_wheelbase: 0.22", "true_wheelbase: 0.3"))
+        rc, err, _ = cli("compare", *args)
+        again = json.loads(Path("k1/compare.json").read_text())["cells"][0]["best_error"] if rc == 0 else None
+        verdict(rc == 2 and one_line(err) or (rc == 0 and again != first))
+        """,
+    )
+    shell(
+        "keys",
+        "sweep resumed with another YAML of the same name",
+        f"""
+        text = Path({str(CONFIGS / "forward_parking.yaml")!r}).read_text()
+        Path("same.yaml").write_text(text)
+        args = ["same.yaml", "--grid", "2", "--trials", "3", "--workers", "1", "--out", "k2"]
+        cli("sweep", *args)
+        first = json.loads(Path("k2/sweep.json").read_text())["rows"]
+        Path("same.yaml").write_text(text.replace("nu_a: 1.0 ", "nu_a: 0.3 "))
+        rc, err, _ = cli("sweep", *args)
+        again = json.loads(Path("k2/sweep.json").read_text())["rows"] if rc == 0 else None
+        verdict(rc == 2 and one_line(err) or (rc == 0 and again != first))
+        """,
+    )
+    cli("keys", "sweep --methods ilc ilc", "sweep", "forward_parking", "--methods", "ilc", "ilc", "--out", "k3")
+    cli("keys", "sweep --nu-b 1 1", "sweep", "forward_parking", "--nu-b", "1", "1", "--out", "k4")
+    shell(
+        "keys",
+        "sweep gains 0.1234567 and 0.1234568 (one file name under :g)",
+        """
+        rc, err, _ = cli("sweep", "forward_parking", "--nu-b", "0.1234567", "0.1234568", "--grid", "2",
+                         "--trials", "2", "--workers", "1", "--out", "k5")
+        maps = json.loads(Path("k5/sweep.json").read_text())["maps"] if rc == 0 else {}
+        verdict(rc == 2 and one_line(err) or len(maps) == 2)
+        """,
+    )
+    shell(
+        "keys",
+        "users' methods x_y:z and x:y_z",
+        f"""
+        args = [{q} "--methods", "x_y:z", "x:y_z", "--seeds", "0", "--custom-trials", "3", "--out", "k6"]
+        rc, err, _ = cli("compare", *args)
+        cells = json.loads(Path("k6/compare.json").read_text())["cells"] if rc == 0 else []
+        rc2, err2, _ = cli("compare", *args)
+        verdict(rc == 0 and rc2 == 0 and sorted(c["method"] for c in cells) == ["x:y_z", "x_y:z"])
+        """,
+    )
+    # Resumed data validated
+    for folder, (desc, edit) in enumerate(
+        (
+            ("a sweep row with trials_to 999 (budget 3)", "row['trials_to'][0] = 999"),
+            ("a sweep row with a negative wall time", "row['wall_s'] = -5.0"),
+        )
+    ):
+        shell(
+            "resumed",
+            desc,
+            f"""
+            args = ["forward_parking", "--grid", "2", "--trials", "3", "--workers", "1", "--out", "rs{folder}"]
+            cli("sweep", *args)
+            path = sorted(Path("rs{folder}/rows").glob("*.json"))[0]
+            row = json.loads(path.read_text()); {edit}; path.write_text(json.dumps(row))
+            rc, err, _ = cli("sweep", *args)
+            verdict(rc == 2 and one_line(err) and path.name in err)
+            """,
+        )
+    for folder, (desc, edit) in enumerate(
+        (
+            ("a cell with a NaN best error", "cell['best_error'] = float('nan')"),
+            ("a cell with a negative wall time", "cell['wall_s'] = -1.0"),
+            ("a cell 700 % off the chart", "cell['off_chart_fraction'] = 7.0"),
+        )
+    ):
+        shell(
+            "resumed",
+            desc,
+            f"""
+            args = [{q} "--methods", "ilc", "--seeds", "0", "--model-trials", "3", "--out", "rc{folder}"]
+            cli("compare", *args)
+            path = sorted(Path("rc{folder}/cells").glob("*.json"))[0]
+            cell = json.loads(path.read_text()); {edit}; path.write_text(json.dumps(cell))
+            rc, err, _ = cli("compare", *args)
+            verdict(rc == 2 and one_line(err) and path.name in err)
+            """,
+        )
+    # Nothing finished is lost
+    shell(
+        "lost",
+        "a cell fails while another runs",
+        f"""
+        rc, err, out = cli("compare", {q} "--methods", "mylearners:seed1_fails", "--seeds", "0", "1",
+                           "--custom-trials", "3", "--workers", "2", "--out", "l1")
+        cells = [p.name for p in Path("l1/cells").glob("*.json")]
+        last = [*out.splitlines(), *err.splitlines()][-1]
+        verdict(len(cells) >= 1 and rc not in (0, 2, 3) and "1" in last and "fail" in last)
+        """,
+    )
+    # Bounds in time and memory
+    cli("bounds", "compare --workers 1000", "compare", *Q, "--methods", "ilc", "--workers", "1000", "--out", "w")
+    cli("bounds", "run --trials 1000000000", "run", "forward_parking", "--trials", "1000000000")
+    cli(
+        "bounds",
+        "compare --model-trials 1000000000",
+        "compare",
+        *Q,
+        "--methods",
+        "ilc",
+        "--seeds",
+        "0",
+        "--model-trials",
+        "1000000000",
+        "--out",
+        "w2",
+    )
+    shell(
+        "bounds",
+        "a learner that never returns, --cell-timeout 5",
+        f"""
+        rc, err, out = cli("compare", {q} "--methods", "mylearners:forever", "--seeds", "0", "--custom-trials", "3",
+                           "--workers", "1", "--cell-timeout", "5", "--out", "b1", timeout=50)
+        if rc == 2 and "unrecognized arguments: --cell-timeout" in err:
+            print("HANG"); raise SystemExit  # no time limit to give
+        verdict(rc not in (0, 2, 3) and ("timeout" in (out + err).lower() or "time limit" in (out + err).lower()))
+        """,
+    )
+    shell(
+        "bounds",
+        "an unreachable RAY_ADDRESS",
+        f"""
+        rc, err, _ = cli("compare", {q} "--methods", "ilc", "--seeds", "0", "--backend", "ray", "--out", "b2",
+                         env={{"RAY_ADDRESS": "10.255.255.1:6379"}}, timeout=45)
+        verdict(rc == 2 and one_line(err) and "RAY_ADDRESS" in err)
+        """,
+    )
+    # Errors name the culprit
+    for folder, (desc, method) in enumerate(
+        (
+            ("a user learner's SVD failure (a ValueError)", "mylearners:svd"),
+            ("a user learner's RuntimeError", "mylearners:runtime"),
+            ("a user learner's ParameterError in a worker", "mylearners:parameter"),
+        )
+    ):
+        shell(
+            "culprit",
+            desc,
+            f"""
+            rc, err, out = cli("compare", {q} "--methods", {method!r}, "--seeds", "0", "1", "--custom-trials", "3",
+                               "--workers", "2", "--out", "e{folder}")
+            text = out + err
+            named = {method!r} in text and "seed" in text and "forward_parking" in text
+            verdict(rc not in (0, 2, 3) and named and "bug" not in text and "BrokenProcessPool" not in text)
+            """,
+        )
+    shell(
+        "culprit",
+        "run: a learner's NaN in trial 3",
+        """
+        rc, err, out = cli("run", "forward_parking", "--learner", "mylearners:nan_at_3", "--json", "nan.json")
+        trials = json.loads(Path("nan.json").read_text())["trials"] if Path("nan.json").exists() else []
+        verdict(rc not in (0, 2, 3) and "mylearners:nan_at_3" in err and len(trials) == 2)
+        """,
+    )
+    # Numerics: an ill-posed task, a coarse integrator step
+    chained = (CONFIGS / "chained_perturbed.yaml").read_text()
+    mirrored = chained.replace("goal:  [1.0,", "goal:  [0.0,").replace("v1_fixed: [0.5]", "v1_fixed: [-0.5]")
+    Path(tmp, "mirrored.yaml").write_text(mirrored)
+    cli("numerics", "a task whose mirrored v1 pieces make W singular", "run", os.path.join(tmp, "mirrored.yaml"))
+    cli(
+        "numerics",
+        "max_step 1.0 (2 mm off the fine simulation)",
+        "run",
+        cfg("n4.yaml", append="simulation: {max_step: 1.0}\n"),
+        "--trials",
+        "5",
+    )
+    # Counts never decided by round-off
+    out.append(
+        (
+            "counts",
+            "an error 1e-12 above the level counted as met",
+            "py",
+            PRE
+            + textwrap.dedent(
+                """
+                from ilc_steering.compare import TrialLog, first_within
+                log = TrialLog()
+                log.cartesian, log.orientation, log.left_chart = [0.01 * (1 + 1e-12)], [0.0], [False]
+                print("ACCEPTED" if first_within(log, 0.01) == 1 else "CLEAR")
+                """
+            ),
+        )
+    )
+    return out
+
+
 PRE = "import gymnasium as gym, numpy as np, ilc_steering\n"
+# Attacks whose peak resident memory [MB] must stay below a bound.
+MEMORY_BOUND = {"a 600 MB config": 300, "plot on a 400 MB JSON": 300}
 # Valid inputs that were once refused or mishandled: these must run.
-VALID = {"feasible rotated task refused", "--scenarios chained_perturbed", "1e-3 read as text"}
+VALID = {"feasible rotated task refused", "--scenarios chained_perturbed", "1e-3 read as text", "a valid merge key <<"}
 
 
 def classify(cls: str, desc: str, kind: str, payload: Any, python: str, tmp: str) -> dict[str, str]:
     argv = [python, "-c", payload] if kind == "py" else [python, "-m", "ilc_steering", *payload]
+    if desc in MEMORY_BOUND:
+        argv = ["/usr/bin/time", "-f", "MAXRSS %M", *argv]
     try:
         p = subprocess.run(argv, capture_output=True, text=True, timeout=60, cwd=tmp)
     except subprocess.TimeoutExpired:
         return {"class": cls, "attack": desc, "verdict": "hang", "message": ""}
     out, err, rc = p.stdout, p.stderr, p.returncode
+    rss_kib = 0
+    if desc in MEMORY_BOUND:
+        *rest, last = err.rstrip().splitlines() or [""]
+        rss_kib = int(last.split()[-1]) if last.startswith("MAXRSS") else 0
+        err = "\n".join(line for line in rest if not line.startswith("Command exited with non-zero status"))
+        if rss_kib > MEMORY_BOUND[desc] * 1024:
+            message = f"peak memory {rss_kib // 1024} MB"
+            return {"class": cls, "attack": desc, "verdict": "blow-up", "message": message}
     if "Traceback" in err or rc not in (0, 1, 2):
         verdict = "traceback"
     elif kind == "py":
-        verdict = "silent" if "ACCEPTED" in out else "clear"
+        verdict = (
+            "hang"
+            if "HANG" in out
+            else "silent"
+            if "ACCEPTED" in out
+            else "clear"
+            if "CLEAR" in out or "VALUEERROR" in out
+            else "unclear"
+        )
     elif desc in VALID:
         verdict = "clear" if rc in (0, 1) and "error" not in err else "refused a valid input"
     else:
         verdict = (
             "clear" if rc == 2 and len(err.strip().splitlines()) == 1 else ("silent" if rc in (0, 1) else "unclear")
         )
+        if verdict == "silent" and "warning:" in err:
+            verdict = "warned"  # taken, with a one-line warning that names the key
     if desc == "1e-3 read as text" and rc in (0, 1) and "converged at trial" not in out:
         verdict = "silent"
     if verdict == "clear" and kind == "cli" and cls in ("cli", "config", "bounded", "paths", "envs"):
@@ -428,7 +817,7 @@ def main(args: Args) -> list[dict[str, str]]:
             results.append(classify(*attack, args.python, tmp))
             print(f"{results[-1]['class']:8s} {results[-1]['verdict']:10s} {results[-1]['attack']}", flush=True)
     counts = collections.Counter(r["verdict"] for r in results)
-    by_class = collections.Counter(r["class"] for r in results if r["verdict"] != "clear")
+    by_class = collections.Counter(r["class"] for r in results if r["verdict"] not in ("clear", "warned"))
     classes = list(dict.fromkeys(r["class"] for r in results))
     rows = [[c, str(sum(r["class"] == c for r in results)), str(by_class[c])] for c in classes]
     text = markdown_table(["class", "attacks", "not clear"], rows, [False, True, True])

@@ -9,25 +9,98 @@ resumes from what was written. The backend changes where the calls run, never wh
 - ``ray``: each call a Ray task on ``ray.init()``: a local Ray by default, the cluster at
   ``RAY_ADDRESS`` when it is set (``pip install "ilc-steering[ray]"``). The function and its
   arguments go to the workers by pickling, so they must be importable there (the package
-  installed on every node).
+  installed on every node). A ``RAY_ADDRESS`` that does not answer within
+  :data:`RAY_CONNECT_TIMEOUT` is refused, not retried for minutes.
+
+With ``failed`` given, a call that raises (or outlives ``timeout`` seconds) is handed to
+``failed(key, message)`` and the others go on: a failing cell never takes a finished one with
+it. The time limit is a ``SIGALRM`` in the process that runs the call, so it stops Python code
+(a loop, a ``sleep``), not a call stuck inside compiled code that never returns to Python.
+Local workers are capped at :data:`MAX_WORKERS`.
 """
 
 from __future__ import annotations
 
+import copyreg
 import logging
 import multiprocessing
 import os
 import pickle
-from collections.abc import Callable, Mapping
+import signal
+import socket
+import tempfile
+import threading
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-__all__ = ["BACKENDS", "run_calls"]
+from ilc_steering.core.checks import ParameterError
+
+__all__ = ["BACKENDS", "MAX_WORKERS", "RAY_CONNECT_TIMEOUT", "CallTimeout", "check_workers", "run_calls"]
 
 BACKENDS = ("local", "ray")
+MAX_WORKERS = 2 * (os.cpu_count() or 1)
+"""The most local worker processes (``--workers``): twice the cores; more only share the cores
+and each holds its own interpreter, numba and torch (about 160 MB)."""
+RAY_CONNECT_TIMEOUT = 10.0
+"""[s] how long the Ray cluster at ``RAY_ADDRESS`` has to answer."""
 
 Finish = Callable[[Any, Any], None]
+Failed = Callable[[Any, str], None]
+
+
+def _reduce_parameter_error(error: ParameterError) -> tuple[type[ParameterError], tuple[str, str]]:
+    return type(error), (error.name, error.problem)
+
+
+# ParameterError(name, problem) keeps only its message in ``args``, which pickle would hand back to
+# __init__ as its one argument: registered here, it crosses a process boundary as itself.
+copyreg.pickle(ParameterError, _reduce_parameter_error)
+
+
+class CallTimeout(Exception):
+    """A call outlived its time limit."""
+
+
+def check_workers(workers: int, option: str = "--workers") -> int:
+    """``workers`` if it is a whole number in ``[0, MAX_WORKERS]`` (0: one per core); ``ValueError`` otherwise."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 0 <= workers <= MAX_WORKERS:
+        raise ValueError(
+            f"{option}: a whole number in [0, {MAX_WORKERS}] (0: one per core; at most twice the "
+            f"{os.cpu_count() or 1} cores), got {workers!r}"
+        )
+    return workers
+
+
+@contextmanager
+def _time_limit(seconds: float | None) -> Iterator[None]:
+    if seconds is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def expired(signum: int, frame: Any) -> None:
+        raise CallTimeout(f"took longer than the time limit of {seconds:g} s (--cell-timeout)")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _guarded(function: Callable[..., Any], timeout: float | None, args: tuple[Any, ...]) -> tuple[bool, Any]:
+    """``(True, function(*args))``, or ``(False, message)`` if it raised or outlived ``timeout``:
+    a message crosses a process boundary where an exception may not (one whose ``__init__``
+    takes other arguments than its ``args`` cannot be unpickled)."""
+    try:
+        with _time_limit(timeout):
+            return True, function(*args)
+    except Exception as error:
+        return False, f"{type(error).__name__}: {error}"
 
 
 def run_calls(
@@ -36,13 +109,32 @@ def run_calls(
     finish: Finish,
     backend: str = "local",
     workers: int = 0,
+    failed: Failed | None = None,
+    timeout: float | None = None,
 ) -> None:
     """``finish(key, function(*calls[key]))`` for every key, on ``backend`` (``workers`` local
-    processes, 0 for one per core). An error or an interrupt cancels what has not started and is raised."""
+    processes, 0 for one per core). Without ``failed``, an error or an interrupt cancels what has
+    not started and is raised; with it, a call that raises or outlives ``timeout`` [s] goes to
+    ``failed(key, message)`` and the rest run. An interrupt is always raised."""
     if backend not in BACKENDS:
         raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
+    check_workers(workers)
     if not calls:
         return
+    if failed is not None or timeout is not None:
+        guarded = {key: (function, timeout, args) for key, args in calls.items()}
+        done = finish
+
+        def settle(key: Any, outcome: tuple[bool, Any]) -> None:
+            ok, value = outcome
+            if ok:
+                done(key, value)
+            elif failed is not None:
+                failed(key, value)
+            else:
+                raise RuntimeError(value)
+
+        function, calls, finish = _guarded, guarded, settle
     if backend == "ray":
         _ray_map(function, calls, finish)
         return
@@ -74,13 +166,56 @@ def _process_map(
             raise
 
 
+def _check_ray_address(address: str) -> None:
+    """``ValueError`` unless the cluster at ``address`` (``host:port`` or ``ray://host:port``;
+    empty, ``auto`` or ``local``: nothing to reach) accepts a connection within :data:`RAY_CONNECT_TIMEOUT`."""
+    if address in ("", "auto", "local"):
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"RAY_ADDRESS {address!r}: give host:port (or ray://host:port), or unset it for a local Ray")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT).close()
+    except OSError as error:
+        raise ValueError(
+            f"RAY_ADDRESS {address}: no Ray cluster answers there within {RAY_CONNECT_TIMEOUT:g} s "
+            f"({error.strerror or error}); start it, or unset RAY_ADDRESS for a local Ray"
+        ) from None
+
+
+def _init_ray(ray: Any, address: str) -> None:
+    """``ray.init()`` (``RAY_ADDRESS``, if set, names the cluster), within :data:`RAY_CONNECT_TIMEOUT`
+    for a cluster: Ray itself retries an address that answers but is no Ray for minutes, logging a
+    line a second from C++, so its log is held back until it has connected (and dropped if not)."""
+    if address in ("", "auto", "local"):
+        ray.init(logging_level=logging.WARNING, log_to_driver=False)
+        return
+    _check_ray_address(address)
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as log:
+        os.dup2(log.fileno(), 2)
+        try:
+            with _time_limit(RAY_CONNECT_TIMEOUT):
+                ray.init(logging_level=logging.WARNING, log_to_driver=False)
+        except CallTimeout:
+            raise ValueError(
+                f"RAY_ADDRESS {address}: no Ray cluster answered there within {RAY_CONNECT_TIMEOUT:g} s; "
+                "start it, or unset RAY_ADDRESS for a local Ray"
+            ) from None
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        log.seek(0)
+        os.write(2, log.read())
+
+
 def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]], finish: Finish) -> None:
     try:
         import ray
     except ImportError:
         raise ValueError('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
     if not ray.is_initialized():
-        ray.init(logging_level=logging.WARNING, log_to_driver=False)  # RAY_ADDRESS, if set, names the cluster
+        _init_ray(ray, os.environ.get("RAY_ADDRESS", ""))
 
     def on_worker(home: str, payload: bytes) -> Any:
         """Run a call on a Ray worker, importing the package from where the driver found it.

@@ -4,9 +4,14 @@
 simulations. ``plot RUN.json`` draws the paper's figures of a run. ``compare`` runs (or resumes)
 the benchmark of ILC against RL and black-box learners. ``list`` shows the packaged configs.
 
-Exit codes: 0 converged (or done), 1 not converged, 2 bad input (a config, an argument, a run
-file, an unusable output path: all checked before any trial runs), 3 an internal error. Errors
-are one line; ``--debug`` adds the traceback.
+Exit codes (:data:`EXIT_CODES`): 0 converged (or done), 1 not converged, 2 bad input (a config,
+an argument, a run file, an unusable output path: all checked before any trial runs), 3 an
+internal error (a bug of the library), 4 a learner failed: in ``run``, a learner raised or acted
+with an action the env refused (the message names it and the trial; the trials it completed are
+written to ``--json`` / ``--plots``); in ``compare`` and ``sweep``, some cells or rows failed (or
+outlived ``--cell-timeout``): each is recorded with its error under ``failed/``, the others are
+finished and reported, and the last line says how many failed. 130: interrupted. Errors are
+one line; ``--debug`` adds the traceback.
 """
 
 from __future__ import annotations
@@ -19,7 +24,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ilc_steering.compare import add_arguments as add_compare_arguments
-from ilc_steering.config import ConfigError, SteeringConfig, load_config, packaged_configs
+from ilc_steering.config import MAX_TRIALS, ConfigError, SteeringConfig, load_config, packaged_configs
+from ilc_steering.loop import LearnerError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
     CycleRecord,
@@ -29,10 +35,22 @@ from ilc_steering.runner import (
     learner_factory,
     run_cyclic_ilc,
     run_ilc,
+    step_warning,
 )
 from ilc_steering.sweep import add_arguments as add_sweep_arguments
 
-__all__ = ["main"]
+__all__ = ["EXIT_CODES", "main"]
+
+EXIT_CODES = {
+    0: "converged (or done)",
+    1: "not converged",
+    2: "bad input: a config, an argument, a run file or an output path, refused before any trial",
+    3: "internal error: a bug of ilc-steering (please report it; --debug prints the traceback)",
+    4: "a learner failed: run wrote the trials before it; compare and sweep recorded each failed cell "
+    "or row (its error, or --cell-timeout) under failed/ and finished the others",
+    130: "interrupted",
+}
+"""The CLI's exit codes, as its ``--help`` prints them."""
 
 # Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
 PAPER: dict[str, tuple[int | None, str]] = {
@@ -89,9 +107,11 @@ def _print_row(record: TrialRecord | CycleRecord) -> None:
     if isinstance(record, CycleRecord):
         index, values = record.cycle, [v for w in record.waypoints for v in _values(w)]
         left = any(w.left_chart for w in record.waypoints)
+        clipped = any(w.clipped for w in record.waypoints)
     else:
-        index, values, left = record.trial, _values(record), record.left_chart
+        index, values, left, clipped = record.trial, _values(record), record.left_chart, record.clipped
     note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
+    note += "  action clipped to the box (task.action_bound)" if clipped else ""
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 
@@ -112,6 +132,10 @@ def _learn(
         result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories, learner=learner)
     unit = "cycles" if config.is_cyclic else "trials"
     done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
+    records = result.trials if isinstance(result, RunResult) else [w for c in result.cycles for w in c.waypoints]
+    clipped = sum(r.clipped for r in records)
+    if clipped:
+        print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
     if result.converged_at is None:
         print(f"not converged within {done} {unit}")
     else:
@@ -134,13 +158,21 @@ def _save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Pa
 
 def _run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    if args.trials is not None and args.trials < 1:
-        raise ValueError(f"--trials must be >= 1, got {args.trials}")
+    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
+        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
     if args.json is not None:
         check_output_file(args.json, "--json")
     if args.plots is not None:
         check_output_dir(args.plots, "--plots")
-    result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
+    warning = step_warning(config)
+    if warning is not None:
+        print(f"ilc-steering: {warning}", file=sys.stderr)
+    try:
+        result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
+    except LearnerError as error:
+        if isinstance(error.partial, RunResult) and error.partial.trials:
+            _save(error.partial, args.json, args.plots)  # the trials it completed are kept
+        raise
     _save(result, args.json, args.plots)
     return 0 if result.converged_at is not None else 1
 
@@ -212,7 +244,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ilc-steering",
         description="Iterative learning control of nonholonomic robots (Oriolo, Panzieri, Ulivi 1998).",
-        epilog="Exit codes: 0 converged, 1 not converged, 2 bad input, 3 internal error.",
+        epilog="Exit codes: " + "; ".join(f"{code} {meaning}" for code, meaning in EXIT_CODES.items()) + ".",
     )
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -268,19 +300,17 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from ilc_steering.compare import from_namespace
-    from ilc_steering.compare import main as compare
+    from ilc_steering.compare import from_namespace, main_with_failures
 
-    compare(from_namespace(args))
-    return 0
+    _, failed = main_with_failures(from_namespace(args))
+    return 4 if failed else 0
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from ilc_steering.sweep import from_namespace
-    from ilc_steering.sweep import main as sweep
+    from ilc_steering.sweep import from_namespace, main_with_failures
 
-    sweep(from_namespace(args))
-    return 0
+    _, failed = main_with_failures(from_namespace(args))
+    return 4 if failed else 0
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -305,6 +335,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ilc-steering: interrupted", file=sys.stderr)
         return 130
+    except LearnerError as error:  # the learner's fault, named: neither bad input nor a bug
+        if args.debug:
+            traceback.print_exc()
+        print(f"ilc-steering: {_one_line(error)}", file=sys.stderr)
+        return 4
     except ValueError as error:  # ConfigError included: bad input
         if args.debug:
             traceback.print_exc()

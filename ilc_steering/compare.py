@@ -12,11 +12,21 @@ solution, and black-box and RL methods search a residual box around it) and ``no
 a seeded start near ``c = 0`` in the env's whole action box). ``ilc_paper`` is the paper's
 learner exactly, whose fictitious zero iteration is its own first trial under both.
 
-A run folder holds ``run.json`` (the settings), ``cells/<prior>__<method>__<scenario>__<seed>.json``
-(one per finished cell, written when it finishes) and, at the end, ``compare.{csv,json,md}`` and
-``compare_<scenario>.png``. Running again on the same folder skips the finished cells: an
-interrupted run resumes and never recomputes or loses a finished cell. Cells run in
-``--workers`` processes (one per core by default), with the same results as one process.
+A run folder holds ``run.json`` (the settings, the package version and the content hash of each
+scenario's resolved config), ``cells/<prior>__<method>__<scenario>__<seed>.json`` (one per
+finished cell, written the moment it finishes; the method's part of the name is injective,
+:func:`~ilc_steering.output.injective_name`), ``failed/`` (one file per cell that raised or
+outlived ``--cell-timeout``, with its error) and, at the end, ``compare.{csv,json,md}`` and
+``compare_<scenario>.png``. Running again on the same folder skips the finished cells and
+retries the failed ones: an interrupted run resumes and never recomputes or loses a finished
+cell. A resume with other settings, another version, or another config under a scenario's name
+is refused, saying which; every resumed cell is checked value by value (:func:`read_cell`).
+Cells run in ``--workers`` processes (one per core by default, at most
+:data:`~ilc_steering.backends.MAX_WORKERS`), with the same results as one process.
+
+A tolerance level is met when the error is at most the level; a count that a relative change
+of 1e-6 in the error would move (:data:`FRAGILE`) is listed in the cell's ``fragile`` and
+marked in the report.
 
     ilc-steering compare [--quick] [--out DIR] [--methods ilc least_squares mypkg.mod:make ...]
     python benchmarks/compare.py [--quick] [--out DIR]
@@ -26,8 +36,8 @@ from __future__ import annotations
 
 import argparse
 import fcntl
-import json
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -38,21 +48,33 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ilc_steering import __version__
 from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, load_factory
-from ilc_steering.backends import BACKENDS, run_calls
+from ilc_steering.backends import BACKENDS, MAX_WORKERS, check_workers, run_calls
 from ilc_steering.compare_report import LADDER, write_report
 from ilc_steering.core.score import true_cost
-from ilc_steering.loop import run_trials
-from ilc_steering.output import check_output_dir, check_run_settings, safe_name, write_json
+from ilc_steering.inputs import read_json
+from ilc_steering.loop import LearnerError, run_trials
+from ilc_steering.output import (
+    MAX_RESULT_BYTES,
+    check_output_dir,
+    check_run_settings,
+    content_hash,
+    injective_name,
+    write_json,
+)
+from ilc_steering.runner import check_task, step_warning, working_directory_importable
 
 __all__ = [
     "LADDER",
     "Args",
     "TrialLog",
     "main",
+    "main_with_failures",
     "make_learner",
     "measure",
     "parse",
+    "run_all",
     "run_cell",
     "run_cells",
 ]
@@ -101,10 +123,14 @@ class Args:
     """SB3's progress bar on RL cells (with one worker only)."""
     backend: str = "local"
     """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.backends`)."""
+    cell_timeout: float | None = None
+    """[s] a cell still running after this is stopped and recorded as failed; None: no limit."""
 
 
-LEVEL_SLACK = 1e-9
-"""Relative slack of a tolerance level: below the simulator's accuracy, so it never decides a count."""
+FRAGILE = 1e-6
+"""A count is fragile when scaling every error by ``1 - FRAGILE`` or ``1 + FRAGILE`` would move it."""
+MAX_BUDGET = 1_000_000
+"""The largest budget of any method [trials]: the trial log is kept in memory."""
 
 QUICK = {"model_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "custom_trials": 20}
 QUICK_SEEDS = (0, 1)
@@ -114,32 +140,40 @@ class TrialLog:
     """A trial-loop callback that keeps every trial's *true* errors: Cartesian [m] and orientation
     [rad] for a robot with a pose, the chained error norm for a chained plant (``cartesian`` holds
     it then, ``orientation`` zeros), the true cost (:func:`~ilc_steering.core.score.true_cost`,
-    the off-chart penalty included), and whether it left the chart."""
+    the off-chart penalty included), whether it left the chart and whether the env clipped its action."""
 
     def __init__(self) -> None:
         self.cartesian: list[float] = []
         self.orientation: list[float] = []
         self.cost: list[float] = []
         self.left_chart: list[bool] = []
+        self.clipped: list[bool] = []
 
     def __call__(self, k: int, info: dict[str, Any]) -> None:
         self.cartesian.append(float(info.get("true_cartesian_error", info["true_error_norm"])))
         self.orientation.append(float(info.get("true_orientation_error", 0.0)))
         self.cost.append(float(true_cost(info)))
         self.left_chart.append(bool(info["left_chart"]))
+        self.clipped.append(bool(info.get("clipped", False)))
 
 
-def first_within(log: TrialLog, tolerance: float) -> int | None:
-    """The 1-based index of the first trial that stayed in the chart with both errors within
-    ``tolerance`` (a chained plant: its error norm), or None.
-
-    Within means to :data:`LEVEL_SLACK`: the paper's law on forward parking cuts the error
-    exactly tenfold per trial, so its errors land *on* 1 cm and 1 mm, where the last digits of
-    the integrator (accurate to 1e-9, not to 1e-16) would otherwise decide the count."""
-    bound = tolerance * (1.0 + LEVEL_SLACK)
-    ok = (np.asarray(log.cartesian) <= bound) & (np.asarray(log.orientation) <= bound)
+def first_within(log: TrialLog, tolerance: float, scale: float = 1.0) -> int | None:
+    """The 1-based index of the first trial that stayed in the chart with both errors (each times
+    ``scale``) at most ``tolerance`` (a chained plant: its error norm), or None."""
+    ok = (scale * np.asarray(log.cartesian) <= tolerance) & (scale * np.asarray(log.orientation) <= tolerance)
     hits = np.flatnonzero(ok & ~np.asarray(log.left_chart, dtype=bool))
     return int(hits[0]) + 1 if hits.size else None
+
+
+def fragile_levels(log: TrialLog) -> list[str]:
+    """The levels of :data:`LADDER` whose count a relative change of :data:`FRAGILE` in every
+    error would move: the paper's law cuts the error exactly tenfold a trial, so an error can
+    land *on* 1 cm, where the integrator's last digits, not the learner, decide the count."""
+    return [
+        level
+        for level, tolerance in LADDER.items()
+        if len({first_within(log, tolerance, 1.0 + sign * FRAGILE) for sign in (-1.0, 0.0, 1.0)}) > 1
+    ]
 
 
 def best_so_far(log: TrialLog) -> list[list[float]]:
@@ -155,7 +189,9 @@ def is_custom(method: str) -> bool:
 
 
 def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
-    """The factory named ``module:attr``; ``ValueError`` if it cannot be imported or called."""
+    """The factory named ``module:attr`` (a module in the working directory included); ``ValueError``
+    if it cannot be imported or called."""
+    working_directory_importable()
     return load_factory(method, "--methods")
 
 
@@ -198,26 +234,34 @@ def make_learner(args: Args, method: str, scenario: str, context: LearnerContext
 
         return blackbox.make_learner(method, context)
     if is_custom(method):
-        learner = custom_factory(method)(context)
+        try:
+            learner = custom_factory(method)(context)
+        except Exception as error:
+            raise LearnerError(f"learner {method}: its factory raised {type(error).__name__}: {error}") from error
         if not isinstance(learner, Learner):
             raise ValueError(f"--methods {method}: made {type(learner).__name__}, which has no act, learn and reset")
         return learner
     raise ValueError(f"unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
 
 
-def measure(env: gym.Env[Any, Any], learner: Learner, trials: int, seed: int) -> dict[str, Any]:
-    """Run ``learner`` on ``env`` for ``trials`` trials and return what it reached: the trials to
-    each tolerance of :data:`LADDER`, the best true cost, the off-chart fraction, the wall time
-    [s] and the best-so-far curve."""
+def measure(
+    env: gym.Env[Any, Any], learner: Learner, trials: int, seed: int, name: str | None = None
+) -> dict[str, Any]:
+    """Run ``learner`` (``name`` for errors) on ``env`` for ``trials`` trials and return what it
+    reached: the trials to each tolerance of :data:`LADDER` and which of them are fragile
+    (:func:`fragile_levels`), the best true cost, the off-chart fraction, the wall time [s] and
+    the best-so-far curve."""
     log = TrialLog()
     start = time.perf_counter()
-    run_trials(env, learner, trials, seed=seed, callbacks=[log])
+    run_trials(env, learner, trials, seed=seed, callbacks=[log], name=name)
     wall = time.perf_counter() - start
     curve = best_so_far(log)
     return {
         "trials": len(log.cost),
         "off_chart_fraction": float(np.mean(log.left_chart)),
+        "clipped_fraction": float(np.mean(log.clipped)),
         "trials_to": {level: first_within(log, tolerance) for level, tolerance in LADDER.items()},
+        "fragile": fragile_levels(log),
         "best_error": curve[-1][1],
         "wall_s": wall,
         "curve": curve,
@@ -249,13 +293,14 @@ def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> d
         from ilc_steering.agents.costs import with_cost
 
         learner = with_cost(learner, context)
-    result = measure(env, learner, trials, seed)
+    result = measure(env, learner, trials, seed, method)
     env.close()
     return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
 
 
-def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int) -> Path:
-    return out / "cells" / f"{prior}__{safe_name(method)}__{scenario}__{seed}.json"
+def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int, folder: str = "cells") -> Path:
+    """The file of a cell, under ``out/folder``: one file per (prior, method, scenario, seed), never shared."""
+    return out / folder / f"{prior}__{injective_name(method, METHODS)}__{scenario}__{seed}.json"
 
 
 def validate(args: Args) -> dict[str, str]:
@@ -263,8 +308,9 @@ def validate(args: Args) -> dict[str, str]:
 
     ``ValueError`` names the argument: unknown or repeated priors, methods, scenarios or seeds, a
     user's learner that cannot be imported, a seed outside ``[0, 2**32)``, a cyclic config
-    (``compare`` runs one-trial tasks), two scenarios of one name, a budget below 1, a negative
-    worker count.
+    (``compare`` runs one-trial tasks), two scenarios of one name, a budget outside ``[1,
+    MAX_BUDGET]``, a worker count outside ``[0, MAX_WORKERS]``, a ``cell_timeout`` that is not a
+    time > 0 s.
     """
     from ilc_steering.config import load_config
 
@@ -290,10 +336,16 @@ def validate(args: Args) -> dict[str, str]:
         raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
     for option in ("model_trials", "blackbox_trials", "rl_trials", "custom_trials"):
         value = getattr(args, option)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
-            raise ValueError(f"--{option.replace('_', '-')}: the budget must be a whole number >= 1, got {value!r}")
-    if isinstance(args.workers, bool) or not isinstance(args.workers, int) or args.workers < 0:
-        raise ValueError(f"--workers: a whole number >= 0 (0: one per core), got {args.workers!r}")
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_BUDGET
+        ):
+            raise ValueError(
+                f"--{option.replace('_', '-')}: the budget must be a whole number in [1, {MAX_BUDGET}], got {value!r}"
+            )
+    check_workers(args.workers)
+    timeout = args.cell_timeout
+    if timeout is not None and not (isinstance(timeout, (int, float)) and np.isfinite(timeout) and timeout > 0):
+        raise ValueError(f"--cell-timeout: a time limit > 0 s, got {timeout!r}")
     names: dict[str, str] = {}
     for scenario in args.scenarios:
         config = load_config(scenario)
@@ -304,6 +356,9 @@ def validate(args: Args) -> dict[str, str]:
             )
         if config.name in names.values():
             raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
+        env = gym.make(ENV_ID, config=config)
+        check_task(env, f"--scenarios {scenario}")
+        env.close()
         names[scenario] = config.name
     for prior in args.priors:
         for method in args.methods:
@@ -321,20 +376,59 @@ CELL_KEYS = {
     "trials": int,
     "off_chart_fraction": float,
     "trials_to": dict,
+    "fragile": list,
     "best_error": float,
     "wall_s": float,
     "curve": list,
+    "config_sha": str,
+    "version": str,
 }
 
 
+def _finite(value: float) -> bool:
+    return bool(np.isfinite(value))
+
+
+def _check_values(cell: dict[str, Any], path: Path, hint: str) -> None:
+    """Every value a summary uses, in its range: ``ValueError`` naming the file and the value."""
+    problems = []
+    if not (_finite(cell["best_error"]) and cell["best_error"] >= 0):
+        problems.append(f"best_error {cell['best_error']!r} is not a finite error >= 0")
+    if not (_finite(cell["wall_s"]) and cell["wall_s"] >= 0):
+        problems.append(f"wall_s {cell['wall_s']!r} is not a time >= 0 s")
+    if not (_finite(cell["off_chart_fraction"]) and 0 <= cell["off_chart_fraction"] <= 1):
+        problems.append(f"off_chart_fraction {cell['off_chart_fraction']!r} is not a fraction in [0, 1]")
+    curve = cell["curve"]
+    points = [p for p in curve if isinstance(p, list) and len(p) == 2]
+    if not curve or len(points) != len(curve):
+        problems.append("curve is not a non-empty list of [trial, best error] pairs")
+    else:
+        trials = [p[0] for p in points]
+        errors = [p[1] for p in points]
+        if not all(isinstance(t, int) and not isinstance(t, bool) and 1 <= t <= cell["trials"] for t in trials):
+            problems.append(f"curve holds a trial outside [1, {cell['trials']}]")
+        elif trials != sorted(set(trials)) or not all(
+            isinstance(e, (int, float)) and _finite(e) and e >= 0 for e in errors
+        ):
+            problems.append("curve is not increasing in trials with finite errors >= 0")
+    clipped = cell.get("clipped_fraction", 0.0)
+    if not (isinstance(clipped, (int, float)) and _finite(clipped) and 0 <= clipped <= 1):
+        problems.append(f"clipped_fraction {clipped!r} is not a fraction in [0, 1]")
+    if not set(cell["fragile"]) <= set(LADDER):
+        problems.append(f"fragile holds a level outside {sorted(LADDER)}")
+    if problems:
+        raise ValueError(f"{path}: {problems[0]}; {hint}")
+
+
 def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
-    """A finished cell, checked against its ``key`` (prior, method, scenario, seed, budget);
-    ``ValueError`` names the file."""
+    """A finished cell, checked against its ``key`` (prior, method, scenario, seed, budget, the
+    config's content hash and the package version) and value by value (finite, in range, within
+    the budget); ``ValueError`` names the file."""
     hint = "delete it to have the cell computed again"
     try:
-        cell = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ValueError(f"{path}: not a readable cell ({type(error).__name__}: {error}); {hint}") from None
+        cell = read_json(path, MAX_RESULT_BYTES)
+    except ValueError as error:
+        raise ValueError(f"not a readable cell: {error}; {hint}") from None
     if not isinstance(cell, dict):
         raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
     for name, kind in CELL_KEYS.items():
@@ -344,7 +438,8 @@ def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
             raise ValueError(f"{path}: {name!r} is missing or not a {kind.__name__}; {hint}")
     for name, value in key.items():
         if cell[name] != value:
-            raise ValueError(f"{path}: holds {name} {cell[name]!r}, not {value!r}; {hint}")
+            what = {"config_sha": "the content hash of its config", "version": "the ilc-steering version"}
+            raise ValueError(f"{path}: holds {what.get(name, name)} {cell[name]!r}, not {value!r}; {hint}")
     if not 1 <= cell["trials"] <= cell["budget"]:
         raise ValueError(f"{path}: {cell['trials']} trials for a budget of {cell['budget']}; {hint}")
     reached = cell["trials_to"]
@@ -352,35 +447,43 @@ def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
         v is None or (isinstance(v, int) and 1 <= v <= cell["trials"]) for v in reached.values()
     ):
         raise ValueError(f"{path}: 'trials_to' needs {sorted(LADDER)}, each a trial or null; {hint}")
+    _check_values(cell, path, hint)
     return cell
 
 
-def _check_run_folder(args: Args) -> None:
-    """Record the settings; refuse to resume a folder written with different budgets or seeds."""
-    skip = ("out", "progress_bar", "priors", "methods", "scenarios", "workers", "backend")
+def _check_run_folder(args: Args, configs: dict[str, str]) -> None:
+    """Record the settings, the version and the configs' content hashes; refuse to resume a folder
+    written with other budgets, seeds or version, or another config of one of these names."""
+    skip = ("out", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
     settings = {k: v for k, v in asdict(args).items() if k not in skip}
     settings["seeds"] = list(settings["seeds"])
+    settings["version"] = __version__
     cells = args.out / "cells"
     check_output_dir(args.out, "--out")
     if cells.exists() and not cells.is_dir():
         raise ValueError(f"{cells}: exists and is not a folder; this is not a compare run folder")
-    resumed = check_run_settings(args.out, settings, cells)
+    resumed = check_run_settings(args.out, settings, cells, configs)
     cells.mkdir(exist_ok=True)
     if resumed:
         _restore_cells(args.out)
 
 
+MAX_REPORT_BYTES = 256 << 20
+"""The largest ``compare.json`` read back to restore a clone's cells [bytes]."""
+
+
 def _restore_cells(folder: Path) -> None:
     """Write back the cells that the folder's ``compare.json`` holds and ``cells/`` lacks (a clone of a
     run whose cells were not kept): the settings matched, so they are the cells this run would compute.
-    Each is checked like any resumed cell when it is read."""
+    Each is checked like any resumed cell when it is read (its config's hash and version included)."""
     report = folder / "compare.json"
     if not report.is_file():
         return
     try:
-        cells = json.loads(report.read_bytes().decode("utf-8")).get("cells", [])
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError) as error:
-        raise ValueError(f"{report}: not readable ({error}); use another --out folder") from None
+        data = read_json(report, MAX_REPORT_BYTES)
+        cells = data.get("cells", []) if isinstance(data, dict) else []
+    except ValueError as error:
+        raise ValueError(f"{error}; use another --out folder") from None
     restored = 0
     for cell in cells if isinstance(cells, list) else []:
         try:
@@ -427,15 +530,44 @@ Runner = Callable[[Args, str, str, str, int], dict[str, Any]]
 
 
 def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
-    """Every cell of the run, computing only those not yet in the run folder, in
-    :func:`workers` processes (one with a custom ``runner``).
+    """Every finished cell of the run (:func:`run_all`), in order; the failed ones are in ``failed/``."""
+    return run_all(args, runner)[0]
 
-    Everything is validated before the first cell; each finished cell is written at once.
+
+def _failure(key: dict[str, Any], message: str) -> dict[str, Any]:
+    cell = {name: key[name] for name in ("prior", "method", "scenario", "seed", "budget")}
+    return {**cell, "error": message}
+
+
+def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Every cell of the run, computing only those not yet in the run folder, in :func:`workers`
+    processes (one with a custom ``runner``, called as it is: a test's hook); returns the
+    finished cells and the failed ones, each in the run's order.
+
+    Everything is validated before the first cell; each finished cell is written the moment it
+    finishes, whatever happens to the others. A cell that raises or outlives ``cell_timeout`` is
+    written to ``failed/`` with its error (prior, method, scenario and seed named) and the run
+    goes on; a resume computes it again.
     """
+    from ilc_steering.config import load_config
+
     names = validate(args)
-    _check_run_folder(args)
+    configs = {name: content_hash(asdict(load_config(scenario))) for scenario, name in names.items()}
+    for scenario in names:
+        warning = step_warning(load_config(scenario))
+        if warning is not None:
+            print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
+    _check_run_folder(args, configs)
     keys: list[dict[str, Any]] = [
-        {"prior": prior, "method": method, "scenario": name, "seed": seed, "budget": budget(args, prior, method, name)}
+        {
+            "prior": prior,
+            "method": method,
+            "scenario": name,
+            "seed": seed,
+            "budget": budget(args, prior, method, name),
+            "config_sha": configs[name],
+            "version": __version__,
+        }
         for prior in args.priors
         for scenario, name in names.items()
         for method in args.methods
@@ -443,20 +575,37 @@ def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
     ]
     scenario_of = {name: scenario for scenario, name in names.items()}
     done: dict[int, dict[str, Any]] = {}
+    failed: dict[int, dict[str, Any]] = {}
+
+    def path(index: int, folder: str = "cells") -> Path:
+        key = keys[index]
+        return cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"], folder)
+
     with _locked(args.out):
         todo = []
         for index, key in enumerate(keys):
-            path = cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"])
-            if path.exists():
-                done[index] = read_cell(path, key)
+            if path(index).exists():
+                done[index] = read_cell(path(index), key)
             else:
                 todo.append(index)
 
         def finish(index: int, cell: dict[str, Any]) -> None:
-            key = keys[index]
-            write_json(cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"]), cell)
+            cell = {**cell, "config_sha": keys[index]["config_sha"], "version": __version__}
+            write_json(path(index), cell)
+            path(index, "failed").unlink(missing_ok=True)
             done[index] = cell
             _progress(cell)
+
+        def fail(index: int, message: str) -> None:
+            key = keys[index]
+            failed[index] = _failure(key, message)
+            path(index, "failed").parent.mkdir(exist_ok=True)
+            write_json(path(index, "failed"), failed[index])
+            print(
+                f"{key['prior']:7s} {key['scenario']:26s} {key['method']:13s} seed {key['seed']}: FAILED, "
+                f"recorded in {path(index, 'failed')}: {message}",
+                flush=True,
+            )
 
         def call(index: int) -> tuple[Args, str, str, str, int]:
             key = keys[index]
@@ -469,20 +618,38 @@ def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
             parallel = args.backend == "ray" or min(workers(args), len(todo)) > 1
             quiet = replace(args, progress_bar=False) if parallel else args
             calls = {index: (quiet, *call(index)[1:]) for index in todo}
-            run_calls(run_cell, calls, finish, args.backend, workers(args))
-    return [done[index] for index in range(len(keys))]
+            run_calls(run_cell, calls, finish, args.backend, args.workers, fail, args.cell_timeout)
+    order = range(len(keys))
+    return [done[i] for i in order if i in done], [failed[i] for i in order if i in failed]
 
 
 def main(args: Args) -> list[dict[str, Any]]:
+    """Run (or resume) the comparison and write its report; returns the finished cells."""
+    return main_with_failures(args)[0]
+
+
+def main_with_failures(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """:func:`main`, returning the failed cells too; the last line printed says how many failed."""
     if args.quick:  # the quick budgets, where no budget was given
         quick: dict[str, Any] = {k: v for k, v in QUICK.items() if getattr(args, k) == getattr(Args, k)}
         args = replace(args, **quick)
-    cells = run_cells(args)
+    cells, failed = run_all(args)
     names = list(validate(args).values())
-    text = write_report(cells, names, args.out, {"black-box": BLACKBOX, "RL": RL})
-    print(text)
-    print(f"wrote {args.out}/compare.{{csv,json,md}}, compare_<scenario>.png and one file per cell in {args.out}/cells")
-    return cells
+    if cells:
+        text = write_report(cells, names, args.out, {"black-box": BLACKBOX, "RL": RL}, failed)
+        print(text)
+        where = f"{args.out}/compare.{{csv,json,md}}, compare_<scenario>.png"
+        print(f"wrote {where} and one file per cell in {args.out}/cells")
+    total = len(cells) + len(failed)
+    if failed:
+        print(
+            f"{len(failed)} of {total} cells failed, each recorded with its error in {args.out}/failed "
+            "(a resume computes them again)",
+            flush=True,
+        )
+    else:
+        print(f"all {total} cells finished", flush=True)
+    return cells, failed
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -526,7 +693,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             default=argparse.SUPPRESS,
             help=f"budget of {what} [trials] (default: {getattr(Args, option)}; with --quick: {QUICK[option]})",
         )
-    parser.add_argument("--workers", type=int, default=0, help="worker processes (0: one per core)")
+    parser.add_argument(
+        "--workers", type=int, default=0, help=f"worker processes (0: one per core; at most {MAX_WORKERS})"
+    )
+    parser.add_argument(
+        "--cell-timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="stop a cell still running after this and record it as failed (default: no limit)",
+    )
     parser.add_argument(
         "--backend",
         default="local",
@@ -551,6 +727,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
+        cell_timeout=ns.cell_timeout,
     )
     return replace(args, **budgets)
 

@@ -3,9 +3,10 @@
 One summary row per (prior, method, scenario): for each tolerance of
 :data:`~ilc_steering.compare.LADDER`, the median trials to it with the interquartile range (order
 statistics, so a seed that never got there stays ``inf``), a 95 % bootstrap confidence interval
-of the median, and how many seeds got there; the best true cost, the off-chart fraction and the
-wall time. The ratios compare ILC (``ilc``) with the best method of each family (black-box, RL)
-at each tolerance.
+of the median, how many seeds got there, and how many of those counts are fragile (a relative
+change of 1e-6 in the error would move them: marked ``†`` in the tables); the best true cost, the
+off-chart fraction and the wall time. Failed cells are listed apart, never summarized. The ratios
+compare ILC (``ilc``) with the best method of each family (black-box, RL) at each tolerance.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ilc_steering.output import write_figure
 from ilc_steering.tables import markdown_table, write_results
 
 __all__ = ["LADDER", "LADDER_NAMES", "bootstrap_median", "quartiles", "ratios", "summarize", "write_report"]
@@ -69,9 +71,11 @@ def summarize(cells: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "q1_median_q3": quartiles(reached),
                 "median_ci95": bootstrap_median(reached),
                 "reached": int(np.isfinite(reached).sum()),
+                "fragile": sum(level in c.get("fragile", ()) for c in group),
             }
         row["best_error_q1_median_q3"] = quartiles([c["best_error"] for c in group])
         row["off_chart_fraction_median"] = float(np.median([c["off_chart_fraction"] for c in group]))
+        row["clipped_fraction_median"] = float(np.median([c.get("clipped_fraction", 0.0) for c in group]))
         row["wall_s_median"] = float(np.median([c["wall_s"] for c in group]))
         rows.append(row)
     return rows
@@ -83,9 +87,10 @@ def _trials(value: float, budget: int) -> str:
 
 def _reached(entry: dict[str, Any], budget: int, seeds: int) -> str:
     q1, q2, q3 = entry["q1_median_q3"]
+    mark = " †" if entry.get("fragile") else ""
     if math.isinf(q2):
-        return f"> {budget} ({entry['reached']}/{seeds})"
-    return f"{q2:.0f} [{_trials(q1, budget)}, {_trials(q3, budget)}] ({entry['reached']}/{seeds})"
+        return f"> {budget} ({entry['reached']}/{seeds}){mark}"
+    return f"{q2:.0f} [{_trials(q1, budget)}, {_trials(q3, budget)}] ({entry['reached']}/{seeds}){mark}"
 
 
 def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
@@ -96,6 +101,7 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
         *(f"trials to {LADDER_NAMES[level]}" for level in LADDER),
         "best error",
         "off chart",
+        "clipped",
         "wall [s]",
     ]
     lines = []
@@ -109,6 +115,7 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
                 *(_reached(row[f"trials_to_{level}"], row["budget"], row["seeds"]) for level in LADDER),
                 f"{b2:.1e} [{b1:.1e}, {b3:.1e}]",
                 f"{100 * row['off_chart_fraction_median']:.0f}%",
+                f"{100 * row['clipped_fraction_median']:.0f}%",
                 f"{row['wall_s_median']:.3g}",
             ]
         )
@@ -176,13 +183,31 @@ NOTE = (
     "within the budget. Every trial counts: probes, random exploration and RL's deterministic trials included. "
     "Errors are those of the true final configuration (the noisy scenario measures with noise). Best error: the "
     "lowest true Cartesian error [m] + orientation error [rad] (a chained plant: error norm) of any trial, "
-    "1000 added for a trial that left the chart. Off chart: the median fraction of trials that left the chart.\n"
+    "1000 added for a trial that left the chart. Off chart: the median fraction of trials that left the chart; "
+    "clipped: of actions the env clipped to its box. "
+    "A level is met when the error is at most the level; †: in some seed, a relative change of 1e-6 in the "
+    "error would move this count (the error lands on the level, and the integrator's last digits decide).\n"
 )
 
 
-def report(rows: list[dict[str, Any]], entries: list[dict[str, Any]], families: list[str]) -> str:
+def _failed_table(failed: list[dict[str, Any]]) -> str:
+    lines = [
+        [f["prior"], f["scenario"], f["method"], str(f["seed"]), " ".join(f["error"].split())[:300]] for f in failed
+    ]
+    return markdown_table(["prior", "scenario", "method", "seed", "error"], lines, [False] * 3 + [True, False])
+
+
+def report(
+    rows: list[dict[str, Any]],
+    entries: list[dict[str, Any]],
+    families: list[str],
+    failed: list[dict[str, Any]] | None = None,
+) -> str:
     priors = list(dict.fromkeys(r["prior"] for r in rows))
     parts = []
+    if failed:
+        parts += [f"### {len(failed)} failed cells (not in the tables below; a resume computes them again)\n"]
+        parts += [_failed_table(failed)]
     for prior in priors:
         parts += [f"### prior={prior}\n", _main_table(rows, prior)]
     parts.append(NOTE)
@@ -242,7 +267,7 @@ def plot_scenario(cells: list[dict[str, Any]], scenario: str, path: Path) -> Non
         fontsize=9,
     )
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    write_figure(path, figure, dpi=100)
 
 
 def _finite(data: Any) -> Any:
@@ -257,23 +282,29 @@ def _finite(data: Any) -> Any:
 
 
 def write_report(
-    cells: list[dict[str, Any]], scenarios: list[str], out: Path, families: dict[str, tuple[str, ...]]
+    cells: list[dict[str, Any]],
+    scenarios: list[str],
+    out: Path,
+    families: dict[str, tuple[str, ...]],
+    failed: list[dict[str, Any]] | None = None,
 ) -> str:
     """``compare.{csv,json,md}`` and ``compare_<scenario>.png`` in ``out``, ratios over ``families``
-    of methods (name -> method ids); returns the Markdown."""
+    of methods (name -> method ids), the ``failed`` cells listed; returns the Markdown."""
     rows = summarize(cells)
     entries = ratios(rows, families)
-    text = report(rows, entries, list(families))
+    text = report(rows, entries, list(families), failed)
     flat = []
     for cell in cells:
         flat.append(
             {
-                **{k: v for k, v in cell.items() if k not in ("curve", "trials_to")},
+                **{k: v for k, v in cell.items() if k not in ("curve", "trials_to", "fragile")},
                 **{f"trials_to_{level}": cell["trials_to"][level] for level in LADDER},
+                "fragile": " ".join(cell.get("fragile", [])),
             }
         )
-    extra = {"summary": _finite(rows), "ratios": _finite(entries), "cells": cells}
+    extra = {"summary": _finite(rows), "ratios": _finite(entries), "cells": cells, "failed": failed or []}
     write_results(flat, out, "compare", text, extra)
     for scenario in scenarios:
-        plot_scenario(cells, scenario, out / f"compare_{scenario}.png")
+        if any(c["scenario"] == scenario for c in cells):
+            plot_scenario(cells, scenario, out / f"compare_{scenario}.png")
     return text

@@ -3,6 +3,13 @@
 Every key is checked: an unknown key, a wrong type, a missing field or an out-of-range value
 raises :class:`ConfigError` naming the key and the file. Units are in the field comments and in
 the packaged YAML files (``configs/``).
+
+The YAML is read strictly where YAML 1.1 (PyYAML) and a reader disagree: a number with a leading
+zero (``010``, octal 8 to YAML 1.1, 10 to YAML 1.2) and a sexagesimal one (``1:30``, 90 to YAML
+1.1) are refused for a numeric key, naming the key and both readings; the same text under a
+string key stays text. ``1e-3`` is the number it looks like; merge keys (``<<: *defaults``) are
+honoured. A file is read through :mod:`ilc_steering.inputs`: its size checked before it is read
+(:data:`MAX_FILE_BYTES`), its nesting after (:data:`~ilc_steering.inputs.MAX_DEPTH`).
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.inputs import MAX_DEPTH, check_depth, read_text
 
 __all__ = [
     "ConfigError",
@@ -180,7 +188,9 @@ class LearningConfig:
     def __post_init__(self) -> None:
         with _domain():
             check_gains(self.nu_a, self.nu_b)
-        _require(self.trials >= 1, "trials", f"must be >= 1, got {self.trials}")
+        _require(
+            1 <= self.trials <= MAX_TRIALS, "trials", f"must be a whole number in [1, {MAX_TRIALS}], got {self.trials}"
+        )
 
 
 @dataclass(frozen=True)
@@ -331,6 +341,18 @@ MAX_FILE_BYTES = 1 << 20
 """Largest config file read [bytes]."""
 MAX_VALUES = 100_000
 """Most values (mapping entries and list items, aliases expanded) a config may hold."""
+MAX_TRIALS = 100_000
+"""The largest ``learning.trials`` (and ``run --trials``): every trial's record is kept in memory."""
+
+
+class _Ambiguous(str):
+    """A YAML scalar that YAML 1.1 reads as a number other than the one its text shows (``010``,
+    ``1:30``): kept as its text, refused by :func:`_coerce` under a numeric key, with both readings."""
+
+    reading: str = ""
+
+
+_LEADING_ZERO = re.compile(r"[-+]?0[0-9_]+")
 
 
 def _show(value: Any) -> str:
@@ -344,6 +366,14 @@ def _is_optional(hint: Any) -> bool:
 
 def _coerce(hint: Any, value: Any, key: str) -> Any:
     """Check ``value`` against the type hint ``hint`` and convert lists to tuples."""
+    if isinstance(value, _Ambiguous):
+        if hint is str or typing.get_origin(hint) is Literal or (_is_optional(hint) and str in typing.get_args(hint)):
+            value = str(value)
+        else:
+            raise ConfigError(
+                f"{key}: {str(value)!r} is ambiguous: YAML 1.1 reads it as {value.reading}; "
+                "write the number without a leading zero or colon (e.g. 10, 90)"
+            )
     origin = typing.get_origin(hint)
     if isinstance(hint, types.UnionType):
         options = [a for a in typing.get_args(hint) if a is not type(None)]
@@ -454,21 +484,55 @@ def _count_values(data: Any) -> int:
     return count
 
 
-def _yaml(text: str, origin: str) -> Any:
-    """Parse a config's YAML: safe types only, no duplicate keys, at most :data:`MAX_VALUES` values."""
+def _strict_number(kind: str) -> Any:
+    """A constructor of YAML 1.1 ``int`` or ``float`` scalars that keeps a leading-zero or
+    sexagesimal one as :class:`_Ambiguous` text."""
     import yaml
+
+    base = yaml.SafeLoader.yaml_constructors[f"tag:yaml.org,2002:{kind}"]
+
+    def construct(loader: Any, node: Any) -> Any:
+        text = str(node.value)
+        number = base(loader, node)
+        if ":" in text or _LEADING_ZERO.fullmatch(text):
+            marked = _Ambiguous(text)
+            marked.reading = f"{number:g}" if isinstance(number, float) else str(number)
+            return marked
+        return number
+
+    return construct
+
+
+def _depth(data: Any, origin: str) -> None:
+    try:
+        check_depth(data, origin)
+    except ValueError as error:
+        raise ConfigError(f"{error}; not a config") from None
+
+
+def _yaml(text: str, origin: str) -> Any:
+    """Parse a config's YAML: safe types only, merge keys, no duplicate keys, integers read strictly,
+    at most :data:`MAX_VALUES` values and :data:`~ilc_steering.inputs.MAX_DEPTH` levels."""
+    import yaml
+
+    merge = "tag:yaml.org,2002:merge"
 
     class Loader(yaml.SafeLoader):
         def construct_mapping(self, node: Any, deep: bool = False) -> Any:
-            keys = [self.construct_object(k, deep=deep) for k, _ in node.value]
+            # a key given twice is a typo; a key a merge (<<) brings and the mapping overrides is not
+            keys = [self.construct_object(k, deep=deep) for k, _ in node.value if k.tag != merge]
             duplicated = sorted({str(k) for k in keys if keys.count(k) > 1})
             if duplicated:
                 line = node.start_mark.line + 1
                 raise ConfigError(f"{origin}: duplicate key {duplicated[0]!r} in the mapping at line {line}")
             return super().construct_mapping(node, deep=deep)
 
+    Loader.add_constructor("tag:yaml.org,2002:int", _strict_number("int"))
+    Loader.add_constructor("tag:yaml.org,2002:float", _strict_number("float"))
     try:
         data = yaml.load(text, Loader=Loader)
+    except RecursionError:
+        raise ConfigError(f"{origin}: nested deeper than {MAX_DEPTH} levels; not a config") from None
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -476,6 +540,7 @@ def _yaml(text: str, origin: str) -> Any:
         raise ConfigError(f"{origin}: not valid YAML{where}: {problem}") from None
     if _count_values(data) > MAX_VALUES:
         raise ConfigError(f"{origin}: more than {MAX_VALUES} values (anchors and aliases expanded); not a config")
+    _depth(data, origin)
     return data
 
 
@@ -498,7 +563,11 @@ def _read(source: str | Path) -> tuple[Any, str]:
     if path.suffix in (".yaml", ".yml") or path.exists():
         if not path.is_file():
             raise ConfigError(f"{path}: no such config file")
-        return _yaml(_text(path.read_bytes, str(path)), str(path)), str(path)
+        try:
+            text = read_text(path, MAX_FILE_BYTES)
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
+        return _yaml(text, str(path)), str(path)
     if not isinstance(source, str) or not re.fullmatch(r"[A-Za-z0-9_\-]+", source):
         raise ConfigError(f"{source!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
     resource = resources.files("ilc_steering.configs") / f"{source}.yaml"
@@ -520,6 +589,8 @@ def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> Steerin
     data, origin = (source, "<mapping>") if isinstance(source, dict) else _read(source)
     if isinstance(source, dict) and _count_values(data) > MAX_VALUES:
         raise ConfigError(f"{origin}: more than {MAX_VALUES} values; not a config")
+    if isinstance(source, dict):
+        _depth(data, origin)
     try:
         config: SteeringConfig = _build(SteeringConfig, data, "")
         return config

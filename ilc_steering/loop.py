@@ -3,6 +3,10 @@
 The runner, the comparison, the benchmarks and the tests all call :func:`run_trials`. Each step
 of the env is one trial (for the cyclic env, one segment); every trial the learner asks for is
 run, counted and recorded, and nothing past the budget is.
+
+What a learner raises, in ``act``, ``learn`` or ``close``, and an action the env refuses (a NaN,
+the wrong shape) is a :class:`LearnerError` naming the learner and the trial: the learner's
+fault, not bad input to the library (exit 2) nor a bug of it (exit 3).
 """
 
 from __future__ import annotations
@@ -16,7 +20,24 @@ import gymnasium as gym
 from ilc_steering.agents.base import Learner
 from ilc_steering.core.score import TRUE_KEYS
 
-__all__ = ["Rollout", "TrialCallback", "run_trials"]
+__all__ = ["LearnerError", "Rollout", "TrialCallback", "run_trials"]
+
+
+class LearnerError(Exception):
+    """A learner failed: it raised, or acted with an action the env refused. The message names
+    the learner and the trial; ``partial``, where the caller sets it, holds what was run before.
+
+    One string argument, so it crosses process boundaries (pickling) intact."""
+
+    partial: Any = None
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+
+
+def _fault(name: str, what: str, trial: int, error: Exception) -> LearnerError:
+    return LearnerError(f"learner {name}: {what} in trial {trial}: {type(error).__name__}: {error}")
+
 
 TrialCallback = Callable[[int, dict[str, Any]], bool | None]
 """Called after trial ``k`` (from 1) with its ``info``; returning ``True`` stops the loop."""
@@ -43,6 +64,7 @@ def run_trials(
     seed: int | None = None,
     options: dict[str, Any] | None = None,
     callbacks: Sequence[TrialCallback] = (),
+    name: str | None = None,
 ) -> Rollout:
     """Run ``learner`` on ``env`` for at most ``trials`` trials: act, step, learn, and reset when the
     episode ends (every trial for the one-trial env; at truncation for the cyclic env).
@@ -52,15 +74,29 @@ def run_trials(
 
     ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method (the
     adapters of pull-style optimizers) is closed when the loop ends, however it ends.
+
+    ``name`` names the learner in a :class:`LearnerError` (default: its class).
     """
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
     rollout = Rollout()
+    who = name or type(learner).__name__
     observation, _ = env.reset(seed=seed, options=options)
+    failed = True
     try:
         for k in range(1, trials + 1):
-            observation, reward, terminated, truncated, info = env.step(learner.act(observation))
-            learner.learn({key: value for key, value in info.items() if key not in TRUE_KEYS})
+            try:
+                action = learner.act(observation)
+            except Exception as error:
+                raise _fault(who, "act() raised", k, error) from error
+            try:
+                observation, reward, terminated, truncated, info = env.step(action)
+            except ValueError as error:  # the env checks the action: a NaN, a wrong shape
+                raise _fault(who, "the env refused its action", k, error) from error
+            try:
+                learner.learn({key: value for key, value in info.items() if key not in TRUE_KEYS})
+            except Exception as error:
+                raise _fault(who, "learn() raised", k, error) from error
             rollout.infos.append(info)
             rollout.rewards.append(float(reward))
             if any([bool(callback(k, info)) for callback in callbacks]):
@@ -68,8 +104,13 @@ def run_trials(
                 break
             if k < trials and (terminated or truncated):
                 observation, _ = env.reset()
+        failed = False
     finally:
         close = getattr(learner, "close", None)
         if callable(close):
-            close()
+            try:
+                close()
+            except Exception as error:
+                if not failed:  # else the error that ended the loop is the one to report
+                    raise _fault(who, "close() raised", len(rollout), error) from error
     return rollout

@@ -1,21 +1,40 @@
 """Output paths: checked before a run starts, written inside the folder the user named, atomically.
 
 A run whose results cannot be written must fail before its first trial, not after its last, so
-the CLI checks every output path first (exit 2, naming the option). Files are written to a
-unique temporary name in the same folder, flushed to disk, then renamed: a reader sees the whole
-file or none of it, and two writers never share a temporary file.
+the CLI checks every output path first (exit 2, naming the option). :func:`write_atomic` is the
+one writer of every output file (JSON, CSV, Markdown, PNG): it refuses a target that exists and
+is not a regular file (a device node, a FIFO, a folder), writes to a unique temporary name in the
+same folder, flushes it to disk, then renames it: a reader sees the whole file or none of it, and
+two writers never share a temporary file. A new file gets the mode the umask gives (0644 under
+umask 022), a replaced one keeps its mode; a symbolic link to a regular file is written through.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import os
 import re
+import stat
 import tempfile
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
-__all__ = ["check_output_dir", "check_output_file", "check_run_settings", "safe_name", "write_atomic", "write_json"]
+from ilc_steering.inputs import read_json
+
+__all__ = [
+    "check_output_dir",
+    "check_output_file",
+    "check_run_settings",
+    "content_hash",
+    "injective_name",
+    "safe_name",
+    "write_atomic",
+    "write_figure",
+    "write_json",
+]
 
 
 def _problem(error: OSError) -> str:
@@ -36,12 +55,29 @@ def check_output_dir(path: Path, option: str) -> Path:
     return path
 
 
+def _not_regular(path: Path) -> str | None:
+    """What ``path`` is, when it exists and is not a regular file (symbolic links followed)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return None  # absent, or a dangling link: refused by the rename's folder check or written anew
+    if stat.S_ISREG(mode):
+        return None
+    kinds = [(stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device")]
+    kinds += [(stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")]
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
 def check_output_file(path: Path, option: str) -> Path:
-    """Check that the file ``path`` can be written (its folder is created if needed)."""
+    """Check that the file ``path`` can be written (its folder is created if needed): it must be
+    absent or a regular file."""
     if "\x00" in str(path):
         raise ValueError(f"{option}: a path cannot hold a NUL character")
-    if path.is_dir():
+    kind = _not_regular(path)
+    if kind == "a folder":
         raise ValueError(f"{option} {path}: is a folder, not a file")
+    if kind is not None:
+        raise ValueError(f"{option} {path}: is {kind}, not a regular file; give a file path")
     folder = path.parent
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{option} {path}: {folder} is not a folder")
@@ -62,13 +98,31 @@ def safe_name(name: str) -> str:
     return cleaned[:100] or "run"
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a unique temporary file, flushed to disk before the rename."""
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def write_atomic(path: Path, content: str | bytes) -> None:
+    """Write ``content`` to ``path`` through a unique temporary file, flushed to disk before the
+    rename; ``ValueError`` if ``path`` exists and is not a regular file."""
+    path = Path(path)
+    kind = _not_regular(path)
+    if kind is not None:
+        raise ValueError(f"{path}: is {kind}, not a regular file; it is not replaced")
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))  # write the file the link names, keep the link
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        mode = 0o666 & ~_umask()
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(handle, "w") as file:
-            file.write(text)
+        with os.fdopen(handle, "wb") as file:
+            file.write(content.encode("utf-8") if isinstance(content, str) else content)
             file.flush()
+            os.fchmod(file.fileno(), mode)
             os.fsync(file.fileno())
         os.replace(temporary, path)
     except BaseException:
@@ -81,23 +135,82 @@ def write_json(path: Path, data: Any) -> None:
     write_atomic(path, json.dumps(data))
 
 
-def check_run_settings(folder: Path, settings: dict[str, Any], results: Path) -> bool:
-    """Record ``settings`` in ``folder/run.json``; ``ValueError`` if the folder was written with
-    others, or holds results (``results/*.json``) but no record of their settings. Returns whether
-    the folder was a run already (a resume)."""
+def write_figure(path: Path, figure: Any, dpi: float | str = "figure") -> None:
+    """:func:`write_atomic` of a Matplotlib ``figure`` as PNG."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi)
+    write_atomic(path, buffer.getvalue())
+
+
+MAX_RESULT_BYTES = 16 << 20
+"""The largest run record, cell or row read back from a run folder [bytes]."""
+
+
+def content_hash(data: Any) -> str:
+    """16 hex digits of the SHA-256 of ``data`` as canonical JSON (sorted keys): equal content, equal hash."""
+    text = json.dumps(data, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def injective_name(name: str, taken: Collection[str] = ()) -> str:
+    """A file-name part for ``name`` that no other name maps to.
+
+    ``safe_name(name)`` when it is ``name`` itself; a user's ``module:attr`` whose ``attr`` has no
+    ``_`` becomes ``module_attr`` (its last ``_`` marks the colon, so it decodes; ``taken``, the
+    library's ids, is avoided); any other name gets ``-`` and a hash of ``name`` appended, so
+    ``x_y:z`` (``x_y_z``) and ``x:y_z`` (``x_y_z-<hash>``) never share a file."""
+    cleaned = safe_name(name)
+    if cleaned == name and "__" not in name:
+        return name
+    module, colon, attr = name.partition(":")
+    plain = f"{module}_{attr}"
+    if colon and attr.isidentifier() and "_" not in attr and safe_name(plain) == plain and "__" not in plain:
+        if plain not in taken:
+            return plain
+    return f"{re.sub('_+', '_', cleaned)[:80]}-{content_hash(name)[:8]}"
+
+
+def _differences(stored: dict[str, Any], settings: dict[str, Any]) -> str:
+    keys = sorted(set(stored) | set(settings))
+    return "; ".join(
+        f"{k} {stored.get(k, 'unset')!r}, not {settings.get(k, 'unset')!r}"
+        for k in keys
+        if stored.get(k) != settings.get(k)
+    )
+
+
+def check_run_settings(
+    folder: Path, settings: dict[str, Any], results: Path, configs: dict[str, str] | None = None
+) -> bool:
+    """Record ``settings`` and the content hash of each config (``configs``: name -> hash) in
+    ``folder/run.json``; ``ValueError``, saying which setting or config differs, if the folder was
+    written with other settings or another config of one of these names, or holds results
+    (``results/*.json``) but no record of their settings. Returns whether the folder was a run
+    already (a resume). Configs of new names are added: a resume may add scenarios."""
     stored_path = folder / "run.json"
     resumed = stored_path.exists()
+    known: dict[str, str] = {}
     if resumed:
-        try:
-            stored = json.loads(stored_path.read_bytes().decode("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-            raise ValueError(f"{stored_path}: not readable ({error}); use another --out folder") from None
+        stored = read_json(stored_path, MAX_RESULT_BYTES)
+        if not isinstance(stored, dict):
+            raise ValueError(f"{stored_path}: not a run record (a JSON object); use another --out folder")
+        known = stored.pop("configs", {})
         if stored != settings:
-            raise ValueError(f"{stored_path} was written with {stored}, not {settings}: use another --out folder")
+            raise ValueError(
+                f"{stored_path} was written with other settings: {_differences(stored, settings)}; "
+                "use another --out folder"
+            )
+        for name, digest in (configs or {}).items():
+            if isinstance(known, dict) and known.get(name, digest) != digest:
+                raise ValueError(
+                    f"{stored_path}: its results are of another config named {name!r} (content hash "
+                    f"{known[name]}, not {digest}): the same name, another content; use another --out folder"
+                )
     elif results.is_dir() and any(results.glob("*.json")):
         raise ValueError(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
             "use another --out folder"
         )
-    write_json(stored_path, settings)
+    merged = {**(known if isinstance(known, dict) else {}), **(configs or {})}
+    write_json(stored_path, {**settings, **({"configs": merged} if configs is not None else {})})
     return resumed

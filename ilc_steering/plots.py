@@ -15,7 +15,6 @@ Figures are drawn on matplotlib's Agg canvas; no display is needed.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +28,8 @@ from ilc_steering.config import ConfigError, SteeringConfig, load_config
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
-from ilc_steering.output import safe_name
+from ilc_steering.inputs import read_json
+from ilc_steering.output import safe_name, write_figure
 
 __all__ = ["Run", "load_run", "write_plots"]
 
@@ -83,21 +83,7 @@ class Run:
 def load_run(source: Path | dict[str, Any]) -> Run:
     """A :class:`Run` from a JSON file or its parsed content; ``ValueError`` names what is missing."""
     origin = str(source) if isinstance(source, Path) else "<run>"
-    try:
-        if isinstance(source, Path):
-            if source.stat().st_size > MAX_RUN_BYTES:
-                raise ValueError(f"{origin}: larger than {MAX_RUN_BYTES} bytes; not a run's JSON")
-            data = json.loads(source.read_bytes().decode("utf-8"))
-        else:
-            data = source
-    except OSError as error:
-        raise ValueError(f"{origin}: cannot read it ({error.strerror or error})") from None
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{origin}: not UTF-8 text (byte {error.start})") from None
-    except json.JSONDecodeError as error:
-        raise ValueError(
-            f"{origin}: not valid JSON at line {error.lineno}, column {error.colno}: {error.msg}"
-        ) from None
+    data = read_json(source, MAX_RUN_BYTES) if isinstance(source, Path) else source  # size, then depth
     if (
         not isinstance(data, dict)
         or data.get("kind") not in ("trials", "cycles")
@@ -128,7 +114,7 @@ def load_run(source: Path | dict[str, Any]) -> Run:
     return Run(config, records, kind == "cycles")
 
 
-MAX_RUN_BYTES = 1 << 30
+MAX_RUN_BYTES = 64 << 20
 """The largest run JSON ``plot`` reads [bytes]."""
 
 
@@ -362,6 +348,6 @@ def write_plots(source: Run | Path | dict[str, Any], out: Path) -> list[Path]:
     paths = []
     for kind, figure in figures:
         path = out / f"{safe_name(run.name)}_{kind}.png"  # inside out, whatever the run's name
-        figure.savefig(path)
+        write_figure(path, figure)  # the one writer: a special file is refused, the umask kept
         paths.append(path)
     return paths

@@ -6,6 +6,8 @@ Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`.
 from __future__ import annotations
 
 import dataclasses
+import os
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +20,7 @@ from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.loop import run_trials
+from ilc_steering.loop import LearnerError, run_trials
 
 __all__ = [
     "LEARNERS",
@@ -26,9 +28,11 @@ __all__ = [
     "CyclicRunResult",
     "RunResult",
     "TrialRecord",
+    "check_task",
     "learner_factory",
     "run_cyclic_ilc",
     "run_ilc",
+    "step_warning",
 ]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
@@ -38,8 +42,88 @@ LEARNERS = ("ilc", "newton_ilc")
 ``ilc_paper``), or the re-identifying learner of :mod:`ilc_steering.agents.newton_ilc`."""
 
 
+MAX_NOMINAL_MISS = 1e-6
+"""The largest miss of the nominal model's own exact solution, relative to the distance from the
+start to the goal in chained coordinates, of a well-posed task."""
+
+
+def check_task(env: gym.Env[Any, Any], where: str) -> None:
+    """``ValueError`` naming ``where`` (the config) when the task is ill-posed for its nominal
+    model: its exact solution (section 2.2) misses the goal, because ``W`` of eq. (23) is singular
+    at the solution's ``c11``, or needs an action beyond the env's action box. Either way every
+    learner's updates would be clipped or useless in every trial, and a run could only say "not
+    converged"."""
+    import numpy as np
+
+    model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
+    c = model.solve()
+    distance = float(np.linalg.norm(model.z_goal - model.z_start))
+    miss = float(np.linalg.norm(model.final_state(c) - model.z_goal)) / max(distance, 1e-12)
+    if not np.isfinite(miss) or miss > MAX_NOMINAL_MISS:
+        _, W = model.transition(c[0])
+        singular = np.linalg.svd(W, compute_uv=False)
+        raise ValueError(
+            f"{where}: an ill-posed task: the nominal model's exact solution misses the goal by {miss:.2g} of the "
+            f"distance to it, W (eq. 23) being singular at c11 = {c[0]:.3g} (singular values down to "
+            f"{singular[-1]:.2g}); change task.pieces or task.v1_fixed (v1 on one piece undone by another "
+            "makes W singular) or raise task.v2_terms"
+        )
+    high = np.asarray(env.action_space.high, dtype=np.float64)  # type: ignore[attr-defined]
+    beyond = np.flatnonzero(np.abs(c) > high)
+    if beyond.size:
+        i = int(beyond[0])
+        raise ValueError(
+            f"{where}: the nominal solution needs |c[{i}]| = {abs(c[i]):.3g}, beyond the action box "
+            f"({high[i]:.3g}, task.action_bound); raise task.action_bound or leave it out (10x the nominal scale)"
+        )
+
+
+MAX_STEP_MISS = 0.01
+"""The largest change of a trial's final configuration, as a fraction of the tightest tolerance,
+when ``simulation.max_step`` is halved, for the step to be fine enough (:func:`step_warning`)."""
+
+
+def step_warning(config: SteeringConfig) -> str | None:
+    """A warning when ``simulation.max_step`` is too coarse for the task (None when it is fine):
+    the step-halving test. The nominal solution is simulated on the true plant at the step and
+    at half of it; a final configuration that moves by more than :data:`MAX_STEP_MISS` of the
+    tightest tolerance means the counts would be the integrator's, not the plant's. (A warning,
+    not an error: a coarse step is a legitimate way to provoke a trial that leaves the chart.)"""
+    import numpy as np
+
+    from ilc_steering.envs.scenario import Scenario
+
+    if config.is_cyclic:
+        return None
+    step = config.simulation.max_step
+    finer = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, max_step=step / 2))
+    coarse, fine = Scenario.from_config(config), Scenario.from_config(finer)
+    c = coarse.nominals[0].solve()[None]
+    configurations = [s.plant.configuration(s.run(c).final)[0] for s in (coarse, fine)]
+    miss = float(np.max(np.abs(configurations[0] - configurations[1])))
+    tolerance = config.learning.tolerance
+    tightest = min(v for v in (tolerance.cartesian, tolerance.orientation, tolerance.error) if v is not None)
+    if np.isfinite(miss) and miss <= MAX_STEP_MISS * tightest:
+        return None
+    return (
+        f"warning: {config.name}: simulation.max_step = {step:g} s is too coarse: halving it moves the final "
+        f"configuration by {miss:.2g}, over {MAX_STEP_MISS:.0%} of the tolerance {tightest:g}, so the counts are "
+        "the integrator's, not the plant's; lower simulation.max_step (default 1/32 s)"
+    )
+
+
+def working_directory_importable() -> None:
+    """Put the working directory on ``sys.path`` (last, so it shadows nothing installed): a user's
+    learner module sits there (``my_learners.py``), where ``python -m ilc_steering`` finds it and
+    the ``ilc-steering`` script would not. Spawned workers inherit the path."""
+    cwd = os.getcwd()
+    if cwd not in sys.path and "" not in sys.path:
+        sys.path.append(cwd)
+
+
 def learner_factory(name: str) -> LearnerFactory:
-    """The factory of ``run --learner name``: one of :data:`LEARNERS`, or ``module:attr``."""
+    """The factory of ``run --learner name``: one of :data:`LEARNERS`, or ``module:attr`` (a
+    module in the working directory included)."""
     if name == "ilc":
         from ilc_steering.agents.ilc import make_ilc_paper
 
@@ -49,6 +133,7 @@ def learner_factory(name: str) -> LearnerFactory:
 
         return make_newton_ilc
     if ":" in name:
+        working_directory_importable()
         return load_factory(name, "--learner")
     raise ValueError(f"--learner: unknown learner {name!r}; choose from {list(LEARNERS)} or give module:attr")
 
@@ -67,6 +152,7 @@ class TrialRecord:
     error: list[float]
     action: list[float]
     left_chart: bool = False  # the trial stopped where eqs. 4-5 break down (see the env's Episode End)
+    clipped: bool = False  # the env clipped the learner's action to its box (task.action_bound)
     trajectory: Trajectory | None = None
 
     def to_json(self) -> dict[str, Any]:
@@ -115,6 +201,7 @@ def _record(index: int, info: dict[str, Any]) -> TrialRecord:
         error=info["error"].tolist(),
         action=info["action"].tolist(),
         left_chart=bool(info["left_chart"]),
+        clipped=bool(info.get("clipped", False)),
     )
 
 
@@ -131,11 +218,15 @@ def run_ilc(
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
+
+    A learner that fails raises :class:`~ilc_steering.loop.LearnerError` naming it (``learner``),
+    its ``partial`` the :class:`RunResult` of the trials run before.
     """
     config = load_config(config)
     make = learner_factory(learner)
     count = config.learning.trials if trials is None else trials
     env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
+    check_task(env, config.name)
     context = LearnerContext(
         env.unwrapped.nominal_model,  # type: ignore[attr-defined]
         env.action_space,  # type: ignore[arg-type]
@@ -145,7 +236,10 @@ def run_ilc(
         nu_b=config.learning.nu_b,
         cost=config.learning.cost,
     )
-    agent = make(context)
+    try:
+        agent = make(context)
+    except Exception as error:
+        raise LearnerError(f"learner {learner}: its factory raised {type(error).__name__}: {error}") from error
     if config.learning.cost != "none":
         from ilc_steering.agents.costs import with_cost
 
@@ -162,8 +256,13 @@ def run_ilc(
         if not converged and within_tolerance(config.learning.tolerance, info):
             converged.append(k)
 
-    run_trials(env, agent, count, seed=seed, callbacks=[keep])
-    env.close()
+    try:
+        run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
+    except LearnerError as error:
+        error.partial = RunResult(config, records, converged[0] if converged else None)
+        raise
+    finally:
+        env.close()
     return RunResult(config, records, converged[0] if converged else None)
 
 

@@ -12,13 +12,19 @@ stopped, on the local machine or on Ray (``--backend ray``, see :mod:`ilc_steeri
     ilc-steering sweep forward_parking --methods ilc_paper newton --nu-b 1 0.5 --out runs/sweep
 
 writes ``sweep.json`` / ``sweep.csv`` / ``sweep.md``, a heat map ``sweep_<method>_nu<b>.png``
-per map and one file per row under ``rows/``.
+per map and one file per row under ``rows/`` (file names injective in the method and the gain:
+:func:`gain_text`, :func:`~ilc_steering.output.injective_name`). ``run.json`` holds the settings,
+the package version and the config's content hash: a resume with another config of the same
+name, or other settings, is refused, saying which; every resumed row is checked value by value
+(:func:`read_row`). Repeated methods or gains are refused. A row that raises or outlives
+``--cell-timeout`` is recorded under ``failed/`` with its error, its map left out of the summary,
+and the others are finished.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,13 +33,24 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering import __version__
 from ilc_steering.agents.base import Learner, LearnerContext
+from ilc_steering.backends import MAX_WORKERS, check_workers
 from ilc_steering.config import load_config
 from ilc_steering.core.score import TRUE_KEYS, within_tolerance
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.output import check_output_dir, check_run_settings, safe_name, write_json
+from ilc_steering.inputs import read_json
+from ilc_steering.output import (
+    MAX_RESULT_BYTES,
+    check_output_dir,
+    check_run_settings,
+    content_hash,
+    injective_name,
+    write_figure,
+    write_json,
+)
 
-__all__ = ["SweepArgs", "lockstep", "main", "run_row"]
+__all__ = ["SweepArgs", "gain_text", "lockstep", "main", "main_with_failures", "read_row", "run_row"]
 
 Array = npt.NDArray[np.float64]
 MAX_GRID = 201
@@ -64,6 +81,8 @@ class SweepArgs:
     """Local worker processes (0: one per core)."""
     seed: int = 0
     """Seed of every learner's own randomness."""
+    cell_timeout: float | None = None
+    """[s] a row still running after this is stopped and recorded as failed; None: no limit."""
 
 
 def lockstep(envs: Any, learners: list[Learner], trials: int, tolerance: Any, seed: int = 0) -> dict[str, Array]:
@@ -153,6 +172,13 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
     if config.is_cyclic:
         raise ValueError(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
     Scenario.from_config(config).refuse_disturbances("sweep")
+    import gymnasium as gym
+
+    from ilc_steering.runner import ENV_ID, check_task
+
+    env = gym.make(ENV_ID, config=config)
+    check_task(env, args.config)
+    env.close()
     for name, value, lo, hi in (("--grid", args.grid, 2, MAX_GRID), ("--trials", args.trials, 1, 100_000)):
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
             raise ValueError(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")
@@ -161,6 +187,14 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
     for gain in args.nu_b:
         if not (np.isfinite(gain) and 0 < gain <= 2):
             raise ValueError(f"--nu-b must be gains in (0, 2], got {gain}")
+    for option, values in (("--methods", args.methods), ("--nu-b", args.nu_b)):
+        repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
+        if repeated:
+            raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
+    check_workers(args.workers)
+    timeout = args.cell_timeout
+    if timeout is not None and not (isinstance(timeout, (int, float)) and np.isfinite(timeout) and timeout > 0):
+        raise ValueError(f"--cell-timeout: a time limit > 0 s, got {timeout!r}")
     if args.backend not in ("local", "ray"):
         raise ValueError(f"--backend must be local or ray, got {args.backend!r}")
     if not args.methods:
@@ -175,60 +209,132 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
     return config.name, list(config.plant.plant().factor_names)
 
 
-def row_path(out: Path, method: str, nu_b: float, row: int) -> Path:
-    return out / "rows" / f"{safe_name(method)}__nu{nu_b:g}__{row:03d}.json"
+def gain_text(gain: float) -> str:
+    """``gain`` as ``:g`` text where that is the gain exactly (``1``, ``0.5``), else its ``repr``:
+    two gains never share a text, so never a file."""
+    short = f"{gain:g}"
+    return short if float(short) == gain else repr(float(gain))
 
 
-def _check_folder(args: SweepArgs) -> None:
-    """Record the settings; refuse to resume a folder written with others."""
-    settings = {k: v for k, v in asdict(args).items() if k not in ("out", "methods", "nu_b", "backend", "workers")}
-    settings["config"] = load_config(args.config).name
+def map_name(method: str, gain: float) -> str:
+    """The file-name part of the map of ``method`` at ``gain``: injective in both."""
+    from ilc_steering.compare import METHODS
+
+    return f"{injective_name(method, METHODS)}_nu{gain_text(gain)}"
+
+
+def row_path(out: Path, method: str, nu_b: float, row: int, folder: str = "rows") -> Path:
+    from ilc_steering.compare import METHODS
+
+    return out / folder / f"{injective_name(method, METHODS)}__nu{gain_text(nu_b)}__{row:03d}.json"
+
+
+def _check_folder(args: SweepArgs) -> str:
+    """Record the settings, the version and the config's content hash; refuse to resume a folder
+    written with others. Returns the content hash."""
+    skip = ("out", "methods", "nu_b", "backend", "workers", "cell_timeout")
+    settings = {k: v for k, v in asdict(args).items() if k not in skip}
+    config = load_config(args.config)
+    settings["config"] = config.name
+    settings["version"] = __version__
+    digest = content_hash(asdict(config))
     check_output_dir(args.out, "--out")
     rows = args.out / "rows"
     if rows.exists() and not rows.is_dir():
         raise ValueError(f"{rows}: exists and is not a folder; this is not a sweep run folder")
-    check_run_settings(args.out, settings, rows)
+    check_run_settings(args.out, settings, rows, {config.name: digest})
     rows.mkdir(exist_ok=True)
+    return digest
 
 
-def _read_row(path: Path, size: int) -> dict[str, Any]:
+def read_row(path: Path, key: dict[str, Any], size: int, trials: int) -> dict[str, Any]:
+    """A finished row, checked against its ``key`` (method, gain, row, config hash, version) and
+    value by value: ``size`` plants, ``trials_to`` in ``[0, trials]``, errors >= 0 (not NaN),
+    off-chart fractions in [0, 1], a wall time >= 0 s. ``ValueError`` names the file."""
+    hint = "delete it to recompute it"
     try:
-        row = json.loads(path.read_bytes().decode("utf-8"))
-        ok = all(len(row[key]) == size for key in ("trials_to", "error", "left_chart"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError) as error:
-        raise ValueError(f"{path}: not a sweep row ({error}); delete it to recompute it") from None
-    if not ok:
-        raise ValueError(f"{path}: not a row of {size} plants; delete it to recompute it")
-    return row  # type: ignore[no-any-return]
+        row = read_json(path, MAX_RESULT_BYTES)
+    except ValueError as error:
+        raise ValueError(f"not a sweep row: {error}; {hint}") from None
+    lists = ("trials_to", "error", "left_chart")
+    if not isinstance(row, dict) or not all(isinstance(row.get(k), list) for k in lists):
+        raise ValueError(f"{path}: not a sweep row (a JSON object with {list(lists)}); {hint}")
+    if not all(len(row[k]) == size for k in lists):
+        raise ValueError(f"{path}: not a row of {size} plants; {hint}")
+    for name, value in key.items():
+        if row.get(name) != value:
+            raise ValueError(f"{path}: holds {name} {row.get(name)!r}, not {value!r}; {hint}")
+
+    def number(v: Any) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    problem = None
+    if not all(number(t) and float(t).is_integer() and 0 <= t <= trials for t in row["trials_to"]):
+        problem = f"trials_to holds a value outside the whole numbers 0 to the budget {trials}"
+    elif not all(number(e) and e >= 0 for e in row["error"]):  # NaN fails e >= 0
+        problem = "error holds a value that is not an error >= 0"
+    elif not all(number(f) and 0 <= f <= 1 for f in row["left_chart"]):
+        problem = "left_chart holds a value outside the fractions [0, 1]"
+    elif not (number(row.get("wall_s")) and np.isfinite(row["wall_s"]) and row["wall_s"] >= 0):
+        problem = f"wall_s {row.get('wall_s')!r} is not a time >= 0 s"
+    if problem:
+        raise ValueError(f"{path}: {problem}; {hint}")
+    return row
 
 
 def run_rows(args: SweepArgs) -> dict[tuple[str, float], list[dict[str, Any]]]:
-    """Every row of every map, computing only those not yet in the run folder."""
+    """Every row of every map, computing only those not yet in the run folder (the complete maps)."""
+    return run_all(args)[0]
+
+
+def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any]]], list[dict[str, Any]]]:
+    """The complete maps, and the rows that failed (each written to ``failed/`` with its error);
+    each finished row is written the moment it finishes."""
     from ilc_steering.backends import run_calls
+    from ilc_steering.runner import step_warning
 
     _validate(args)
-    _check_folder(args)
+    warning = step_warning(load_config(args.config))
+    if warning is not None:
+        print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
+    digest = _check_folder(args)
     gains: list[float | None] = list(args.nu_b) or [None]
     config_gain = load_config(args.config).learning.nu_b
     keys = [(m, config_gain if g is None else g, g, r) for m in args.methods for g in gains for r in range(args.grid)]
     rows: dict[tuple[str, float, int], dict[str, Any]] = {}
+    failed: dict[tuple[str, float, int], dict[str, Any]] = {}
     todo = {}
+
+    def expected(method: str, gain: float, row: int) -> dict[str, Any]:
+        return {"method": method, "nu_b": gain, "row": row, "config_sha": digest, "version": __version__}
+
     for method, gain, given, row in keys:
         path = row_path(args.out, method, gain, row)
         if path.exists():
-            rows[method, gain, row] = _read_row(path, args.grid)
+            rows[method, gain, row] = read_row(path, expected(method, gain, row), args.grid, args.trials)
         else:
             todo[method, gain, row] = (args, method, given, row)
 
     def finish(key: tuple[str, float, int], result: dict[str, Any]) -> None:
+        result = {**result, "config_sha": digest, "version": __version__}
         write_json(row_path(args.out, *key), result)
+        row_path(args.out, *key, folder="failed").unlink(missing_ok=True)
         rows[key] = result
 
-    run_calls(run_row, todo, finish, args.backend, args.workers)
+    def fail(key: tuple[str, float, int], message: str) -> None:
+        method, gain, row = key
+        failed[key] = {"method": method, "nu_b": gain, "row": row, "error": message}
+        path = row_path(args.out, *key, folder="failed")
+        path.parent.mkdir(exist_ok=True)
+        write_json(path, failed[key])
+        print(f"{method} nu_b {gain_text(gain)} row {row}: FAILED, recorded in {path}: {message}", flush=True)
+
+    run_calls(run_row, todo, finish, args.backend, args.workers, fail, args.cell_timeout)
     maps: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for method, gain, _, row in keys:
-        maps.setdefault((method, gain), []).append(rows[method, gain, row])
-    return maps
+        if not any((method, gain, r) in failed for r in range(args.grid)):
+            maps.setdefault((method, gain), []).append(rows[method, gain, row])
+    return maps, [failed[m, g, r] for m, g, _, r in keys if (m, g, r) in failed]
 
 
 def summary(args: SweepArgs, maps: dict[tuple[str, float], list[dict[str, Any]]]) -> list[dict[str, Any]]:
@@ -275,18 +381,27 @@ def plot_map(
     ax.set_ylabel(f"{names[0]} (true / nominal)")
     ax.set_title(f"{load_config(args.config).name}: {method}, nu_b = {gain:g}")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    write_figure(path, fig, dpi=90)
 
 
 def main(args: SweepArgs) -> list[dict[str, Any]]:
+    """Run (or resume) the sweep and write its report; returns one summary line per complete map."""
+    return main_with_failures(args)[0]
+
+
+def main_with_failures(args: SweepArgs) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """:func:`main`, returning the failed rows too; the last line printed says how many failed."""
     from ilc_steering.tables import markdown_table, write_results
 
     start = time.perf_counter()
-    maps = run_rows(args)
+    maps, failed = run_all(args)
+    if not maps:
+        print(f"{len(failed)} of {len(failed)} rows failed, each recorded with its error in {args.out}/failed")
+        return [], failed
     _, names = _validate(args)
     lines = summary(args, maps)
     for (method, gain), rows in maps.items():
-        plot_map(args, method, gain, rows, names, args.out / f"sweep_{safe_name(method)}_nu{gain:g}.png")
+        plot_map(args, method, gain, rows, names, args.out / f"sweep_{map_name(method, gain)}.png")
     header = ["method", "nu_b", "converged", "median trials", "most trials", "at the nominal plant", "cell time [s]"]
     cells = [
         [
@@ -301,15 +416,22 @@ def main(args: SweepArgs) -> list[dict[str, Any]]:
         for line in lines
     ]
     table = markdown_table(header, cells, [False, True, True, True, True, True, True])
-    grid = {f"{method}__nu{gain:g}": [row["trials_to"] for row in rows] for (method, gain), rows in maps.items()}
-    extra = {"settings": {**asdict(args), "out": None}, "axes": names}
+    grid = {
+        f"{method}__nu{gain_text(gain)}": [row["trials_to"] for row in rows] for (method, gain), rows in maps.items()
+    }
+    extra = {"settings": {**asdict(args), "out": None}, "axes": names, "failed": failed}
     write_results(lines, args.out, "sweep", table, {**extra, "ratios": ratios(args).tolist(), "maps": grid})
     print(table)
     print(
         f"{args.grid} x {args.grid} plants per map, {len(maps)} maps in {time.perf_counter() - start:.1f} s; "
         f"wrote {args.out}/sweep.{{csv,json,md}}, sweep_<method>_nu<b>.png and rows/"
     )
-    return lines
+    total = args.grid * len(args.methods) * max(1, len(args.nu_b))
+    if failed:
+        print(f"{len(failed)} of {total} rows failed, each recorded with its error in {args.out}/failed")
+    else:
+        print(f"all {total} rows finished")
+    return lines, failed
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -335,7 +457,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="local",
         help="local worker processes, or Ray tasks (ray.init(): RAY_ADDRESS for a cluster)",
     )
-    parser.add_argument("--workers", type=int, default=0, help="local worker processes (0: one per core)")
+    parser.add_argument(
+        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
+    )
+    parser.add_argument(
+        "--cell-timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="stop a row still running after this and record it as failed (default: no limit)",
+    )
 
 
 def from_namespace(ns: argparse.Namespace) -> SweepArgs:
@@ -350,4 +481,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         out=ns.out,
         backend=ns.backend,
         workers=ns.workers,
+        cell_timeout=ns.cell_timeout,
     )

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from statistics import median
 from typing import Any
+
+from ilc_steering.output import write_atomic
 
 __all__ = ["markdown_table", "median_seconds", "write_results"]
 
@@ -34,11 +37,13 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric
 def write_results(
     rows: list[dict[str, Any]], out: Path, stem: str, markdown: str, extra: dict[str, Any] | None = None
 ) -> None:
-    """Write ``stem.json`` (``{"rows": rows, **extra}``), ``stem.csv`` (the rows) and ``stem.md`` to ``out``."""
+    """Write ``stem.json`` (``{"rows": rows, **extra}``), ``stem.csv`` (the rows) and ``stem.md`` to
+    ``out``, each through :func:`~ilc_steering.output.write_atomic`."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"{stem}.json").write_text(json.dumps({"rows": rows, **(extra or {})}, indent=1, default=str))
-    with open(out / f"{stem}.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    (out / f"{stem}.md").write_text(markdown)
+    write_atomic(out / f"{stem}.json", json.dumps({"rows": rows, **(extra or {})}, indent=1, default=str))
+    table = io.StringIO(newline="")
+    writer = csv.DictWriter(table, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(out / f"{stem}.csv", table.getvalue())
+    write_atomic(out / f"{stem}.md", markdown)
