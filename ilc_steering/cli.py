@@ -64,8 +64,8 @@ PAPER: dict[str, tuple[int | None, str]] = {
 WHY_DIFFERENT = {
     "forward_parking_saturated": (
         "the paper does not say how its 45-degree saturation is modelled (ours: a steering servo whose "
-        "command winds past the stop, ilc_steering/core/integrate.py), and it judged 'exact steering' from its plots "
-        "where we count trials to a 0.5 mm tolerance"
+        "command winds past the stop, ilc_steering/core/robots/car_fields.py), and it judged 'exact steering' "
+        "from its plots where we count trials to a 0.5 mm tolerance"
     ),
     "experiment_forward": (
         "the simulated MARIO's imperfections are this library's modelling choices (configs/experiment_forward.yaml), "

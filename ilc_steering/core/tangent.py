@@ -17,11 +17,11 @@ the stop at ``|phi_c| = lim``: ``sigma = tan(phi_c)`` inside, ``sign(phi_c) (W +
 (|phi_c| - lim))`` outside, with ``W = tan(lim)``. The wheel is at ``w = clip(sigma, -W, W)``,
 and ``sigma' = w'`` evaluated at that ``w`` holds on both sides (outside, ``phi_c' = u2`` at the
 stop and ``d sigma / d phi_c = 1 + W^2 = 1 / cos^2(lim)``). So the servo model of
-:mod:`ilc_steering.core.integrate` (the command winds on at the stop) is the same ODE, in other
+:mod:`ilc_steering.core.robots.car_fields` (the command winds on at the stop) is the same ODE, in other
 coordinates. A step whose ``|sigma|`` crosses ``W`` is redone for that lane alone, split at the
 crossing located by Illinois regula falsi, as the angle kernel does.
 
-Chart guard and halting as in :mod:`ilc_steering.core.integrate`: ``|theta|`` or the wheel's
+Chart guard and halting as in :mod:`ilc_steering.core.stepper`: ``|theta|`` or the wheel's
 ``|phi|`` within ``CHART_MARGIN`` of ``pi/2``, or a non-finite state, halts the lane at its last
 valid state with status ``LEFT_CHART``.
 
