@@ -10,6 +10,7 @@ paper's profile of eqs. 15-17, and ``tests/test_protocols.py`` checks any implem
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from math import isfinite
 from typing import Protocol, runtime_checkable
 
@@ -185,9 +186,16 @@ class PiecewiseProfile:
         v1 = np.empty((batch, self.num_pieces, 1))
         v1[:, 0, 0] = c[:, 0]
         v1[:, 1:, 0] = self.v1_fixed
-        bases = self.bases()  # (p, q, q): piece, coefficient, degree
-        v2 = (c[:, 1:] @ bases.transpose(1, 0, 2).reshape(bases.shape[1], -1)).reshape(batch, *bases[:, 0].shape)
+        shape, matrix = self._v2_matrix
+        v2 = (c[:, 1:] @ matrix).reshape(batch, *shape)
         return v1, v2
+
+    @cached_property
+    def _v2_matrix(self) -> tuple[tuple[int, ...], Array]:
+        """The bases as one matrix ``(q, p * D)`` that maps ``c2`` onto every piece's ``v2`` coefficients,
+        and the shape ``(p, D)`` of those: the same for every trial, so built once."""
+        bases = self.bases()  # (p, q, D): piece, coefficient, degree
+        return bases[:, 0].shape, np.ascontiguousarray(bases.transpose(1, 0, 2).reshape(bases.shape[1], -1))
 
     def evaluate(self, c: Array, t: Array) -> tuple[Array, Array]:
         """``v1(t)`` and ``v2(t)`` of one coefficient vector at times ``t`` [s] in ``[0, T]``."""
