@@ -15,7 +15,7 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.envs.steering_env import TrialView, check_action, check_render_mode, reward, trial_info
+from ilc_steering.envs.steering_env import TrialView, check_action, check_flag, check_render_mode, reward, trial_info
 
 __all__ = ["CyclicSteeringEnv", "make_cyclic_env"]
 
@@ -120,7 +120,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.record_trajectory = record_trajectory
+        self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
         self.config = load_config(config)
         if not self.config.is_cyclic:
             raise ValueError(

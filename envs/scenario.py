@@ -31,6 +31,10 @@ __all__ = ["Scenario"]
 Array = npt.NDArray[np.float64]
 
 
+START_DRAWS = 100
+"""Draws of a trial's start (``start_error``) before one outside the chart is an error."""
+
+
 class Scenario:
     """The true plant, the nominal models and the legs of a task, and what a trial measures.
 
@@ -151,11 +155,26 @@ class Scenario:
         true plant, each ``None`` (and nothing drawn) where the scenario has none."""
         x0 = plant = None
         if self.start_error is not None:
-            q0 = self.waypoints[0] + rng.standard_normal(self.start_error.size) * self.start_error
-            x0 = self.plant.initial_state(self.to_task(q0))
+            x0 = self.plant.initial_state(self._draw_start(rng, self.start_error))
         if self.jitter is not None:
             plant = self.plant.with_true_factors(np.exp(self.jitter * rng.standard_normal(2)))
         return x0, plant
+
+    def _draw_start(self, rng: np.random.Generator, sigma: Array) -> Array:
+        """A start configuration (task frame) drawn about the task's with ``sigma``, drawn again
+        where it falls outside the chart or the steering limit (a start there would be folded by pi,
+        the heading reversed); ``ValueError`` when :data:`START_DRAWS` draws in a row all do."""
+        for _ in range(START_DRAWS):
+            q = self.to_task(self.waypoints[0] + rng.standard_normal(sigma.size) * sigma)
+            try:
+                self.plant.check_configuration(q)
+            except ValueError:
+                continue
+            return q
+        raise ValueError(
+            f"simulation.start_error {sigma.tolist()}: {START_DRAWS} draws in a row start outside the "
+            "chart or past the steering limit; it is too large for this task"
+        )
 
     @property
     def nominal(self) -> NominalModel:

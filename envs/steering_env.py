@@ -23,6 +23,7 @@ __all__ = [
     "TrialView",
     "action_names",
     "check_action",
+    "check_flag",
     "check_render_mode",
     "reward",
     "task_spaces",
@@ -62,6 +63,15 @@ def check_action(action: Any, shape: tuple[int, ...], names: str, what: str = "a
         rows = np.flatnonzero(~finite.all(axis=-1))
         raise ValueError(f"{what} must be finite; rows {rows[:10].tolist()} are not ({rows.size} in all)")
     return c
+
+
+def check_flag(value: Any, name: str, none: bool = False) -> Any:
+    """``value`` if it is ``True`` or ``False`` (or ``None``, with ``none``): a string such as ``"no"``
+    would read as true."""
+    if not (isinstance(value, (bool, np.bool_)) or (none and value is None)):
+        allowed = "True, False or None" if none else "True or False"
+        raise ValueError(f"{name} must be {allowed}, got {value!r:.80}")
+    return None if value is None else bool(value)
 
 
 def check_render_mode(render_mode: str | None, metadata: dict[str, Any]) -> str | None:
@@ -240,7 +250,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         parameter_jitter: float | None = None,
     ) -> None:
         self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.record_trajectory = record_trajectory
+        self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
         self.config = load_config(config)
         if self.config.is_cyclic:
             raise ValueError(
@@ -263,6 +273,11 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
+        if options:  # a trial starts where the task says; start_error draws its homing errors
+            raise ValueError(
+                f"options: the one-trial env takes none, got {sorted(map(str, options))}; its trials start at "
+                "task.start (simulation.start_error draws imperfect homing), the cyclic env takes {'start': q}"
+            )
         info = {"q_start": self._scenario.start.copy(), "q_goal": self._scenario.goal.copy()}
         return self._observation.copy(), info
 

@@ -18,6 +18,7 @@ from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
     action_names,
     check_action,
+    check_flag,
     check_render_mode,
     reward,
     task_spaces,
@@ -93,6 +94,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._observations = np.tile(observation, (self.num_envs, 1))
         self._action_names = f"(num_envs = {self.num_envs}, {action_names(self._scenario.nominal)})"
+        parallel = check_flag(parallel, "parallel", none=True)
         self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
         self._plants = None if true_factors is None else self._vary(true_factors)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import stat
@@ -9,10 +10,14 @@ import tracemalloc
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
+import numpy as np
 import pytest
 
+import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.cli import main
 from ilc_steering.config import ConfigError, load_config
+from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 from ilc_steering.inputs import MAX_DEPTH, read_json, read_text
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -652,3 +657,47 @@ def test_a_users_learner_in_the_working_directory_is_found_by_the_installed_scri
     compare += ["--scenarios", "forward_parking", "--custom-trials", "3", "--workers", "1", "--out", "c"]
     result = subprocess.run(compare, capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert result.returncode == 0 and "all 1 cells finished" in result.stdout, result.stderr
+
+
+# Options and numerics the envs and the chained plant took without a word (issue 26).
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: gym.make("ilc_steering/ChainedSteering-v0", record_trajectory="no"), "record_trajectory must be"),
+        (lambda: gym.make("ilc_steering/CyclicSteering-v0", record_trajectory=1), "record_trajectory must be"),
+        (lambda: ChainedSteeringVectorEnv(2, parallel="yes"), "parallel must be True, False or None"),
+    ],
+)
+def test_an_option_that_is_not_a_flag_is_refused(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_the_one_trial_env_refuses_reset_options_it_would_ignore():
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
+    with pytest.raises(ValueError, match=r"options: the one-trial env takes none, got \['start'\]"):
+        env.reset(seed=0, options={"start": [0.1, 0.0, 0.0, 0.0]})
+    env.reset(seed=0, options={})  # an empty mapping asks for nothing
+
+
+def test_chained_gains_are_bounded():
+    data = dataclasses.asdict(load_config("chained_perturbed"))
+    data["plant"]["v2_gain"] = 5.2e154  # the property suite's find: z overflowed to inf
+    with pytest.raises(ConfigError, match=r"plant\.v2_gain: must be nonzero and within \+-1000"):
+        load_config(data)
+
+
+def test_start_draws_outside_the_chart_are_drawn_again_never_folded():
+    """A start drawn past the steering limit (or |theta| >= pi/2) would reach the kernel folded by pi;
+    every trial's start stays inside, and a sigma too large for any start to be is refused."""
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking_saturated", start_error=0.5)
+    env.reset(seed=0)
+    scenario = env.unwrapped._scenario
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        x0, _ = scenario.draw_disturbance(rng)
+        scenario.plant.check_configuration(scenario.plant.configuration(x0))  # raises if outside
+    huge = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking_saturated", start_error=1e3)
+    huge.reset(seed=0)
+    with pytest.raises(ValueError, match="simulation.start_error .* draws in a row start outside the chart"):
+        huge.step(huge.unwrapped.nominal_model.solve())

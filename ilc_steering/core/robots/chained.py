@@ -28,6 +28,8 @@ Array = npt.NDArray[np.float64]
 CHAINED = PlantKind("chained", False, (), ("v1", "v2"))
 MAX_DIMENSION = 12
 """The largest chained-form dimension ``n`` of a chained plant."""
+MAX_GAIN = 1e3
+"""The largest ``|v1_gain|``, ``|v2_gain|``: a gain past it makes ``z`` overflow within a trial."""
 LAYOUT = KernelLayout((), ("v1_gain", "v2_gain", "dimension"))
 _G1, _G2 = LAYOUT.index("v1_gain"), LAYOUT.index("v2_gain")
 
@@ -89,7 +91,11 @@ class ChainedPlant:
         )
         for name in ("v1_gain", "v2_gain"):
             value = getattr(self, name)
-            require(isfinite(value) and value != 0, name, f"must be finite and nonzero, got {value}")
+            require(
+                isfinite(value) and value != 0 and abs(value) <= MAX_GAIN,
+                name,
+                f"must be nonzero and within +-{MAX_GAIN:g}, got {value}",
+            )
 
     @classmethod
     def nominal_plant(cls, chained_map: Any, dimension: int, steering_limit: float | None) -> ChainedPlant:
