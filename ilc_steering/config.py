@@ -544,20 +544,6 @@ def _yaml(text: str, origin: str) -> Any:
     return data
 
 
-def _text(read: Any, origin: str) -> str:
-    """A config file's text: UTF-8, at most :data:`MAX_FILE_BYTES`."""
-    try:
-        raw: bytes = read()
-    except OSError as error:
-        raise ConfigError(f"{origin}: cannot read it: {error.strerror or error}") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ConfigError(f"{origin}: {len(raw)} bytes; a config is at most {MAX_FILE_BYTES} bytes")
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise ConfigError(f"{origin}: not UTF-8 text (byte {error.start})") from None
-
-
 def _read(source: str | Path) -> tuple[Any, str]:
     path = Path(source)
     if path.suffix in (".yaml", ".yml") or path.exists():
@@ -574,7 +560,7 @@ def _read(source: str | Path) -> tuple[Any, str]:
     if not resource.is_file():
         raise ConfigError(f"{source!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
     origin = f"{source}.yaml (packaged)"
-    return _yaml(_text(resource.read_bytes, origin), origin), origin
+    return _yaml(resource.read_text(encoding="utf-8"), origin), origin  # the package's own: small, UTF-8
 
 
 def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> SteeringConfig:
