@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,8 +54,11 @@ BATCH = textwrap.dedent(
 
 
 def run_fresh(code: str, cache: str) -> None:
+    """``code`` in a new interpreter under glibc's heap checks, outside the source tree (whose bare
+    ``ilc_steering/`` folder would shadow the installed package)."""
     env = {**os.environ, "NUMBA_CACHE_DIR": cache, "MALLOC_CHECK_": "3", "MALLOC_PERTURB_": "165"}
-    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    command = [sys.executable, "-c", code]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, cwd=Path(cache).parent)
     assert done.returncode == 0 and done.stdout.strip() == "ok", (done.returncode, done.stdout, done.stderr[-2000:])
 
 
