@@ -2,6 +2,7 @@
 
 import ast
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = {
     "ilc_steering": "ilc_steering",
     "ilc_steering/core": "ilc_steering.core",
+    "ilc_steering/core/robots": "ilc_steering.core.robots",
     "envs": "ilc_steering.envs",
     "agents": "ilc_steering.agents",
 }
@@ -166,3 +168,27 @@ def test_the_learners_that_simulate_use_their_own_family_never_the_env_plant(lea
     from ilc_steering.core.family import ModelFamily
 
     assert list(inspect.signature(ModelFamily).parameters) == ["model", "max_step"]
+
+
+DISPATCH = re.compile(
+    r"isinstance\([^)]*(CarModel|UnicycleModel|TrailerModel|CarPlant|ChainedPlant|UnicyclePlant|TrailerPlant)\b"
+    r"|_FIELD\b|chained_map is (not )?None"
+    r"|getattr\([^)]*\"(steering_limit|lab|servo|steering_lag|speed_lag)\""
+    r"|\.model == \"(car|chained|unicycle|car_trailer)\""
+)
+
+
+def test_no_robot_kind_dispatch_outside_the_robots_modules():
+    """A robot is one module and one registry line: nothing else asks what kind of robot it is
+    (``isinstance`` of a robot's class, field ids, ``is None`` tests of a map, ``getattr`` of a
+    robot's attributes, comparisons of ``plant.model``)."""
+    found = []
+    for name, path in MODULES.items():
+        if name.startswith("ilc_steering.core.robots"):
+            continue
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if DISPATCH.search(line) and "None stands for ChainedForm" not in line:
+                found.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
+    for path in sorted((ROOT / "benchmarks").glob("*.py")):
+        found += [f"{path.name}: {line.strip()}" for line in path.read_text().splitlines() if DISPATCH.search(line)]
+    assert not found, "\n".join(found)

@@ -78,7 +78,7 @@ class NominalModel:
     """The robot's bound on ``|phi|`` [rad], a specification the controller knows (``None``: none)."""
 
     def __post_init__(self) -> None:
-        if self.chained_map is None:
+        if self.chained_map is None:  # None stands for ChainedForm(dimension), the default
             object.__setattr__(self, "chained_map", ChainedForm(self.dimension))
 
     def transition(self, c11: float) -> tuple[Array, Array]:
