@@ -41,7 +41,9 @@ from ilc_steering.core import dop853
 from ilc_steering.core.plants import CHART_MARGIN, Kernel, KernelLayout
 from ilc_steering.core.stepper import LEFT_CHART, OK, locate, run_lanes
 
-__all__ = ["CAR_LAYOUT", "KERNEL", "LANES", "block_full", "block_one", "parallel_batch"]
+# The compiled blocks read their arrays unchecked: they are reached through KERNEL, by
+# ilc_steering.core.integrate.integrate, which checks them against CAR_LAYOUT first.
+__all__ = ["CAR_LAYOUT", "KERNEL", "LANES"]
 
 Array = npt.NDArray[np.float64]
 
