@@ -1,0 +1,357 @@
+r"""``robust_ilc``: identify the plant globally, reach its solution by continuation, guard every step.
+
+``newton_ilc`` refits the model family by a local fit from :math:`\theta = 0` and takes one
+Newton step from the trial it just ran. Far from the nominal plant both fail: the nominal
+solution leaves the chart (a long wheelbase jackknifes, a short one spins), a local fit from 0
+finds a wrong minimum, and Newton from the measured trial lands on a kink or off the chart. This
+learner keeps the same information (the :class:`~ilc_steering.agents.base.LearnerContext` and
+each trial's measured final error, never the plant) and globalizes each of the three:
+
+1. **Global identification.** The family's parameters :math:`\theta` (a
+   :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
+   fitted to every trial run so far by a grid over the whole family (:data:`GRID` points per
+   parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
+   points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
+   under which it would have stayed in the chart is penalized by :data:`CHART_PENALTY`.
+2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
+
+   .. math::
+
+       F(c; \hat\theta) + d + D (c - c_b) = z^d, \qquad d = z_b - F(c_b; \hat\theta),
+
+   (:math:`c_b, z_b` the best trial, :math:`D` a Broyden secant of the residual, as in
+   ``newton_ilc``) by Newton's method along a homotopy that starts where the answer is known: the
+   nominal model at its exact solution (:math:`\theta = 0, d = 0`). :math:`\theta` and :math:`d`
+   are moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved by Newton from the
+   last (forward differences, one batched call per iteration, minimum-norm steps for spare
+   coefficients), the model's chart a constraint of the backtracking line search. A direct Newton
+   solve from the best trial is tried as well; the one nearer the goal is kept.
+3. **A trust region on the measured error.** A trial whose measured error is not below the best
+   one so far is not learned from as a step (it still enters the identification): the next trial
+   halves the step from the best trial, and the secant is reset. Until some trial stays in the
+   chart, the target itself is continued: the next trial aims at a point :math:`\lambda` of the
+   way from the start to the goal (:math:`\lambda` halved after each halted trial), so that the
+   first in-chart trial identifies the plant.
+
+On the nominal plant :math:`\hat\theta = 0` and :math:`d = 0`: one update lands on the goal to the
+integrator's accuracy, as ``newton_ilc`` does (``tests/test_robust_ilc.py``). Inside the model
+family the first in-chart trial identifies the plant and the next one lands on the goal; outside
+it (a steering offset, a lagging servo) the secant and the trust region carry the rest.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.agents.base import LearnerContext
+from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
+from ilc_steering.core.nominal import NominalModel
+
+__all__ = ["GRID", "HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
+
+Array = npt.NDArray[np.float64]
+Mask = npt.NDArray[np.bool_]
+
+GRID = 13
+"""Grid points per family parameter of the global identification (over ``+-MAX_LOG_RATIO``)."""
+GRID_3D = 7
+"""The same for a family of three parameters (a car with a trailer)."""
+HOMOTOPY_STEPS = 8
+"""Steps of the continuation from the nominal model to the refit one."""
+CHART_PENALTY = 10.0
+"""[m or rad] residual of a hypothesis that disagrees with a trial about leaving the chart."""
+RIDGE = 1e-4
+"""[m or rad per unit of theta] the pull of ``theta`` to 0 where the trials say nothing."""
+FIT_TOLERANCE = 1e-7
+"""[m or rad] a fit that explains every trial this well is not searched for globally."""
+GRID_STARTS = 6
+"""Grid points the Levenberg-Marquardt refinement starts from."""
+FIT_TRIALS = 8
+"""The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
+THETA_CHANGE = 1e-6
+"""A refit that moves ``theta`` more than this resets the secant."""
+SAME_TRIAL = 1e-6
+"""[action scales] a proposal this close to the failed trial is that trial again."""
+OUT_OF_FAMILY = 1e-4
+"""[m or rad] a best fit that leaves a trial this far unexplained is not used."""
+STALLED = 4
+"""Updates without halving the best error after which the global searches run only every this many."""
+REACHED = 1e-10
+"""[m or rad] a measured error this small is the integrator's accuracy: the trial is repeated."""
+SOLVED = 1e-10
+"""[chained units] a model mismatch this small needs no continuation."""
+RCOND = 1e-7
+"""Singular values of the model's Jacobian below this fraction of the largest are left out of a
+Newton step: a symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction
+would take the step far out of the box."""
+_NEWTON_ITERATIONS = 12
+_HALVINGS = 8
+_FIT_ITERATIONS = 20
+
+
+@dataclass
+class _Trial:
+    c: Array
+    z: Array  # measured final chained coordinates (meaningless if it left the chart)
+    q: Array  # measured final configuration
+    ok: bool  # stayed in the chart
+    error: float  # norm of the measured configuration error (inf if it left the chart)
+
+
+class RobustILC:
+    """Global identification, continuation and a trust region (see the module docstring).
+
+    Parameters
+    ----------
+    model
+        The nominal model (never the plant).
+    start
+        The first trial's coefficients.
+    low, high
+        The env's action box [physical units].
+    """
+
+    def __init__(self, model: NominalModel, start: Array, low: Array, high: Array) -> None:
+        self.model = model
+        self.family = ModelFamily(model)
+        self.start = np.array(start, dtype=np.float64)
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        self._goal_q = self.family.to_configuration(model.z_goal)
+        self._scale = model.action_scale()
+        self._nominal_c = np.clip(model.solve(), self.low, self.high)
+        axis = np.linspace(-MAX_LOG_RATIO, MAX_LOG_RATIO, GRID if self.family.size <= 2 else GRID_3D)
+        self._grid = np.array(list(itertools.product(axis, repeat=self.family.size)))
+        self.reset()
+
+    def reset(self) -> None:
+        self.theta = np.zeros(self.family.size)
+        self.update_seconds: list[float] = []
+        """Wall time [s] of each update (identification, continuation and Newton solves)."""
+        self._trials: list[_Trial] = []
+        self._best: _Trial | None = None
+        self._D = np.zeros((self.model.dimension, self.start.size))
+        self._previous: _Trial | None = None
+        self._stalled = 0  # updates since the best error last halved
+        self._thorough = True
+        self._reach = 1.0  # the fraction of the way to the goal aimed at while no trial stays in the chart
+        self._next = self.start.copy()
+
+    def act(self, observation: Any = None) -> Array:
+        return self._next.copy()
+
+    def learn(self, info: Mapping[str, Any]) -> None:
+        began = time.perf_counter()
+        c = np.asarray(info["action"], dtype=np.float64)
+        z = self.model.z_goal - np.asarray(info["error"], dtype=np.float64)
+        ok = not bool(info.get("left_chart", False)) and bool(np.all(np.isfinite(z)))
+        q = self.family.to_configuration(z) if ok else np.full(self._goal_q.shape, np.nan)
+        trial = _Trial(c, z, q, ok, float(np.linalg.norm(q - self._goal_q)) if ok else np.inf)
+        self._trials.append(trial)
+        if ok and trial.error < REACHED and (self._best is None or trial.error <= self._best.error):
+            # At the goal to the integrator's accuracy: nothing left to learn; run it again.
+            self._best, self._next = trial, c.copy()
+            self.update_seconds.append(time.perf_counter() - began)
+            return
+        improved = self._best is None or trial.error < 0.5 * self._best.error
+        self._stalled = 0 if improved else self._stalled + 1
+        # A learner that has stopped improving searches globally only every STALLED-th update:
+        # where the true plant cannot reach the goal, that is all the search can find.
+        self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
+        theta = self._identify()
+        if self._misfit(self._residuals(theta[None], self._fit_trials())[0]) > OUT_OF_FAMILY:
+            # No member of the family explains the trials: its fit would be a caricature (a wheelbase
+            # twice too long to stand for a misaligned wheel). Keep the nominal model, and leave what it
+            # does not explain to the offset and the secant, which then learn on undisturbed.
+            theta = np.zeros_like(theta)
+        if np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
+            # The secant was learned against another model: it would only distort the new one.
+            self._D[:] = 0.0
+            self._previous = None
+        self.theta = theta
+        best = self._best
+        if best is None and not ok:
+            # No trial has stayed in the chart yet: aim at a point nearer the start.
+            self._reach *= 0.5
+            self._next = self._solve(None, self._reach)
+        elif best is not None and not trial.error < best.error:
+            # Outside the trust region. The refit model's answer from the best trial, unless it is
+            # the trial just run: then half the step from the best trial, the secant forgotten.
+            self._D[:] = 0.0
+            self._previous = None
+            proposal = self._solve(best, 1.0)
+            if np.max(np.abs(proposal - c) / self._scale) < SAME_TRIAL:
+                proposal = self._box(best.c + 0.5 * (c - best.c))
+            self._next = proposal
+        else:
+            self._best = trial
+            self._update_secant(trial)
+            self._next = self._solve(trial, 1.0)
+        self.update_seconds.append(time.perf_counter() - began)
+
+    # identification -----------------------------------------------------------------------------
+
+    def _fit_trials(self) -> list[_Trial]:
+        trials = self._trials
+        if len(trials) <= FIT_TRIALS:
+            return trials
+        keep = trials[-(FIT_TRIALS - 1) :]
+        if self._best is not None and all(t is not self._best for t in keep):
+            keep = [self._best, *keep[1:]]
+        return keep
+
+    def _residuals(self, thetas: Array, trials: list[_Trial]) -> Array:
+        """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` against ``trials``."""
+        m, k = thetas.shape[0], len(trials)
+        c = np.tile(np.array([t.c for t in trials]), (m, 1))
+        q, ok = self.family.configurations_many(np.repeat(thetas, k, axis=0), c)
+        q, ok = q.reshape(m, k, -1), ok.reshape(m, k)
+        measured_ok = np.array([t.ok for t in trials])
+        y = np.array([t.q if t.ok else np.zeros_like(self._goal_q) for t in trials])
+        r = np.where((ok & measured_ok)[..., None], q - y, 0.0)
+        r = np.where((ok != measured_ok)[..., None], CHART_PENALTY, r)
+        return np.concatenate([r.reshape(m, -1), RIDGE * thetas], axis=1)
+
+    def _identify(self) -> Array:
+        """LM from the last estimate; when that does not explain the trials to :data:`FIT_TOLERANCE`,
+        also from the best points of the grid over the whole family."""
+        trials = self._fit_trials()
+        r = self._residuals(self.theta[None], trials)[0]
+        if self._misfit(r) < FIT_TOLERANCE:  # the last estimate explains the new trial too
+            return self.theta
+        theta, r = self._levenberg_marquardt(self.theta, trials)
+        if self._misfit(r) < FIT_TOLERANCE or not self._thorough:
+            return theta
+        values = self._residuals(self._grid, trials)
+        cost = np.einsum("ij,ij->i", values, values)
+        fits = [(theta, r)] + [
+            self._levenberg_marquardt(g, trials) for g in self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
+        ]
+        return min(fits, key=lambda fit: float(fit[1] @ fit[1]))[0]
+
+    def _misfit(self, r: Array) -> float:
+        """The largest residual of the trials (the ridge left out) [m or rad]."""
+        return float(np.max(np.abs(r[: -self.family.size]), initial=0.0))
+
+    def _levenberg_marquardt(self, theta: Array, trials: list[_Trial]) -> tuple[Array, Array]:
+        h, damping = 1e-6, 1e-3
+        eye = np.eye(theta.size)
+        r = self._residuals(theta[None], trials)[0]
+        for _ in range(_FIT_ITERATIONS):
+            probes = np.concatenate([theta + h * eye, theta - h * eye])
+            values = self._residuals(probes, trials)
+            J = (values[: theta.size] - values[theta.size :]).T / (2 * h)
+            gradient, normal = J.T @ r, J.T @ J
+            improved = False
+            for _ in range(_HALVINGS):
+                step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
+                candidate = np.clip(theta + step, -MAX_LOG_RATIO, MAX_LOG_RATIO)
+                r_new = self._residuals(candidate[None], trials)[0]
+                if r_new @ r_new < r @ r:
+                    theta, r, damping, improved = candidate, r_new, damping / 3, True
+                    break
+                damping *= 4
+            if not improved or np.max(np.abs(step)) < 1e-12 or self._misfit(r) < 1e-3 * FIT_TOLERANCE:
+                break
+        return theta, r
+
+    # the next trial -----------------------------------------------------------------------------
+
+    def _update_secant(self, trial: _Trial) -> None:
+        previous = self._previous
+        self._previous = trial
+        if previous is None:
+            return
+        s = trial.c - previous.c
+        z, ok = self._final_z(np.tile(self.theta, (2, 1)), np.stack([trial.c, previous.c]))
+        if np.all(ok) and s @ s > 0:
+            r = (trial.z - z[0]) - (previous.z - z[1])
+            self._D += np.outer(r - self._D @ s, s) / (s @ s)
+
+    def _solve(self, trial: _Trial | None, reach: float) -> Array:
+        """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
+        point ``reach`` of the way from the start to the goal."""
+        model = self.model
+        target = model.z_start + reach * (model.z_goal - model.z_start)
+        if trial is None:
+            d, anchor, D = np.zeros_like(target), self._nominal_c, np.zeros_like(self._D)
+        else:
+            z, ok = self._final_z(self.theta[None], trial.c[None])
+            d = trial.z - z[0] if ok[0] else np.zeros_like(target)
+            anchor, D = trial.c, self._D
+
+        candidates = []
+        if trial is not None:
+            candidates.append(self._newton(trial.c, self.theta, target - d, D, anchor))
+            if np.linalg.norm(candidates[0][1]) < SOLVED or not self._thorough:
+                return self._box(candidates[0][0]) if np.all(np.isfinite(candidates[0][1])) else self._law(trial)
+        # The homotopy from the nominal model at its exact solution.
+        c = self._box(model.solve(z_goal=model.z_start + reach * (model.z_goal - model.z_start)))
+        for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
+            c, _ = self._newton(c, s * self.theta, target - s * d, s * D, anchor)
+        candidates.append((c, self._mismatch(c[None], self.theta, target - d, D, anchor)[0][0]))
+        norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
+        pick = int(np.argmin(norms))
+        if not np.isfinite(norms[pick]):
+            return self._box(c) if trial is None else self._law(trial)
+        return self._box(candidates[pick][0])
+
+    def _law(self, trial: _Trial) -> Array:
+        """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
+        law = ILCAgent(self.model, start=trial.c)
+        law.learn({"action": trial.c, "error": self.model.z_goal - trial.z})
+        return self._box(law.act())
+
+    def _mismatch(self, cs: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Mask]:
+        z, ok = self._final_z(np.tile(theta, (cs.shape[0], 1)), cs)
+        return z + (cs - anchor) @ D.T - target, ok
+
+    def _newton(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Array]:
+        """Newton's method on ``F(c; theta) + D (c - anchor) = target`` from ``c``, staying in the
+        model's chart; returns the last iterate and its mismatch."""
+        values, ok = self._mismatch(c[None], theta, target, D, anchor)
+        g = values[0] if ok[0] else np.full_like(target, np.inf)
+        steps = 1e-7 * self._scale
+        for _ in range(_NEWTON_ITERATIONS):
+            if not np.all(np.isfinite(g)) or np.linalg.norm(g) < 1e-2 * SOLVED:
+                break
+            probes = c + np.vstack([np.zeros_like(c), np.diag(steps)])
+            values, probe_ok = self._mismatch(probes, theta, target, D, anchor)
+            if not np.all(probe_ok):
+                break
+            J = (values[1:] - values[0]).T / steps
+            step = np.linalg.lstsq(J, -values[0], rcond=RCOND)[0]
+            for _ in range(_HALVINGS):  # backtracking, one trial at a time: most steps are taken whole
+                candidate = self._box(c + step)
+                g_new, ok_new = self._mismatch(candidate[None], theta, target, D, anchor)
+                if ok_new[0] and np.linalg.norm(g_new[0]) < np.linalg.norm(g):
+                    c, g = candidate, g_new[0]
+                    break
+                step = 0.5 * step
+            else:
+                break
+        return c, g
+
+    def _final_z(self, thetas: Array, c: Array) -> tuple[Array, Mask]:
+        q, ok = self.family.configurations_many(thetas, c)
+        z = np.full_like(q, np.nan)
+        z[ok] = self.family.to_chained(q[ok])
+        return z, ok
+
+    def _box(self, c: Array) -> Array:
+        return np.clip(c, self.low, self.high)
+
+
+def make_robust_ilc(context: LearnerContext) -> RobustILC:
+    """``compare`` method ``robust_ilc`` (and ``run --learner robust_ilc``), from the context's first trial."""
+    low = np.asarray(context.action_space.low, dtype=np.float64)
+    high = np.asarray(context.action_space.high, dtype=np.float64)
+    return RobustILC(context.model, context.first_action(), low, high)
