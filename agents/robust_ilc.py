@@ -78,10 +78,6 @@ FIT_TRIALS = 8
 """The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
 THETA_CHANGE = 1e-6
 """A refit that moves ``theta`` more than this resets the secant."""
-SAME_TRIAL = 1e-6
-"""[action scales] a proposal this close to the failed trial is that trial again."""
-OUT_OF_FAMILY = 1e-4
-"""[m or rad] a best fit that leaves a trial this far unexplained is not used."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10
@@ -140,6 +136,7 @@ class RobustILC:
         self._best: _Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
         self._previous: _Trial | None = None
+        self._radius = np.inf  # the trust region's half-width around the best trial [action scales]
         self._stalled = 0  # updates since the best error last halved
         self._thorough = True
         self._reach = 1.0  # the fraction of the way to the goal aimed at while no trial stays in the chart
@@ -167,11 +164,6 @@ class RobustILC:
         # where the true plant cannot reach the goal, that is all the search can find.
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
         theta = self._identify()
-        if self._misfit(self._residuals(theta[None], self._fit_trials())[0]) > OUT_OF_FAMILY:
-            # No member of the family explains the trials: its fit would be a caricature (a wheelbase
-            # twice too long to stand for a misaligned wheel). Keep the nominal model, and leave what it
-            # does not explain to the offset and the secant, which then learn on undisturbed.
-            theta = np.zeros_like(theta)
         if np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
             # The secant was learned against another model: it would only distort the new one.
             self._D[:] = 0.0
@@ -183,18 +175,18 @@ class RobustILC:
             self._reach *= 0.5
             self._next = self._solve(None, self._reach)
         elif best is not None and not trial.error < best.error:
-            # Outside the trust region. The refit model's answer from the best trial, unless it is
-            # the trial just run: then half the step from the best trial, the secant forgotten.
+            # Outside the trust region: it shrinks to half the failed step, and the refit model's
+            # answer from the best trial is taken within it; the secant is forgotten.
             self._D[:] = 0.0
             self._previous = None
-            proposal = self._solve(best, 1.0)
-            if np.max(np.abs(proposal - c) / self._scale) < SAME_TRIAL:
-                proposal = self._box(best.c + 0.5 * (c - best.c))
-            self._next = proposal
+            self._radius = 0.5 * self._length(c - best.c)
+            self._next = self._within(best.c, self._solve(best, 1.0))
         else:
+            if best is not None:
+                self._radius = max(self._radius, 2.0 * self._length(c - best.c))
             self._best = trial
             self._update_secant(trial)
-            self._next = self._solve(trial, 1.0)
+            self._next = self._within(c, self._solve(trial, 1.0))
         self.update_seconds.append(time.perf_counter() - began)
 
     # identification -----------------------------------------------------------------------------
@@ -345,6 +337,17 @@ class RobustILC:
         z = np.full_like(q, np.nan)
         z[ok] = self.family.to_chained(q[ok])
         return z, ok
+
+    def _length(self, step: Array) -> float:
+        """The size of a step in action scales (the largest over the coefficients)."""
+        return float(np.max(np.abs(step) / self._scale))
+
+    def _within(self, origin: Array, c: Array) -> Array:
+        """``c`` pulled back along its step from ``origin`` into the trust region."""
+        length = self._length(c - origin)
+        if length > self._radius:
+            c = origin + (c - origin) * (self._radius / length)
+        return self._box(c)
 
     def _box(self, c: Array) -> Array:
         return np.clip(c, self.low, self.high)

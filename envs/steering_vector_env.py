@@ -13,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import PlantBatch
+from ilc_steering.core.plants import Plant, PlantBatch
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
     action_names,
@@ -48,7 +48,9 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ``true_factors`` ``(N, 2)`` makes every env a different robot: env ``i``'s true plant is the
     config's with its two parameters (``plant.factor_names``: a car's wheelbase and wheel radius)
     multiplied by row ``i``, still one compiled call per step (``ilc-steering sweep`` maps a
-    learner over such a grid). The learner's nominal model is the same for all.
+    learner over such a grid); ``true_plants``, a plant per env of the config's kind, gives them
+    outright (a map over any plant key, a steering offset say). The learner's nominal model is the
+    same for all.
 
     Every episode is one step long, so the env resets in the same step
     (``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``) and every step is a trial: the
@@ -79,6 +81,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         parallel: bool | None = None,
         measurement_noise: float | Sequence[float] | None = None,
         true_factors: Any = None,
+        true_plants: Sequence[Plant] | None = None,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
@@ -96,7 +99,11 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self._action_names = f"(num_envs = {self.num_envs}, {action_names(self._scenario.nominal)})"
         parallel = check_flag(parallel, "parallel", none=True)
         self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
+        if true_factors is not None and true_plants is not None:
+            raise ValueError("true_factors and true_plants: give one of them, not both")
         self._plants = None if true_factors is None else self._vary(true_factors)
+        if true_plants is not None:
+            self._plants = self._own_plants(true_plants)
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -147,6 +154,17 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
                 f"true_factors must be in (0, {MAX_FACTOR}], got a range [{factors.min()}, {factors.max()}]"
             )
         return PlantBatch([plant.with_true_factors(row) for row in factors])
+
+    def _own_plants(self, plants: Sequence[Plant]) -> PlantBatch:
+        """One given true plant per env, of the config's plant's kind and state size."""
+        plants = list(plants)
+        if len(plants) != self.num_envs:
+            raise ValueError(f"true_plants: one plant per env is needed ({self.num_envs}), got {len(plants)}")
+        state_dim = self._scenario.plant.state_dim
+        for plant in plants:
+            if not isinstance(plant, Plant) or plant.state_dim != state_dim:
+                raise ValueError(f"true_plants: every entry must be a Plant of state size {state_dim}, got {plant!r}")
+        return PlantBatch(plants)
 
     def _reset_info(self) -> dict[str, Any]:
         everyone = np.ones(self.num_envs, dtype=np.bool_)

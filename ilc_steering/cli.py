@@ -222,7 +222,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 SEEDS = range(10)
 """Seeds of the measurement noise over which ``reproduce`` reports the lab experiments."""
-SEEDED_LEARNERS = ("ilc", "newton_ilc")
+SEEDED_LEARNERS = ("ilc", "newton_ilc", "robust_ilc")
 
 
 def _seeds_table(names: list[str]) -> None:

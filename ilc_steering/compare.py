@@ -81,7 +81,7 @@ __all__ = [
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 MAX_SEED = 2**32 - 1
-MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc")
+MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc", "robust_ilc")
 BLACKBOX = ("least_squares", "gauss_newton", "nelder_mead", "cma_es")
 RL = ("ppo", "sac", "td3")
 METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
@@ -214,12 +214,14 @@ def make_learner(args: Args, method: str, scenario: str, context: LearnerContext
     from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
     from ilc_steering.agents.newton import make_newton
     from ilc_steering.agents.newton_ilc import make_newton_ilc
+    from ilc_steering.agents.robust_ilc import make_robust_ilc
 
     builders: dict[str, Callable[[LearnerContext], Learner]] = {
         "ilc": make_ilc,
         "ilc_paper": make_ilc_paper,
         "newton": make_newton,
         "newton_ilc": make_newton_ilc,
+        "robust_ilc": make_robust_ilc,
     }
     if method in builders:
         return builders[method](context)

@@ -37,9 +37,10 @@ __all__ = [
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
-LEARNERS = ("ilc", "newton_ilc")
+LEARNERS = ("ilc", "newton_ilc", "robust_ilc")
 """``run --learner``: the paper's eqs. 33-34 (its fictitious zero iteration first, as ``compare``'s
-``ilc_paper``), or the re-identifying learner of :mod:`ilc_steering.agents.newton_ilc`."""
+``ilc_paper``), the re-identifying learner of :mod:`ilc_steering.agents.newton_ilc`, or its
+globalized successor :mod:`ilc_steering.agents.robust_ilc`."""
 
 
 MAX_NOMINAL_MISS = 1e-6
@@ -132,6 +133,10 @@ def learner_factory(name: str) -> LearnerFactory:
         from ilc_steering.agents.newton_ilc import make_newton_ilc
 
         return make_newton_ilc
+    if name == "robust_ilc":
+        from ilc_steering.agents.robust_ilc import make_robust_ilc
+
+        return make_robust_ilc
     if ":" in name:
         working_directory_importable()
         return load_factory(name, "--learner")

@@ -26,7 +26,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
+from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
 
@@ -36,10 +37,12 @@ import numpy.typing as npt
 from ilc_steering import __version__
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.backends import MAX_WORKERS, check_workers
-from ilc_steering.config import load_config
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.plants import Plant
 from ilc_steering.core.score import TRUE_KEYS, within_tolerance
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.inputs import read_json
+from ilc_steering.oracle import SOLVED
 from ilc_steering.output import (
     MAX_RESULT_BYTES,
     check_output_dir,
@@ -83,6 +86,13 @@ class SweepArgs:
     """Seed of every learner's own randomness."""
     cell_timeout: float | None = None
     """[s] a row still running after this is stopped and recorded as failed; None: no limit."""
+    axes: tuple[tuple[str, float, float], ...] = ()
+    """Two plant keys with their ranges ``(key, low, high)`` [the key's unit], e.g.
+    ``("steering_offset", -0.03, 0.03)``; empty: the plant's two ``factor_names`` as ratios
+    ``low``-``high`` to the nominal ones."""
+    oracle: bool = False
+    """Also map where the true plant can reach the goal at all (:mod:`ilc_steering.oracle`, which
+    knows the true plant: never a learner), and report every map's share of that region."""
 
 
 def lockstep(envs: Any, learners: list[Learner], trials: int, tolerance: Any, seed: int = 0) -> dict[str, Array]:
@@ -120,21 +130,53 @@ def lockstep(envs: Any, learners: list[Learner], trials: int, tolerance: Any, se
 
 
 def ratios(args: SweepArgs) -> Array:
+    """The values of the first axis (and of the second: both axes share the grid's size)."""
     return np.linspace(args.low, args.high, args.grid)
+
+
+def axis_values(args: SweepArgs) -> tuple[Array, Array]:
+    """The grid's values on each axis: ratios to the nominal parameters, or the given keys' values."""
+    if not args.axes:
+        return ratios(args), ratios(args)
+    return tuple(np.linspace(low, high, args.grid) for _, low, high in args.axes)  # type: ignore[return-value]
+
+
+def centre_values(args: SweepArgs, config: SteeringConfig) -> tuple[float, float]:
+    """Where the map is centred: the nominal parameters (ratio 1), or the config's own values of the keys."""
+    if not args.axes:
+        return 1.0, 1.0
+    return tuple(float(getattr(config.plant, key) or 0.0) for key, _, _ in args.axes)  # type: ignore[return-value]
+
+
+def row_plants(args: SweepArgs, config: SteeringConfig, row: int, reach: float = 1.0) -> list[Plant]:
+    """The true plants of row ``row``: the first axis at its ``row``-th value, the second at each
+    of its values; ``reach`` < 1 moves them that fraction of the way from the centre plant
+    (:func:`centre_values`), for the oracle's continuation."""
+    first, second = axis_values(args)
+    c0, c1 = centre_values(args, config)
+    a = c0 + reach * (first[row] - c0)
+    points = [(a, c1 + reach * (b - c1)) for b in second]
+    if not args.axes:
+        plant = config.plant.plant()
+        base = plant.true_factors()  # the config's true plant: the grid is against the nominal
+        return [plant.with_true_factors(np.array(point) / base) for point in points]
+    (k0, _, _), (k1, _, _) = args.axes
+    return [replace(config.plant, **{k0: float(x), k1: float(y)}).plant() for x, y in points]
+
+
+def centre_row(args: SweepArgs, config: SteeringConfig) -> int:
+    return int(np.argmin(np.abs(axis_values(args)[0] - centre_values(args, config)[0])))
 
 
 def run_row(args: SweepArgs, method: str, nu_b: float | None, row: int) -> dict[str, Any]:
     """Row ``row`` of the map of ``method`` (gain ``nu_b``, ``None`` for the config's): the first
-    factor at ``ratios[row]``, the second at every ratio."""
+    axis at its ``row``-th value, the second at every value."""
     from ilc_steering.compare import Args as CompareArgs
     from ilc_steering.compare import make_learner
     from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 
     config = load_config(args.config)
-    axis = ratios(args)
-    grid = np.column_stack([np.full(axis.size, axis[row]), axis])
-    base = config.plant.plant().true_factors()  # the config's true plant: the grid is against the nominal
-    envs = ChainedSteeringVectorEnv(axis.size, config, true_factors=grid / base)
+    envs = ChainedSteeringVectorEnv(args.grid, config, true_plants=row_plants(args, config, row))
     learning = config.learning
     context = LearnerContext(
         envs.nominal_model,
@@ -145,7 +187,7 @@ def run_row(args: SweepArgs, method: str, nu_b: float | None, row: int) -> dict[
         learning.nu_b if nu_b is None else nu_b,
         cost=learning.cost,
     )
-    learners = [make_learner(CompareArgs(), method, config.name, context) for _ in range(axis.size)]
+    learners = [make_learner(CompareArgs(), method, config.name, context) for _ in range(args.grid)]
     start = time.perf_counter()
     try:
         result = lockstep(envs, learners, args.trials, learning.tolerance, args.seed)
@@ -163,6 +205,19 @@ def run_row(args: SweepArgs, method: str, nu_b: float | None, row: int) -> dict[
         "left_chart": result["left_chart"].tolist(),
         "wall_s": time.perf_counter() - start,
     }
+
+
+def run_oracle(args: SweepArgs) -> dict[str, Any]:
+    """The oracle's map (it knows the true plant; see :mod:`ilc_steering.oracle`)."""
+    from ilc_steering.oracle import oracle_map
+
+    config = load_config(args.config)
+    scenario = Scenario.from_config(config)
+    start = time.perf_counter()
+    found = oracle_map(
+        scenario, lambda row, reach: row_plants(args, config, row, reach), args.grid, centre_row(args, config)
+    )
+    return {**found, "wall_s": time.perf_counter() - start}
 
 
 def _validate(args: SweepArgs) -> tuple[str, list[str]]:
@@ -206,7 +261,40 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
             )
         if method not in MODEL_METHODS + BLACKBOX and not is_custom(method):
             raise ValueError(f"--methods: unknown method {method!r}; choose from {list(MODEL_METHODS + BLACKBOX)}")
-    return config.name, list(config.plant.plant().factor_names)
+    if not args.axes:
+        return config.name, list(config.plant.plant().factor_names)
+    _check_axes(args, config)
+    return config.name, [key for key, _, _ in args.axes]
+
+
+def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
+    """Two distinct numeric keys of the config's plant, each with a range, every plant of the grid
+    valid and of one kind (one compiled call per row)."""
+    if len(args.axes) != 2:
+        raise ValueError(f"--axis: give exactly two (KEY LOW HIGH each), got {len(args.axes)}")
+    keys = [key for key, _, _ in args.axes]
+    if keys[0] == keys[1]:
+        raise ValueError(f"--axis: {keys[0]} is given twice; a map has two different axes")
+    fields = {f.name for f in dataclass_fields(config.plant)} - {"model"}
+    for key, low, high in args.axes:
+        if key not in fields:
+            raise ValueError(f"--axis {key}: not a key of this plant; choose from {sorted(fields)}")
+        if not (np.isfinite(low) and np.isfinite(high) and low < high):
+            raise ValueError(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
+    from ilc_steering.config import ConfigError
+
+    kinds = set()
+    for row in (0, args.grid - 1):
+        try:
+            plants = row_plants(args, config, row)
+        except (ConfigError, ValueError, TypeError) as error:
+            raise ValueError(f"--axis: the grid holds an invalid plant: {error}") from None
+        kinds |= {(plant.kernel()[0].__class__, id(plant.kernel()[0]), plant.state_dim) for plant in plants}
+    if len(kinds) != 1:
+        raise ValueError(
+            "--axis: the grid's plants are of different kinds (a car with and without a servo, say: "
+            "a steering offset of exactly 0 without a lag); shift the range or give the config a lag"
+        )
 
 
 def gain_text(gain: float) -> str:
@@ -232,8 +320,9 @@ def row_path(out: Path, method: str, nu_b: float, row: int, folder: str = "rows"
 def _check_folder(args: SweepArgs) -> str:
     """Record the settings, the version and the config's content hash; refuse to resume a folder
     written with others. Returns the content hash."""
-    skip = ("out", "methods", "nu_b", "backend", "workers", "cell_timeout")
+    skip = ("out", "methods", "nu_b", "backend", "workers", "cell_timeout", "oracle")
     settings = {k: v for k, v in asdict(args).items() if k not in skip}
+    settings["axes"] = [list(axis) for axis in args.axes]
     config = load_config(args.config)
     settings["config"] = config.name
     settings["version"] = __version__
@@ -280,6 +369,39 @@ def read_row(path: Path, key: dict[str, Any], size: int, trials: int) -> dict[st
     if problem:
         raise ValueError(f"{path}: {problem}; {hint}")
     return row
+
+
+ORACLE = "oracle"
+"""The oracle's name in a sweep's results: it knows the true plant, and it is not a learner."""
+
+
+def read_oracle(path: Path, key: dict[str, Any], size: int) -> dict[str, Any]:
+    """The oracle's map, checked against its ``key`` and its shape; ``ValueError`` names the file."""
+    hint = "delete it to recompute it"
+    try:
+        found = read_json(path, MAX_RESULT_BYTES)
+    except ValueError as error:
+        raise ValueError(f"not an oracle map: {error}; {hint}") from None
+    if not isinstance(found, dict):
+        raise ValueError(f"{path}: not an oracle map (a JSON object); {hint}")
+    for name, value in key.items():
+        if found.get(name) != value:
+            raise ValueError(f"{path}: holds {name} {found.get(name)!r}, not {value!r}; {hint}")
+    solvable, error = found.get("solvable"), found.get("error")
+    shape_ok = all(
+        isinstance(grid, list) and len(grid) == size and all(isinstance(r, list) and len(r) == size for r in grid)
+        for grid in (solvable, error)
+    )
+    if not shape_ok:
+        raise ValueError(f"{path}: not a {size} x {size} oracle map; {hint}")
+    if not all(isinstance(v, bool) for r in solvable for v in r):  # type: ignore[union-attr]
+        raise ValueError(f"{path}: solvable holds a value that is not true or false; {hint}")
+    if not all(v is None or (isinstance(v, (int, float)) and v >= 0) for r in error for v in r):  # type: ignore[union-attr]
+        raise ValueError(f"{path}: error holds a value that is not an error >= 0 or null; {hint}")
+    pairs = zip(solvable, error)  # type: ignore[arg-type]
+    if any(s != (e is not None and e < SOLVED) for rs, re in pairs for s, e in zip(rs, re)):
+        raise ValueError(f"{path}: solvable disagrees with error < {SOLVED:g}; {hint}")
+    return found
 
 
 def run_rows(args: SweepArgs) -> dict[tuple[str, float], list[dict[str, Any]]]:
@@ -329,6 +451,14 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
         write_json(path, failed[key])
         print(f"{method} nu_b {gain_text(gain)} row {row}: FAILED, recorded in {path}: {message}", flush=True)
 
+    if args.oracle:
+        oracle_path = args.out / "oracle.json"
+        key = {"method": ORACLE, "config_sha": digest, "version": __version__}
+        if oracle_path.exists():
+            read_oracle(oracle_path, key, args.grid)
+        else:
+            print(f"{ORACLE}: where the true plant can reach the goal (it knows the true plant) ...", flush=True)
+            write_json(oracle_path, {**key, **run_oracle(args)})
     run_calls(run_row, todo, finish, args.backend, args.workers, fail, args.cell_timeout)
     maps: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for method, gain, _, row in keys:
@@ -337,22 +467,44 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
     return maps, [failed[m, g, r] for m, g, _, r in keys if (m, g, r) in failed]
 
 
-def summary(args: SweepArgs, maps: dict[tuple[str, float], list[dict[str, Any]]]) -> list[dict[str, Any]]:
-    """One line per map: where it converged, and how fast."""
+def summary(
+    args: SweepArgs, maps: dict[tuple[str, float], list[dict[str, Any]]], solvable: Array | None = None
+) -> list[dict[str, Any]]:
+    """One line per map: where it converged (and, with the oracle's ``solvable`` map, on which
+    share of the region where the true plant can reach the goal), and how fast."""
     lines = []
-    axis = ratios(args)
-    centre = int(np.argmin(np.abs(axis - 1.0)))
+    config = load_config(args.config)
+    first_axis, second_axis = axis_values(args)
+    c0, c1 = centre_values(args, config)
+    centre = (int(np.argmin(np.abs(first_axis - c0))), int(np.argmin(np.abs(second_axis - c1))))
+    if solvable is not None:
+        lines.append(
+            {
+                "method": ORACLE,
+                "nu_b": None,
+                "converged_fraction": float(solvable.mean()),
+                "of_solvable": 1.0,
+                "median_trials": None,
+                "max_trials": None,
+                "at_nominal": None,
+                "wall_s": None,
+            }
+        )
     for (method, gain), rows in maps.items():
         first = np.array([row["trials_to"] for row in rows])
         ok = first > 0
+        share = None
+        if solvable is not None and solvable.any():
+            share = float((ok & solvable).sum() / solvable.sum())
         lines.append(
             {
                 "method": method,
                 "nu_b": gain,
                 "converged_fraction": float(ok.mean()),
+                "of_solvable": share,
                 "median_trials": float(np.median(first[ok])) if ok.any() else None,
                 "max_trials": int(first[ok].max()) if ok.any() else None,
-                "at_nominal": int(first[centre, centre]) or None,
+                "at_nominal": int(first[centre]) or None,
                 "wall_s": float(sum(row["wall_s"] for row in rows)),
             }
         )
@@ -360,25 +512,38 @@ def summary(args: SweepArgs, maps: dict[tuple[str, float], list[dict[str, Any]]]
 
 
 def plot_map(
-    args: SweepArgs, method: str, gain: float, rows: list[dict[str, Any]], names: list[str], path: Path
+    args: SweepArgs,
+    method: str,
+    gain: float,
+    rows: list[dict[str, Any]],
+    names: list[str],
+    path: Path,
+    solvable: Array | None = None,
 ) -> None:
-    """The heat map of one map: trials to tolerance over the grid, grey where not within budget."""
+    """The heat map of one map: trials to tolerance over the grid, grey where not within budget,
+    and with the oracle's map the edge of the region where the true plant can reach the goal."""
     import matplotlib
     from matplotlib.figure import Figure
 
     first = np.array([row["trials_to"] for row in rows], dtype=np.float64)
     first[first == 0] = np.nan
-    axis = ratios(args)
-    half = 0.5 * (axis[1] - axis[0])
+    first_axis, second_axis = axis_values(args)
+    h0, h1 = 0.5 * (first_axis[1] - first_axis[0]), 0.5 * (second_axis[1] - second_axis[0])
     fig = Figure(figsize=(5.6, 4.6))
     ax = fig.subplots()
     cmap = matplotlib.colormaps["viridis"].with_extremes(bad="#d0d0d0")
-    extent = (axis[0] - half, axis[-1] + half, axis[0] - half, axis[-1] + half)
+    extent = (second_axis[0] - h1, second_axis[-1] + h1, first_axis[0] - h0, first_axis[-1] + h0)
     image = ax.imshow(first, origin="lower", extent=extent, cmap=cmap, aspect="auto", vmin=1)
     fig.colorbar(image, ax=ax, label=f"trials to tolerance (grey: not within {args.trials})")
-    ax.plot([1.0], [1.0], "r+", markersize=12)
-    ax.set_xlabel(f"{names[1]} (true / nominal)")
-    ax.set_ylabel(f"{names[0]} (true / nominal)")
+    if solvable is not None and 0 < solvable.mean() < 1:
+        ax.contour(second_axis, first_axis, solvable.astype(float), levels=[0.5], colors="red", linewidths=1.2)
+        ax.plot([], [], "r-", label="edge of the oracle's solvable region")
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.14), fontsize=8, frameon=False)
+    c0, c1 = centre_values(args, load_config(args.config))
+    ax.plot([c1], [c0], "r+", markersize=12)
+    unit = " (true / nominal)" if not args.axes else ""
+    ax.set_xlabel(f"{names[1]}{unit}")
+    ax.set_ylabel(f"{names[0]}{unit}")
     ax.set_title(f"{load_config(args.config).name}: {method}, nu_b = {gain:g}")
     fig.tight_layout()
     write_figure(path, fig, dpi=90)
@@ -399,28 +564,43 @@ def main_with_failures(args: SweepArgs) -> tuple[list[dict[str, Any]], list[dict
         print(f"{len(failed)} of {len(failed)} rows failed, each recorded with its error in {args.out}/failed")
         return [], failed
     _, names = _validate(args)
-    lines = summary(args, maps)
+    solvable = None
+    if args.oracle:
+        solvable = np.array(read_json(args.out / "oracle.json", MAX_RESULT_BYTES)["solvable"], dtype=np.bool_)
+    lines = summary(args, maps, solvable)
     for (method, gain), rows in maps.items():
-        plot_map(args, method, gain, rows, names, args.out / f"sweep_{map_name(method, gain)}.png")
+        plot_map(args, method, gain, rows, names, args.out / f"sweep_{map_name(method, gain)}.png", solvable)
     header = ["method", "nu_b", "converged", "median trials", "most trials", "at the nominal plant", "cell time [s]"]
-    cells = [
-        [
-            line["method"],
-            f"{line['nu_b']:g}",
+    if solvable is not None:
+        header.insert(3, "of the solvable region")
+
+    def text(value: Any, form: str) -> str:
+        return "-" if value is None else format(value, form)
+
+    cells = []
+    for line in lines:
+        cell = [
+            line["method"] + (" (knows the true plant)" if line["method"] == ORACLE else ""),
+            text(line["nu_b"], "g"),
             f"{100 * line['converged_fraction']:.1f} %",
-            "-" if line["median_trials"] is None else f"{line['median_trials']:g}",
-            "-" if line["max_trials"] is None else str(line["max_trials"]),
-            "-" if line["at_nominal"] is None else str(line["at_nominal"]),
-            f"{line['wall_s']:.1f}",
+            text(line["median_trials"], "g"),
+            text(line["max_trials"], "d"),
+            text(line["at_nominal"], "d"),
+            text(line["wall_s"], ".1f"),
         ]
-        for line in lines
-    ]
-    table = markdown_table(header, cells, [False, True, True, True, True, True, True])
+        if solvable is not None:
+            cell.insert(3, "-" if line["of_solvable"] is None else f"{100 * line['of_solvable']:.1f} %")
+        cells.append(cell)
+    table = markdown_table(header, cells, [False] + [True] * (len(header) - 1))
     grid = {
         f"{method}__nu{gain_text(gain)}": [row["trials_to"] for row in rows] for (method, gain), rows in maps.items()
     }
     extra = {"settings": {**asdict(args), "out": None}, "axes": names, "failed": failed}
-    write_results(lines, args.out, "sweep", table, {**extra, "ratios": ratios(args).tolist(), "maps": grid})
+    first_axis, second_axis = axis_values(args)
+    values = {"ratios": first_axis.tolist(), "values": [first_axis.tolist(), second_axis.tolist()], "maps": grid}
+    if solvable is not None:
+        values["solvable"] = solvable.tolist()
+    write_results(lines, args.out, "sweep", table, {**extra, **values})
     print(table)
     print(
         f"{args.grid} x {args.grid} plants per map, {len(maps)} maps in {time.perf_counter() - start:.1f} s; "
@@ -467,10 +647,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="stop a row still running after this and record it as failed (default: no limit)",
     )
+    parser.add_argument(
+        "--axis",
+        nargs=3,
+        action="append",
+        metavar=("KEY", "LOW", "HIGH"),
+        help="a plant key and its range, twice (e.g. --axis steering_offset -0.03 0.03 --axis true_wheel_radius "
+        "0.01 0.03); default: the plant's two factors as ratios over --range",
+    )
+    parser.add_argument(
+        "--oracle",
+        action="store_true",
+        help="also map where the true plant can reach the goal at all (an oracle that knows the true plant, "
+        "never a learner), and give each map's share of that region",
+    )
 
 
 def from_namespace(ns: argparse.Namespace) -> SweepArgs:
+    axes = []
+    for key, low, high in ns.axis or []:
+        try:
+            axes.append((key, float(low), float(high)))
+        except ValueError:
+            raise ValueError(f"--axis {key}: LOW and HIGH must be numbers, got {low!r} {high!r}") from None
     return SweepArgs(
+        axes=tuple(axes),
+        oracle=ns.oracle,
         config=ns.config,
         methods=tuple(ns.methods),
         nu_b=tuple(ns.nu_b),

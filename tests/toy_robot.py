@@ -148,6 +148,12 @@ class SkatePlant:
     def true_factors(self) -> Array:
         return np.array([self.speed_gain, self.turn_gain])
 
+    def family_names(self) -> tuple[str, ...]:
+        return self.factor_names
+
+    def with_family(self, ratios: Array) -> SkatePlant:
+        return self.with_true_factors(ratios)
+
     def with_true_factors(self, factors: Array) -> SkatePlant:
         return replace(
             self, speed_gain=self.speed_gain * float(factors[0]), turn_gain=self.turn_gain * float(factors[1])

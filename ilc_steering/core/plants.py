@@ -161,6 +161,15 @@ class Plant(Protocol):
         """The two true parameters of ``factor_names`` over their nominal values."""
         ...
 
+    def family_names(self) -> tuple[str, ...]:
+        """The parameters a learner's model family (:class:`~ilc_steering.core.family.ModelFamily`)
+        leaves free: ``factor_names``, or more where the robot has more lengths it may be wrong about."""
+        ...
+
+    def with_family(self, ratios: Array) -> Plant:
+        """The plant with the true parameters of ``family_names`` multiplied by ``ratios``."""
+        ...
+
     def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
         """For :mod:`ilc_steering.core.reference`: the closed-loop field ``f(t, x)`` of one trial with
         coefficients ``c``, written from the robot's equations (not from the compiled field), the
@@ -220,6 +229,14 @@ class PlantBatch:
         self.field = kernels[0][0]
         self.params = np.array([row for _, row in kernels])
         self.size = len(kernels)
+
+    @classmethod
+    def from_rows(cls, field: Kernel, params: Array) -> PlantBatch:
+        """A batch of the kernel ``field`` with parameter rows ``params`` ``(B, P)`` already stacked
+        (checked against the kernel's layout by ``integrate``)."""
+        batch = cls.__new__(cls)
+        batch.field, batch.params, batch.size = field, np.ascontiguousarray(params, dtype=np.float64), len(params)
+        return batch
 
     def kernel(self) -> tuple[Kernel, Array]:
         """The kernel and the parameters ``(B, P)``, a row per trial."""

@@ -58,7 +58,7 @@ CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 MAX_ITERATIONS = 60
 """Of the event locator; a crossing of the steering limit needs about 23."""
 STAGES = dop853.STAGES
-_SINGLE_LANES = 6  # a last, partial block of a lane kernel of at most this many trials runs them one by one
+_SINGLE_LANES = 10  # a last, partial block of a lane kernel of at most this many trials runs them one by one
 _A = np.ascontiguousarray(dop853.A)
 _B = np.ascontiguousarray(dop853.B)
 _C = np.ascontiguousarray(dop853.C)

@@ -371,6 +371,12 @@ class CarPlant:
             [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
         )
 
+    def family_names(self) -> tuple[str, ...]:
+        return self.factor_names
+
+    def with_family(self, ratios: Array) -> CarPlant:
+        return self.with_true_factors(ratios)
+
     def with_true_factors(self, factors: Array) -> CarPlant:
         true = CarModel(self.true.wheelbase * float(factors[0]), self.true.wheel_radius * float(factors[1]))
         return replace(self, true=true)

@@ -487,6 +487,15 @@ class TrailerPlant:
             [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
         )
 
+    def family_names(self) -> tuple[str, ...]:
+        """The car's wheelbase and wheel radius, and the hitch: a trailer's length is as uncertain."""
+        return (*self.factor_names, "hitch_length_ratio")
+
+    def with_family(self, ratios: Array) -> TrailerPlant:
+        t = self.true
+        r = [float(x) for x in ratios]
+        return replace(self, true=TrailerModel(t.wheelbase * r[0], t.wheel_radius * r[1], t.hitch_length * r[2]))
+
     def with_true_factors(self, factors: Array) -> TrailerPlant:
         t = self.true
         return replace(

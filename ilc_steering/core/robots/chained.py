@@ -127,6 +127,12 @@ class ChainedPlant:
     def true_factors(self) -> Array:
         return np.array([self.v1_gain, self.v2_gain])
 
+    def family_names(self) -> tuple[str, ...]:
+        return self.factor_names
+
+    def with_family(self, ratios: Array) -> ChainedPlant:
+        return self.with_true_factors(ratios)
+
     def with_true_factors(self, factors: Array) -> ChainedPlant:
         return replace(self, v1_gain=self.v1_gain * float(factors[0]), v2_gain=self.v2_gain * float(factors[1]))
 

@@ -273,6 +273,12 @@ class UnicyclePlant:
             [self.true.wheel_radius / self.nominal.wheel_radius, self.true.axle_width / self.nominal.axle_width]
         )
 
+    def family_names(self) -> tuple[str, ...]:
+        return self.factor_names
+
+    def with_family(self, ratios: Array) -> UnicyclePlant:
+        return self.with_true_factors(ratios)
+
     def with_true_factors(self, factors: Array) -> UnicyclePlant:
         true = UnicycleModel(self.true.wheel_radius * float(factors[0]), self.true.axle_width * float(factors[1]))
         return replace(self, true=true)
