@@ -299,7 +299,7 @@ def scenario_figure(
     columns = 1 + (len(entries) - 1) // LEGEND_ROWS  # a second column before the legend outgrows the figure
     figure.legend(*zip(*entries), loc="outside right upper", fontsize=7, handlelength=3, frameon=False, ncols=columns)
     figure.suptitle(
-        "Best error against trials: median and interquartile range across seeds "
+        "Best error against trials: median and interquartile range across seeds\n"
         "(dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)",
         fontsize=9,
     )
