@@ -20,7 +20,7 @@ from typing import Any
 
 from ilc_steering.inputs import read_json
 
-__all__ = ["CommittedRun", "check_out", "read_committed", "resolve_settings"]
+__all__ = ["CommittedRun", "check_out", "describe", "read_committed", "resolve_settings"]
 
 MAX_RUN_BYTES = 16 << 20
 """The largest ``run.json`` or cell file read from a committed run [bytes]."""
@@ -122,10 +122,17 @@ def _option(name: str, value: Any) -> str:
     return f"{flag} {value}"
 
 
+def describe(settings: dict[str, Any]) -> str:
+    """A run's settings as the options that give them (its version last)."""
+    options = [_option(name, value) for name, value in settings.items() if name != "version"]
+    return f"{' '.join(options)}, ilc-steering {settings.get('version')}"
+
+
 def resolve_settings(
     committed: CommittedRun, given: dict[str, Any], defaults: dict[str, Any], version: str
 ) -> dict[str, Any]:
-    """The settings to run with: the committed run's wherever ``given`` holds the default.
+    """The settings to run with: the committed run's wherever ``given`` holds the default (an
+    option left out, or given at its default value: the run says which it took, :func:`describe`).
 
     ``ValueError`` naming ``--against`` and the option if the committed run was made by another
     ``version`` of the package, holds a setting this version has no option for, or if ``given``

@@ -49,7 +49,7 @@ import gymnasium as gym
 import numpy as np
 
 from ilc_steering import __version__
-from ilc_steering.against import CommittedRun, check_out, read_committed, resolve_settings
+from ilc_steering.against import CommittedRun, check_out, describe, read_committed, resolve_settings
 from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, load_factory
 from ilc_steering.backends import BACKENDS, MAX_WORKERS, check_workers, run_calls
 from ilc_steering.compare_report import LADDER, write_report
@@ -593,7 +593,7 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
         if unknown:
             raise ValueError(
                 f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
-                f"--scenarios (with those of {scenarios} to run)"
+                f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
             )
         args = replace(args, scenarios=tuple(scenarios))
     for scenario in args.scenarios:
@@ -750,7 +750,7 @@ def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]]
         if committed is not None:
             print(
                 f"--against {committed.folder}: {len(held)} committed cells taken as they are (copied into "
-                f"{args.out}/cells), {len(todo)} cells to compute",
+                f"{args.out}/cells), {len(todo)} cells to compute, with its settings: {describe(committed.settings)}",
                 flush=True,
             )
 
