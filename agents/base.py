@@ -150,7 +150,7 @@ def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:
         )
     invalidate_caches()  # a module written since this process started is found
     try:
-        target = import_module(module_name)
+        target: Any = import_module(module_name)
     except ModuleNotFoundError as error:
         if error.name is not None and (module_name + ".").startswith(error.name + "."):
             raise ValueError(

@@ -402,7 +402,7 @@ def _finite(value: float) -> bool:
     return bool(np.isfinite(value))
 
 
-def _check_values(cell: dict[str, Any], path: Path, hint: str) -> None:
+def _check_values(cell: dict[str, Any], path: Path | str, hint: str) -> None:
     """Every value a summary uses, in its range: ``ValueError`` naming the file and the value."""
     problems = []
     if not (_finite(cell["best_error"]) and cell["best_error"] >= 0):
