@@ -24,11 +24,17 @@ is refused, saying which; every resumed cell is checked value by value (:func:`r
 Cells run in ``--workers`` processes (one per core by default, at most
 :data:`~ilc_steering.backends.MAX_WORKERS`), with the same results as one process.
 
+``--against DIR`` puts new methods beside a committed run without rerunning it: the run takes
+the committed run's settings (budgets, seeds, ``quick``; another version or other settings are
+refused, :mod:`~ilc_steering.against`), its scenarios and priors, copies its cells, each checked,
+into ``--out`` (``DIR`` is only read), computes only the cells it lacks, and reports them all.
+
 A tolerance level is met when the error is at most the level; a count that a relative change
 of 1e-6 in the error would move (:data:`FRAGILE`) is listed in the cell's ``fragile`` and
 marked in the report.
 
     ilc-steering compare [--quick] [--out DIR] [--methods ilc least_squares mypkg.mod:make ...]
+    ilc-steering compare --methods mypkg.mod:make --against docs/compare --out DIR
     python benchmarks/compare.py [--quick] [--out DIR]
 """
 
@@ -634,7 +640,8 @@ def _committed_cells(
     for where, cell in committed.cells:
         prior, method, scenario, seed = (cell[name] for name in ("prior", "method", "scenario", "seed"))
         known = isinstance(method, str) and (method in METHODS or is_custom(method))
-        if prior not in PRIORS or not known or scenario not in committed.configs or seed not in args.seeds:
+        ours = isinstance(scenario, str) and scenario in committed.configs
+        if prior not in PRIORS or not known or not ours or seed not in args.seeds:
             raise ValueError(
                 f"{where}: not a cell of its run (prior {prior!r}, method {method!r}, scenario {scenario!r}, "
                 f"seed {seed!r}); {hint}"

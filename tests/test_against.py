@@ -118,6 +118,12 @@ def test_a_library_method_against_a_committed_run_runs_its_cells_only_once(commi
         (lambda r: {**r, "quick": False}, ["--quick"], r"it was run with no --quick, not --quick"),
         (lambda r: {**r, "max_cells": 3}, [], r"a setting 'max_cells' that this version has no option for"),
         (lambda r: {k: v for k, v in r.items() if k != "version"}, [], r"records no package version"),
+        # a record that does not match its own cells: the least_squares cells hold budget 40
+        (
+            lambda r: {**r, "blackbox_trials": 41},
+            ["--scenarios", "parallel_parking"],
+            r"budget 40, not 41; .* not consistent",
+        ),
         (
             None,
             ["--scenarios", "parallel_parking", "other_bay.yaml"],
