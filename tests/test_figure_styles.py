@@ -10,8 +10,6 @@ from ilc_steering import compare
 from ilc_steering.compare_report import scenario_figure
 from ilc_steering.figure_styles import FAMILY_COLOURS, MARKERS, method_styles
 
-ADDED = ("crossq", "tqc", "droq", "bayes_opt", "noisy_least_squares", "robust_ilc")
-
 
 def cells(methods, priors=("nominal", "none"), seeds=(0, 1, 2)):
     """Cells of every method: ILC-like curves that fall at a rate of their own, on one scenario."""
@@ -45,9 +43,9 @@ def drawn(figure):
 def grown(monkeypatch):
     """The method tuples as others will grow them: crossq, tqc, droq into RL, bayes_opt and a noise-aware least
     squares into black-box, robust_ilc into the model-based family."""
-    monkeypatch.setattr(compare, "RL", (*compare.RL, "crossq", "tqc", "droq"))
-    monkeypatch.setattr(compare, "BLACKBOX", (*compare.BLACKBOX, "bayes_opt", "noisy_least_squares"))
-    monkeypatch.setattr(compare, "MODEL_METHODS", (*compare.MODEL_METHODS, "robust_ilc"))
+    for family, added in (("RL", ("crossq", "tqc", "droq")), ("BLACKBOX", ("bayes_opt", "noisy_least_squares"))):
+        monkeypatch.setattr(compare, family, tuple(dict.fromkeys([*getattr(compare, family), *added])))
+    monkeypatch.setattr(compare, "MODEL_METHODS", tuple(dict.fromkeys([*compare.MODEL_METHODS, "robust_ilc"])))
     return [*compare.MODEL_METHODS, *compare.BLACKBOX, *compare.RL, "my_learners:make", "mypkg.mod:make"]
 
 
