@@ -14,9 +14,13 @@ the comparison runs, users' own included, is made by a :data:`LearnerFactory` fr
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from importlib import import_module
+from importlib import import_module, invalidate_caches
+from pathlib import Path
+from types import ModuleType
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -127,12 +131,57 @@ LearnerFactory = Callable[[LearnerContext], Learner]
 
 def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:
     """The learner factory named ``module:attr`` (``option`` names where it was given, for the
-    message); ``ValueError`` if it cannot be imported or is not callable."""
-    module_name, _, attr = spec.partition(":")
+    message): ``module`` an import name (``my_learners``, ``mypkg.mod``), ``attr`` a name in it,
+    dotted for a nested one (``module:Class.make``, as in an entry point). ``ValueError``, naming
+    what to give instead, if it is not of that form, cannot be imported (the module importing
+    raised included: the user's code, not ilc-steering, failed), has no such attribute (a module
+    of the same name found before the working directory's is named) or is not callable."""
+    module_name, colon, attr = spec.partition(":")
+    if module_name.endswith(".py") or "/" in module_name or "\\" in module_name:
+        stem = module_name.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".py")
+        raise ValueError(
+            f"{option} {spec}: give the module's import name, not its file: {stem}:{attr or 'make'} "
+            f"for {stem}.py in the working directory (or a package's dotted name)"
+        )
+    dotted = (module_name, attr)
+    if not colon or not all(part.isidentifier() for name in dotted for part in name.split(".")):
+        raise ValueError(
+            f"{option} {spec}: give module:attr, a module's import name and a factory in it, e.g. my_learners:make"
+        )
+    invalidate_caches()  # a module written since this process started is found
     try:
-        factory = getattr(import_module(module_name), attr)
-    except (ImportError, AttributeError, ValueError) as error:
-        raise ValueError(f"{option} {spec}: cannot import it ({type(error).__name__}: {error})") from None
-    if not callable(factory):
+        target: Any = import_module(module_name)
+    except ModuleNotFoundError as error:
+        if error.name is not None and (module_name + ".").startswith(error.name + "."):
+            raise ValueError(
+                f"{option} {spec}: cannot import it: no module {error.name!r} in the working directory "
+                f"({os.getcwd()}) or on the path"
+            ) from None
+        raise ValueError(
+            f"{option} {spec}: cannot import it: importing it raised ModuleNotFoundError: {error}"
+        ) from None
+    except Exception as error:
+        raise ValueError(
+            f"{option} {spec}: cannot import it: importing it raised {type(error).__name__}: {error}"
+        ) from None
+    module = target
+    for part in attr.split("."):
+        if not hasattr(target, part):
+            raise ValueError(f"{option} {spec}: cannot import it: {_missing(module, attr)}")
+        target = getattr(target, part)
+    if not callable(target):
         raise ValueError(f"{option} {spec}: not callable; give a factory make(context) -> Learner")
-    return factory  # type: ignore[no-any-return]
+    return target  # type: ignore[no-any-return]
+
+
+def _missing(module: ModuleType, attr: str) -> str:
+    """That ``module`` (and its file) has no ``attr``, and, when an installed module of the same
+    top-level name came before the working directory's file of that name (the working directory is
+    searched last, so that it shadows nothing installed), so."""
+    text = f"module {module.__name__} ({getattr(module, '__file__', None) or 'built in'}) has no attribute {attr!r}"
+    top = module.__name__.split(".")[0]
+    found = getattr(sys.modules.get(top), "__file__", None)
+    for mine in (Path(top + ".py"), Path(top, "__init__.py")):
+        if mine.is_file() and (found is None or Path(found).resolve() != mine.resolve()):
+            return f"{text}; it is an installed module, found before your {mine} of the working directory: rename yours"
+    return text

@@ -24,11 +24,17 @@ is refused, saying which; every resumed cell is checked value by value (:func:`r
 Cells run in ``--workers`` processes (one per core by default, at most
 :data:`~ilc_steering.backends.MAX_WORKERS`), with the same results as one process.
 
+``--against DIR`` puts new methods beside a committed run without rerunning it: the run takes
+the committed run's settings (budgets, seeds, ``quick``; another version or other settings are
+refused, :mod:`~ilc_steering.against`), its scenarios and priors, copies its cells, each checked,
+into ``--out`` (``DIR`` is only read), computes only the cells it lacks, and reports them all.
+
 A tolerance level is met when the error is at most the level; a count that a relative change
 of 1e-6 in the error would move (:data:`FRAGILE`) is listed in the cell's ``fragile`` and
 marked in the report.
 
     ilc-steering compare [--quick] [--out DIR] [--methods ilc least_squares mypkg.mod:make ...]
+    ilc-steering compare --methods mypkg.mod:make --against docs/compare --out DIR
     python benchmarks/compare.py [--quick] [--out DIR]
 """
 
@@ -39,9 +45,9 @@ import fcntl
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +55,7 @@ import gymnasium as gym
 import numpy as np
 
 from ilc_steering import __version__
+from ilc_steering.against import CommittedRun, check_out, describe, read_committed, resolve_settings
 from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, load_factory
 from ilc_steering.backends import BACKENDS, MAX_WORKERS, check_workers, run_calls
 from ilc_steering.compare_report import LADDER, write_report
@@ -60,6 +67,7 @@ from ilc_steering.output import (
     check_output_dir,
     check_run_settings,
     content_hash,
+    differences,
     injective_name,
     write_json,
 )
@@ -101,6 +109,9 @@ class Args:
     """Tiny budgets and two seeds: checks that everything runs and writes well-formed output (CI)."""
     out: Path = Path("runs/compare")
     """Run folder; an existing one is resumed."""
+    against: Path | None = None
+    """A committed run folder, only read: run the cells of ``methods`` it lacks, with its settings,
+    and report both (:mod:`~ilc_steering.against`)."""
     priors: tuple[str, ...] = PRIORS
     """Conditions: ``nominal`` (start from the nominal solution) and ``none`` (no prior)."""
     methods: tuple[str, ...] = METHODS
@@ -193,6 +204,14 @@ def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
     if it cannot be imported or called."""
     working_directory_importable()
     return load_factory(method, "--methods")
+
+
+def method_families(methods: Iterable[str] = ()) -> dict[str, tuple[str, ...]]:
+    """The families the comparison's figures colour by (:mod:`~ilc_steering.figure_styles`), read
+    from the method tuples when called, so a method added to one joins its family: model-based,
+    black-box, RL, and yours, every ``module:attr`` among ``methods``."""
+    families = {"model-based": MODEL_METHODS, "black-box": BLACKBOX, "RL": RL}
+    return {**families, "yours": tuple(dict.fromkeys(m for m in methods if is_custom(m)))}
 
 
 def budget(args: Args, prior: str, method: str, scenario: str) -> int:
@@ -391,7 +410,7 @@ def _finite(value: float) -> bool:
     return bool(np.isfinite(value))
 
 
-def _check_values(cell: dict[str, Any], path: Path, hint: str) -> None:
+def _check_values(cell: dict[str, Any], path: Path | str, hint: str) -> None:
     """Every value a summary uses, in its range: ``ValueError`` naming the file and the value."""
     problems = []
     if not (_finite(cell["best_error"]) and cell["best_error"] >= 0):
@@ -431,6 +450,11 @@ def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
         cell = read_json(path, MAX_RESULT_BYTES)
     except ValueError as error:
         raise ValueError(f"not a readable cell: {error}; {hint}") from None
+    return check_cell(cell, key, path, hint)
+
+
+def check_cell(cell: Any, key: dict[str, Any], path: Path | str, hint: str) -> dict[str, Any]:
+    """``cell`` checked as :func:`read_cell` checks it; ``ValueError`` names ``path`` and ends with ``hint``."""
     if not isinstance(cell, dict):
         raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
     for name, kind in CELL_KEYS.items():
@@ -453,13 +477,21 @@ def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
     return cell
 
 
-def _check_run_folder(args: Args, configs: dict[str, str]) -> None:
-    """Record the settings, the version and the configs' content hashes; refuse to resume a folder
-    written with other budgets, seeds or version, or another config of one of these names."""
-    skip = ("out", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
+def run_settings(args: Args) -> dict[str, Any]:
+    """What ``run.json`` records and a resume (or ``--against``) must match: the budgets, the seeds,
+    ``quick`` and the package version; not the grid's axes (a resume may add cells), nor how or
+    where cells run."""
+    skip = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
     settings = {k: v for k, v in asdict(args).items() if k not in skip}
     settings["seeds"] = list(settings["seeds"])
     settings["version"] = __version__
+    return settings
+
+
+def _check_run_folder(args: Args, configs: dict[str, str]) -> None:
+    """Record the settings, the version and the configs' content hashes; refuse to resume a folder
+    written with other budgets, seeds or version, or another config of one of these names."""
+    settings = run_settings(args)
     cells = args.out / "cells"
     check_output_dir(args.out, "--out")
     if cells.exists() and not cells.is_dir():
@@ -541,6 +573,124 @@ def _failure(key: dict[str, Any], message: str) -> dict[str, Any]:
     return {**cell, "error": message}
 
 
+Cell = tuple[str, str, str, int]
+"""A cell's (prior, method, scenario name, seed)."""
+
+
+def against_args(args: Args) -> tuple[Args, CommittedRun]:
+    """``args`` for ``--against`` and the committed run as read: its settings (budgets, seeds,
+    ``quick``) where ``args`` holds the defaults, its scenarios and priors unless a subset of them
+    is given. ``ValueError`` (one line, naming the option) for a run of another version or other
+    settings, an ``--out`` inside it, a method list left at the default, a scenario or prior it
+    has no cells of, or a scenario of its that is not packaged and not given as a YAML file."""
+    from ilc_steering.config import load_config, packaged_configs
+
+    folder = args.against
+    if folder is None:
+        raise ValueError("--against: give a committed run folder")
+    committed = read_committed(folder)
+    check_out(args.out, folder)
+    if args.methods == Args.methods:
+        raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
+    defaults = {f.name: f.default for f in fields(Args)}
+    args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
+    cells = [cell for _, cell in committed.cells]
+    scenarios = [name for name in committed.configs if any(c["scenario"] == name for c in cells)]
+    if args.scenarios == Args.scenarios:
+        unknown = [name for name in scenarios if name not in packaged_configs()]
+        if unknown:
+            raise ValueError(
+                f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
+                f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
+            )
+        args = replace(args, scenarios=tuple(scenarios))
+    for scenario in args.scenarios:
+        if load_config(scenario).name not in scenarios:
+            raise ValueError(
+                f"--scenarios {scenario}: the committed run --against {folder} has no cells of it; its scenarios: "
+                f"{' '.join(scenarios)}"
+            )
+    priors = [prior for prior in PRIORS if any(c["prior"] == prior for c in cells)]
+    if args.priors == Args.priors:
+        args = replace(args, priors=tuple(priors))
+    elif not set(args.priors) <= set(priors):
+        raise ValueError(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
+    settings = run_settings(args)
+    if settings != committed.settings:
+        raise ValueError(
+            f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
+        )
+    return args, committed
+
+
+def _committed_cells(
+    args: Args, committed: CommittedRun, configs: dict[str, str]
+) -> tuple[dict[Cell, dict[str, Any]], dict[str, str]]:
+    """The committed run's cells, each checked against its key and value by value, and the
+    content hash of every scenario's config; ``ValueError`` if a scenario to run has another
+    config than the committed run's cells of that name, or a committed cell is not one of its run."""
+    folder = committed.folder
+    for name, digest in configs.items():
+        theirs = committed.configs.get(name)
+        if theirs != digest:
+            raise ValueError(
+                f"--against {folder}: its {name!r} cells were computed with another config (content hash {theirs}, "
+                f"this one's {digest}): the same name, another content"
+            )
+    hint = f"the committed run --against {folder} is not consistent; recompute it"
+    held: dict[Cell, dict[str, Any]] = {}
+    for where, cell in committed.cells:
+        prior, method, scenario, seed = (cell[name] for name in ("prior", "method", "scenario", "seed"))
+        known = isinstance(method, str) and (method in METHODS or is_custom(method))
+        ours = isinstance(scenario, str) and scenario in committed.configs
+        if prior not in PRIORS or not known or not ours or seed not in args.seeds:
+            raise ValueError(
+                f"{where}: not a cell of its run (prior {prior!r}, method {method!r}, scenario {scenario!r}, "
+                f"seed {seed!r}); {hint}"
+            )
+        key = {
+            "prior": prior,
+            "method": method,
+            "scenario": scenario,
+            "seed": seed,
+            "budget": budget(args, prior, method, scenario),
+            "config_sha": committed.configs[scenario],
+            "version": __version__,
+        }
+        held[(prior, method, scenario, seed)] = check_cell(cell, key, where, hint)
+    scenarios = dict.fromkeys(cell[2] for cell in held)
+    return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
+
+
+def _grid(args: Args, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
+    """The cells of an ``--against`` run, in the report's order: every committed one, and those of
+    ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
+    priors = [prior for prior in PRIORS if prior in args.priors or any(cell[0] == prior for cell in held)]
+    scenarios = list(dict.fromkeys([*(cell[2] for cell in held), *names]))
+    methods = list(dict.fromkeys([*(cell[1] for cell in held), *args.methods]))
+    return [
+        (prior, method, name, seed)
+        for prior in priors
+        for name in scenarios
+        for method in methods
+        for seed in args.seeds
+        if (prior, method, name, seed) in held or (method in args.methods and prior in args.priors and name in names)
+    ]
+
+
+def _copy_committed(held: dict[Cell, dict[str, Any]], keys: list[dict[str, Any]], path: Callable[[int], Path]) -> None:
+    """Write each committed cell into the run folder as it is, where it lacks it; ``ValueError``
+    if the folder holds another result for one of them (it is never overwritten)."""
+    for index, key in enumerate(keys):
+        cell = held.get((key["prior"], key["method"], key["scenario"], key["seed"]))
+        if cell is None:
+            continue
+        if not path(index).exists():
+            write_json(path(index), cell)
+        elif read_cell(path(index), key) != cell:
+            raise ValueError(f"{path(index)}: holds another result than the committed run's; use another --out folder")
+
+
 def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Every cell of the run, computing only those not yet in the run folder, in :func:`workers`
     processes (one with a custom ``runner``, called as it is: a test's hook); returns the
@@ -553,15 +703,22 @@ def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]]
     """
     from ilc_steering.config import load_config
 
+    committed = None
+    if args.against is not None:
+        args, committed = against_args(args)
     names = validate(args)
     configs = {name: content_hash(asdict(load_config(scenario))) for scenario, name in names.items()}
     for scenario in names:
         warning = step_warning(load_config(scenario))
         if warning is not None:
             print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
+    held: dict[Cell, dict[str, Any]] = {}
+    if committed is not None:
+        held, configs = _committed_cells(args, committed, configs)
     _check_run_folder(args, configs)
-    keys: list[dict[str, Any]] = [
-        {
+
+    def key_of(prior: str, method: str, name: str, seed: int) -> dict[str, Any]:
+        return {
             "prior": prior,
             "method": method,
             "scenario": name,
@@ -570,11 +727,18 @@ def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]]
             "config_sha": configs[name],
             "version": __version__,
         }
-        for prior in args.priors
-        for scenario, name in names.items()
-        for method in args.methods
-        for seed in args.seeds
-    ]
+
+    if committed is None:
+        grid = [
+            (prior, method, name, seed)
+            for prior in args.priors
+            for name in names.values()
+            for method in args.methods
+            for seed in args.seeds
+        ]
+    else:
+        grid = _grid(args, list(names.values()), held)
+    keys = [key_of(*cell) for cell in grid]
     scenario_of = {name: scenario for scenario, name in names.items()}
     done: dict[int, dict[str, Any]] = {}
     failed: dict[int, dict[str, Any]] = {}
@@ -584,12 +748,20 @@ def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]]
         return cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"], folder)
 
     with _locked(args.out):
+        if held:
+            _copy_committed(held, keys, path)
         todo = []
         for index, key in enumerate(keys):
             if path(index).exists():
                 done[index] = read_cell(path(index), key)
             else:
                 todo.append(index)
+        if committed is not None:
+            print(
+                f"--against {committed.folder}: {len(held)} committed cells taken as they are (copied into "
+                f"{args.out}/cells), {len(todo)} cells to compute, with its settings: {describe(committed.settings)}",
+                flush=True,
+            )
 
         def finish(index: int, cell: dict[str, Any]) -> None:
             cell = {**cell, "config_sha": keys[index]["config_sha"], "version": __version__}
@@ -632,16 +804,29 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 def main_with_failures(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """:func:`main`, returning the failed cells too; the last line printed says how many failed."""
-    if args.quick:  # the quick budgets, where no budget was given
+    committed = None
+    if args.against is not None:  # the committed run's settings, quick budgets included
+        args, committed = against_args(args)
+    elif args.quick:  # the quick budgets, where no budget was given
         quick: dict[str, Any] = {k: v for k, v in QUICK.items() if getattr(args, k) == getattr(Args, k)}
         args = replace(args, **quick)
     cells, failed = run_all(args)
     names = list(validate(args).values())
+    if committed is not None:
+        names = list(dict.fromkeys([*(c["scenario"] for c in cells), *names]))
     if cells:
-        text = write_report(cells, names, args.out, {"black-box": BLACKBOX, "RL": RL}, failed)
+        groups = method_families(c["method"] for c in cells)
+        text = write_report(cells, names, args.out, {"black-box": BLACKBOX, "RL": RL}, failed, groups)
         print(text)
         where = f"{args.out}/compare.{{csv,json,md}}, compare_<scenario>.png"
         print(f"wrote {where} and one file per cell in {args.out}/cells")
+    if committed is not None:
+        print(
+            f"the report holds the {len(committed.cells)} cells of the committed run --against {committed.folder} "
+            f"and {len(cells) - len(committed.cells)} of {' '.join(args.methods)}"
+            + (f"; its {committed.failed} failed cells are not taken" if committed.failed else ""),
+            flush=True,
+        )
     total = len(cells) + len(failed)
     if failed:
         print(
@@ -664,6 +849,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"{' '.join(map(str, QUICK_SEEDS))}: checks that everything runs",
     )
     parser.add_argument("--out", type=Path, default=Args.out, help="run folder; an existing one is resumed")
+    parser.add_argument(
+        "--against",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="a committed run folder (e.g. docs/compare), only read: run the cells of --methods it lacks, with its "
+        "scenarios, seeds, priors and budgets (its run.json; another version or other settings are refused), and "
+        "write the joint report to --out",
+    )
     parser.add_argument(
         "--priors", nargs="+", default=list(PRIORS), help="nominal: start from the nominal solution; none: no prior"
     )
@@ -722,6 +916,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
     args = Args(
         quick=ns.quick,
         out=ns.out,
+        against=ns.against,
         priors=tuple(ns.priors),
         methods=tuple(ns.methods),
         scenarios=tuple(ns.scenarios),

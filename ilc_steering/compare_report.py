@@ -12,15 +12,29 @@ compare ILC (``ilc``) with the best method of each family (black-box, RL) at eac
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ilc_steering.figure_styles import method_styles
 from ilc_steering.output import write_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 from ilc_steering.tables import markdown_table, write_results
 
-__all__ = ["LADDER", "LADDER_NAMES", "bootstrap_median", "quartiles", "ratios", "summarize", "write_report"]
+__all__ = [
+    "LADDER",
+    "LADDER_NAMES",
+    "bootstrap_median",
+    "quartiles",
+    "ratios",
+    "scenario_figure",
+    "summarize",
+    "write_report",
+]
 
 LADDER = {"10cm": 0.1, "1cm": 0.01, "1mm": 1e-3, "0.5mm": 5e-4}
 """Tolerances: the Cartesian error [m] and the orientation error [rad] both within the value (a
@@ -229,45 +243,74 @@ def _step_curve(curve: list[list[float]], trials: int, grid: np.ndarray) -> np.n
     return np.where(grid <= trials, values, np.nan)
 
 
-def plot_scenario(cells: list[dict[str, Any]], scenario: str, path: Path) -> None:
+LEGEND_ROWS = 26
+"""The most legend entries (methods and family headings) in one column of a comparison figure."""
+
+
+def scenario_figure(
+    cells: list[dict[str, Any]], scenario: str, groups: Mapping[str, Sequence[str]] | None = None
+) -> Figure:
     """Best error so far against trials, log-log, one panel per prior: the median across seeds,
-    the interquartile band shaded."""
+    the interquartile band shaded. Each method in its family's colour (``groups``: family ->
+    methods; :func:`~ilc_steering.figure_styles.method_styles`) with its own marker and line
+    style, under one legend beside the panels, grouped by family."""
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     priors = list(dict.fromkeys(c["prior"] for c in cells))
-    methods = list(dict.fromkeys(c["method"] for c in cells))
-    figure = Figure(figsize=(5.6 * len(priors), 4.6))
+    methods = list(dict.fromkeys(c["method"] for c in cells if c["scenario"] == scenario))
+    styles = method_styles(methods, groups or {})
+    figure = Figure(figsize=(5.6 * len(priors) + 2.4, 4.8), layout="constrained")
     axes = figure.subplots(1, len(priors), squeeze=False)[0]
-    import matplotlib
-
-    palette = matplotlib.colormaps["tab10"].colors  # type: ignore[attr-defined]
-    colours = {m: palette[i % len(palette)] for i, m in enumerate(methods)}
+    handles: dict[str, Any] = {}
     for ax, prior in zip(axes, priors):
-        for method in methods:
+        for index, method in enumerate(methods):
             runs = [c for c in cells if c["scenario"] == scenario and c["method"] == method and c["prior"] == prior]
             if not runs:
                 continue
+            style = styles[method]
             grid = np.unique(np.geomspace(1, max(r["trials"] for r in runs), 200).astype(int))
             values = np.array([_step_curve(r["curve"], r["trials"], grid) for r in runs])
             q1, q2, q3 = np.nanpercentile(values, [25, 50, 75], axis=0)
-            ax.plot(grid, q2, color=colours[method], label=method)
-            ax.fill_between(grid, q1, q3, color=colours[method], alpha=0.2, linewidth=0)
-        for tolerance, style in ((2 * LADDER["1cm"], ":"), (2 * LADDER["0.5mm"], "--")):
-            ax.axhline(tolerance, color="grey", linestyle=style, linewidth=0.8)
+            (line,) = ax.plot(
+                grid,
+                q2,
+                color=style.colour,
+                marker=style.marker,
+                linestyle=style.linestyle,
+                markersize=4,
+                markevery=(0.013 * (index % 7), 0.09),  # staggered: equal curves still show every marker
+                label=method,
+            )
+            handles.setdefault(method, line)
+            ax.fill_between(grid, q1, q3, color=style.colour, alpha=0.12, linewidth=0)
+        for tolerance, style_name in ((2 * LADDER["1cm"], ":"), (2 * LADDER["0.5mm"], "--")):
+            ax.axhline(tolerance, color="grey", linestyle=style_name, linewidth=0.8)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("trials")
         ax.set_ylabel("best true error so far [m + rad]")
-        ax.set_title(f"{scenario.replace('_', ' ')}, prior {prior}")
+        ax.set_title(f"{scenario.replace('_', ' ')}, prior {prior}", fontsize=9)
         ax.grid(True, which="major", alpha=0.3)
-    axes[0].legend(fontsize=7, ncol=2)
+    entries: list[tuple[Any, str]] = []
+    for family in dict.fromkeys(styles[m].family for m in handles):
+        entries.append((Line2D([], [], linestyle="none"), f"{family}:"))  # a heading: no line, no marker
+        entries += [(handles[m], m) for m in handles if styles[m].family == family]
+    columns = 1 + (len(entries) - 1) // LEGEND_ROWS  # a second column before the legend outgrows the figure
+    figure.legend(*zip(*entries), loc="outside right upper", fontsize=7, handlelength=3, frameon=False, ncols=columns)
     figure.suptitle(
-        "Best error against trials: median and interquartile range across seeds "
+        "Best error against trials: median and interquartile range across seeds\n"
         "(dotted: 1 cm + 0.01 rad, dashed: 0.5 mm + 0.5 mrad)",
         fontsize=9,
     )
-    figure.tight_layout()
-    write_figure(path, figure, dpi=100)
+    return figure
+
+
+def plot_scenario(
+    cells: list[dict[str, Any]], scenario: str, path: Path, groups: Mapping[str, Sequence[str]] | None = None
+) -> None:
+    """:func:`scenario_figure`, written to ``path`` as PNG."""
+    write_figure(path, scenario_figure(cells, scenario, groups), dpi=100)
 
 
 def _finite(data: Any) -> Any:
@@ -287,9 +330,11 @@ def write_report(
     out: Path,
     families: dict[str, tuple[str, ...]],
     failed: list[dict[str, Any]] | None = None,
+    groups: Mapping[str, Sequence[str]] | None = None,
 ) -> str:
     """``compare.{csv,json,md}`` and ``compare_<scenario>.png`` in ``out``, ratios over ``families``
-    of methods (name -> method ids), the ``failed`` cells listed; returns the Markdown."""
+    of methods (name -> method ids), the ``failed`` cells listed, the figures coloured by the
+    families of ``groups`` (default: ``families``); returns the Markdown."""
     rows = summarize(cells)
     entries = ratios(rows, families)
     text = report(rows, entries, list(families), failed)
@@ -306,5 +351,5 @@ def write_report(
     write_results(flat, out, "compare", text, extra)
     for scenario in scenarios:
         if any(c["scenario"] == scenario for c in cells):
-            plot_scenario(cells, scenario, out / f"compare_{scenario}.png")
+            plot_scenario(cells, scenario, out / f"compare_{scenario}.png", families if groups is None else groups)
     return text

@@ -29,6 +29,7 @@ __all__ = [
     "check_output_file",
     "check_run_settings",
     "content_hash",
+    "differences",
     "injective_name",
     "safe_name",
     "write_atomic",
@@ -170,7 +171,8 @@ def injective_name(name: str, taken: Collection[str] = ()) -> str:
     return f"{re.sub('_+', '_', cleaned)[:80]}-{content_hash(name)[:8]}"
 
 
-def _differences(stored: dict[str, Any], settings: dict[str, Any]) -> str:
+def differences(stored: dict[str, Any], settings: dict[str, Any]) -> str:
+    """Each key whose value differs, as ``key <stored>, not <settings>``, joined by ``; ``."""
     keys = sorted(set(stored) | set(settings))
     return "; ".join(
         f"{k} {stored.get(k, 'unset')!r}, not {settings.get(k, 'unset')!r}"
@@ -197,7 +199,7 @@ def check_run_settings(
         known = stored.pop("configs", {})
         if stored != settings:
             raise ValueError(
-                f"{stored_path} was written with other settings: {_differences(stored, settings)}; "
+                f"{stored_path} was written with other settings: {differences(stored, settings)}; "
                 "use another --out folder"
             )
         for name, digest in (configs or {}).items():

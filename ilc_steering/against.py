@@ -1,0 +1,172 @@
+"""``compare --against DIR``: a new method's cells beside a committed run's, which is only read.
+
+A committed run folder (``docs/compare``, or any ``compare --out`` folder) holds ``run.json``
+(its settings, the package version and each scenario's config content hash) and its cells, in
+``cells/`` or, in a clone that did not keep them, in ``compare.json``. :func:`read_committed`
+reads both and refuses a folder that is not a run of this kind; :func:`resolve_settings` takes
+every setting the user left at its default from the committed run and refuses one given
+otherwise, naming the option; :func:`check_out` keeps the output out of the committed folder.
+:mod:`ilc_steering.compare` runs the rest: the committed cells are checked one by one and copied
+into ``--out`` as they are, and only the cells the committed run lacks are computed, so the
+report in ``--out`` is the joint one and the folder resumes like any other.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ilc_steering.inputs import read_json
+
+__all__ = ["CommittedRun", "check_out", "describe", "read_committed", "resolve_settings"]
+
+MAX_RUN_BYTES = 16 << 20
+"""The largest ``run.json`` or cell file read from a committed run [bytes]."""
+MAX_REPORT_BYTES = 256 << 20
+"""The largest ``compare.json`` read from a committed run [bytes]."""
+
+
+@dataclass(frozen=True)
+class CommittedRun:
+    """A committed compare run, as read: nothing in it is checked against this version yet."""
+
+    folder: Path
+    settings: dict[str, Any]
+    """``run.json`` without its configs: the budgets, seeds, ``quick`` and ``version``."""
+    configs: dict[str, str]
+    """Scenario (config) name -> the content hash of the config its cells were computed with."""
+    cells: list[tuple[str, Any]] = field(default_factory=list)
+    """``(where, cell)``: each cell as read, ``where`` naming its file (or its place in ``compare.json``)."""
+    failed: int = 0
+    """How many cells the committed run recorded as failed (they are not taken)."""
+
+
+def _refuse(folder: Path, problem: str) -> ValueError:
+    return ValueError(f"--against {folder}: {problem}")
+
+
+def read_committed(folder: Path) -> CommittedRun:
+    """The run record and every cell of the compare run folder ``folder``; ``ValueError`` (one
+    line, naming ``--against``) if it is not one: no ``run.json``, a record without the package
+    version or the configs' content hashes (written before they were kept, so its cells cannot be
+    vouched for), or no cells. A cell in ``cells/`` wins over its copy in ``compare.json``."""
+    if not folder.is_dir():
+        raise _refuse(folder, "not a folder; give a compare run folder (one with run.json)")
+    record_path = folder / "run.json"
+    if not record_path.is_file():
+        raise _refuse(folder, "no run.json, so this is not a compare run folder")
+    try:
+        record = read_json(record_path, MAX_RUN_BYTES)
+    except ValueError as error:
+        raise _refuse(folder, str(error)) from None
+    if not isinstance(record, dict):
+        raise _refuse(folder, f"{record_path} is not a run record (a JSON object)")
+    configs = record.pop("configs", None)
+    if "version" not in record or not isinstance(configs, dict):
+        missing = "package version" if "version" not in record else "content hashes of its configs"
+        raise _refuse(
+            folder,
+            f"{record_path} records no {missing} (written before they were kept), so its cells cannot be "
+            "checked against this version; recompute the run with this version",
+        )
+    if not all(isinstance(k, str) and isinstance(v, str) for k, v in configs.items()):
+        raise _refuse(folder, f"{record_path}: 'configs' must map scenario names to content hashes")
+    cells: dict[str, tuple[str, Any]] = {}
+    report = folder / "compare.json"
+    if report.is_file():
+        try:
+            data = read_json(report, MAX_REPORT_BYTES)
+        except ValueError as error:
+            raise _refuse(folder, str(error)) from None
+        listed = data.get("cells") if isinstance(data, dict) else None
+        if not isinstance(listed, list):
+            raise _refuse(folder, f"{report} holds no list of cells")
+        for index, cell in enumerate(listed):
+            cells[_identity(cell, f"{report}: cells[{index}]")] = (f"{report}: cells[{index}]", cell)
+    for path in sorted((folder / "cells").glob("*.json")):
+        try:
+            cell = read_json(path, MAX_RUN_BYTES)
+        except ValueError as error:
+            raise _refuse(folder, str(error)) from None
+        cells[_identity(cell, str(path))] = (str(path), cell)
+    if not cells:
+        raise _refuse(folder, "holds no cells (neither cells/*.json nor compare.json)")
+    failed = len(list((folder / "failed").glob("*.json")))
+    return CommittedRun(folder, record, configs, list(cells.values()), failed)
+
+
+def _identity(cell: Any, where: str) -> str:
+    """A cell's (prior, method, scenario, seed) as text, or ``ValueError`` naming ``where``."""
+    names = ("prior", "method", "scenario", "seed")
+    if not isinstance(cell, dict) or not all(name in cell for name in names):
+        raise ValueError(f"{where}: not a cell (a JSON object with {', '.join(names)})")
+    return json.dumps([cell[name] for name in names])
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal as JSON: a tuple of seeds equals the list a run record holds."""
+    return json.dumps(a, default=str) == json.dumps(b, default=str)
+
+
+def _option(name: str, value: Any) -> str:
+    """A setting as its command-line option."""
+    flag = f"--{name.replace('_', '-')}"
+    if isinstance(value, bool):
+        return flag if value else f"no {flag}"
+    if value is None:
+        return f"no {flag}"
+    if isinstance(value, (list, tuple)):
+        return f"{flag} {' '.join(map(str, value))}"
+    return f"{flag} {value}"
+
+
+def describe(settings: dict[str, Any]) -> str:
+    """A run's settings as the options that give them (its version last)."""
+    options = [_option(name, value) for name, value in settings.items() if name != "version"]
+    return f"{' '.join(options)}, ilc-steering {settings.get('version')}"
+
+
+def resolve_settings(
+    committed: CommittedRun, given: dict[str, Any], defaults: dict[str, Any], version: str
+) -> dict[str, Any]:
+    """The settings to run with: the committed run's wherever ``given`` holds the default (an
+    option left out, or given at its default value: the run says which it took, :func:`describe`).
+
+    ``ValueError`` naming ``--against`` and the option if the committed run was made by another
+    ``version`` of the package, holds a setting this version has no option for, or if ``given``
+    sets an option otherwise than the committed run (its cells would not be comparable)."""
+    folder = committed.folder
+    stored = committed.settings
+    if stored.get("version") != version:
+        raise _refuse(
+            folder,
+            f"made by ilc-steering {stored.get('version')}, this is {version}: its cells are not comparable "
+            f"with this version's; recompute it with {version}, or install {stored.get('version')}",
+        )
+    values = {}
+    for name, value in stored.items():
+        if name == "version":
+            continue
+        if name not in defaults:
+            raise _refuse(folder, f"its run.json holds a setting {name!r} that this version has no option for")
+        if _same(given[name], defaults[name]):
+            values[name] = tuple(value) if isinstance(value, list) else value
+        elif not _same(given[name], value):
+            raise _refuse(
+                folder,
+                f"it was run with {_option(name, value)}, not {_option(name, given[name])}; leave the option out "
+                "to take the committed run's",
+            )
+    return values
+
+
+def check_out(out: Path, folder: Path) -> None:
+    """``ValueError`` if ``out`` is the committed ``folder`` or lies inside it: it is never written."""
+    inside = out.resolve()
+    committed = folder.resolve()
+    if inside == committed or committed in inside.parents:
+        raise ValueError(
+            f"--out {out}: inside the committed run --against {folder}, which is only read; give another folder"
+        )
