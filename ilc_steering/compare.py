@@ -277,7 +277,11 @@ def measure(
     run_trials(env, learner, trials, seed=seed, callbacks=[log], name=name)
     wall = time.perf_counter() - start
     curve = best_so_far(log)
+    # A learner that times its own updates (update_seconds: the model-based ones) reports the median.
+    updates = getattr(learner, "update_seconds", None)
+    update_s = float(np.median(updates)) if isinstance(updates, list) and updates else None
     return {
+        "update_s": update_s,
         "trials": len(log.cost),
         "off_chart_fraction": float(np.mean(log.left_chart)),
         "clipped_fraction": float(np.mean(log.clipped)),

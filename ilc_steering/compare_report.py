@@ -91,6 +91,8 @@ def summarize(cells: list[dict[str, Any]]) -> list[dict[str, Any]]:
         row["off_chart_fraction_median"] = float(np.median([c["off_chart_fraction"] for c in group]))
         row["clipped_fraction_median"] = float(np.median([c.get("clipped_fraction", 0.0) for c in group]))
         row["wall_s_median"] = float(np.median([c["wall_s"] for c in group]))
+        updates = [c["update_s"] for c in group if c.get("update_s") is not None]
+        row["update_s_median"] = float(np.median(updates)) if updates else None
         rows.append(row)
     return rows
 
@@ -117,6 +119,7 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
         "off chart",
         "clipped",
         "wall [s]",
+        "update [ms]",
     ]
     lines = []
     for row in (r for r in rows if r["prior"] == prior):
@@ -131,6 +134,7 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
                 f"{100 * row['off_chart_fraction_median']:.0f}%",
                 f"{100 * row['clipped_fraction_median']:.0f}%",
                 f"{row['wall_s_median']:.3g}",
+                "-" if row.get("update_s_median") is None else f"{1e3 * row['update_s_median']:.3g}",
             ]
         )
     return markdown_table(header, lines, [False, False, *[True] * (len(header) - 2)])
