@@ -269,6 +269,7 @@ def _parser() -> argparse.ArgumentParser:
         default="ilc",
         metavar="NAME",
         help="ilc (the paper's eqs. 33-34, the default), newton_ilc (re-identify, then Newton on the refit model), "
+        "robust_ilc (global identification, continuation, a trust region), "
         "or module:attr, a factory make(LearnerContext) -> Learner",
     )
     run.set_defaults(handler=_run)

@@ -48,3 +48,16 @@ def test_the_first_runs_and_frame_times_quoted_are_the_artifacts():
     assert f"{raster[0]:.2f}-{raster[-1]:.2f} ms per frame" in text
     assert f"{matplotlib[0]:.1f}-{matplotlib[-1]:.1f} ms" in text
     assert re.search(r"under the floor of a tenth", text) and all(r["within_target"] for r in frames)
+
+
+def test_the_robustness_table_is_the_committed_maps():
+    # The table benchmarks/robustness.py wrote from the maps' sweep.json, and each map's own summary.
+    table = (ROOT / "docs/robustness/robustness.md").read_text().strip()
+    assert table in README
+    for row in json.loads((ROOT / "docs/robustness/robustness.json").read_text())["rows"]:
+        summary = json.loads((ROOT / "docs/robustness" / row["map"] / "sweep.json").read_text())["rows"]
+        lines = {line["method"]: line for line in summary}
+        assert row["solvable"] == lines["oracle"]["converged_fraction"]
+        for method in ("ilc_paper", "newton_ilc", "robust_ilc"):
+            assert row[f"{method}_of_solvable"] == lines[method]["of_solvable"]
+            assert row[f"{method}_median"] == lines[method]["median_trials"]

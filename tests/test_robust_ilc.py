@@ -120,7 +120,7 @@ def test_the_oracle_finds_coefficients_that_reach_the_goal_on_the_true_plant():
 
 def test_sweep_with_the_oracle_reports_the_share_of_the_solvable_region(tmp_path, capsys):
     out = tmp_path / "sweep"
-    argv = ["sweep", "parallel_parking", "--methods", "robust_ilc", "--grid", "3", "--trials", "8"]
+    argv = ["sweep", "forward_parking", "--methods", "robust_ilc", "--grid", "3", "--trials", "6"]
     assert main([*argv, "--oracle", "--out", str(out)]) == 0
     report = json.loads((out / "sweep.json").read_text())
     oracle = json.loads((out / "oracle.json").read_text())
@@ -159,7 +159,7 @@ def test_sweep_over_plant_keys(tmp_path):
         (["--axis", "true_wheelbase", "0.3", "0.1", "--axis", "true_wheel_radius", "0.01", "0.03"], "LOW < HIGH"),
         (["--axis", "true_wheelbase", "a", "0.3", "--axis", "true_wheel_radius", "0.01", "0.03"], "must be numbers"),
         (["--axis", "true_wheelbase", "0.1", "0.3"], "exactly two"),
-        (["--axis", "steering_offset", "-0.01", "0.01", "--axis", "true_wheel_radius", "0.01", "0.03"], "different kinds"),
+        (["--axis", "steering_offset", "-0.01", "0.01", "--axis", "true_wheel_radius", "0.01", "0.03"], "another kind"),
         (["--axis", "true_wheelbase", "-0.1", "0.3", "--axis", "true_wheel_radius", "0.01", "0.03"], "invalid plant"),
     ],
 )

@@ -1,0 +1,120 @@
+"""Robustness maps of every task, read against the oracle: where the true robot can reach the goal.
+
+Each map is an ``ilc-steering sweep --oracle`` run (its own folder under ``--out``, resumable: a
+second run recomputes nothing it already holds), of the paper's law, ``newton_ilc`` and
+``robust_ilc``; this script runs them in turn and writes one table of every map's shares of the
+oracle-solvable region.
+
+    python benchmarks/robustness.py [--quick] [--out DIR] [--grid N] [--workers W]
+
+writes ``robustness.{csv,json,md}`` and one sweep folder per map (committed in ``docs/robustness``).
+The oracle knows the true plant; it is never a learner (see :mod:`ilc_steering.oracle`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ilc_steering.sweep import SweepArgs
+from ilc_steering.sweep import main as sweep
+from ilc_steering.tables import markdown_table, write_results
+
+__all__ = ["MAPS", "METHODS", "Args", "main"]
+
+METHODS = ("ilc_paper", "newton_ilc", "robust_ilc")
+MAPS: dict[str, tuple[str, tuple[tuple[str, float, float], ...]]] = {
+    "forward_parking": ("forward_parking", ()),
+    "forward_parking_saturated": ("forward_parking_saturated", ()),
+    "parallel_parking": ("parallel_parking", ()),
+    "unicycle_parking": ("unicycle_parking", ()),
+    "trailer_bay": ("trailer_bay", (("true_hitch_length", 0.15, 0.45), ("true_wheelbase", 0.1, 0.3))),
+    "parallel_parking_servo": (
+        "parallel_parking_servo",
+        (("steering_offset", -0.03, 0.03), ("true_wheel_radius", 0.01, 0.03)),
+    ),
+}
+"""Map name: config and axes (empty: wheelbase and wheel radius, or the robot's two factors, as
+ratios 0.5-1.5 to the nominal ones; else two plant keys with their ranges)."""
+
+
+@dataclass(frozen=True)
+class Args:
+    out: Path = Path("results/robustness")
+    """Folder of the table and of one sweep folder per map."""
+    grid: int = 15
+    """Points per axis of every map."""
+    trials: int = 30
+    """Budget per plant [trials]."""
+    workers: int = 0
+    """Local worker processes of each sweep (0: one per core)."""
+    quick: bool = False
+    """A 3 x 3 grid, 6 trials, two maps: that the script runs."""
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    grid, trials = (3, 6) if args.quick else (args.grid, args.trials)
+    maps = dict(list(MAPS.items())[:1] + list(MAPS.items())[4:5]) if args.quick else MAPS
+    rows = []
+    for name, (config, axes) in maps.items():
+        lines = sweep(
+            SweepArgs(
+                config=config,
+                methods=METHODS,
+                grid=grid,
+                trials=trials,
+                out=args.out / name,
+                workers=args.workers,
+                axes=axes,
+                oracle=True,
+            )
+        )
+        by_method = {line["method"]: line for line in lines}
+        row: dict[str, Any] = {
+            "map": name,
+            "axes": " x ".join(key for key, _, _ in axes) or "wheelbase x wheel radius (ratios)",
+            "solvable": by_method["oracle"]["converged_fraction"],
+        }
+        for method in METHODS:
+            row[f"{method}_of_solvable"] = by_method[method]["of_solvable"]
+            row[f"{method}_median"] = by_method[method]["median_trials"]
+        rows.append(row)
+
+    def share(value: float | None) -> str:
+        return "-" if value is None else f"{100 * value:.1f} %"
+
+    def median(value: float | None) -> str:
+        return "-" if value is None else f"{value:g}"
+
+    header = ["map", "axes", "oracle: solvable", *(f"{m}: converged of solvable (median trials)" for m in METHODS)]
+    cells = [
+        [
+            row["map"],
+            row["axes"],
+            share(row["solvable"]),
+            *(f"{share(row[m + '_of_solvable'])} ({median(row[m + '_median'])})" for m in METHODS),
+        ]
+        for row in rows
+    ]
+    table = markdown_table(header, cells, [False, False, True, True, True, True])
+    settings = {"grid": grid, "trials": trials, "methods": list(METHODS)}
+    write_results(rows, args.out, "robustness", table, {"settings": settings})
+    print(table)
+    return rows
+
+
+def parse(argv: list[str] | None = None) -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Args.out)
+    parser.add_argument("--grid", type=int, default=Args.grid)
+    parser.add_argument("--trials", type=int, default=Args.trials)
+    parser.add_argument("--workers", type=int, default=Args.workers)
+    parser.add_argument("--quick", action="store_true")
+    ns = parser.parse_args(argv)
+    return Args(out=ns.out, grid=ns.grid, trials=ns.trials, workers=ns.workers, quick=ns.quick)
+
+
+if __name__ == "__main__":
+    main(parse())
