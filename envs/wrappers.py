@@ -29,22 +29,22 @@ class ResidualAction(SearchBox):
     (:meth:`~ilc_steering.agents.base.LearnerContext.search_box`), so ``a = 0`` is the nominal
     solution, the first trial of every learner there, and the true solution of every packaged task
     lies within ``|a_i| < 0.7``. An RL policy whose output starts near 0 thus starts at the
-    nominal solution, where ``RescaleAction`` would start it at ``c = 0``, often far off the chart.
+    nominal solution, where ``RescaleAction`` would centre it at ``c = 0``, far from any solution.
 
     On the cyclic env (``ilc_steering/CyclicSteering-v0``) each segment has its own nominal model,
     so ``c0`` and ``s`` are those of the segment the next ``step`` drives: the wrapper follows the
     segment through ``info["segment"]`` of ``reset`` and ``step``.
 
     Actions outside ``[-1, 1]`` are clipped to it; a wrong shape or a non-finite value raises
-    ``ValueError``. ``c`` outside the env's own action box is clipped
-    by the env (``info["clipped"]``); the default box, 10 times ``action_scale()``, leaves room for
-    ``scale`` up to 9.
+    ``ValueError``. ``c`` outside the env's own action box is clipped by the env
+    (``info["clipped"]``); the default box, 10 times ``action_scale()``, leaves room for ``scale``
+    up to 9.
 
     Parameters
     ----------
     env
-        A ``ChainedSteering-v0`` or ``CyclicSteering-v0`` env from ``gym.make`` (wrappers
-        allowed), or the env classes themselves.
+        A ``ChainedSteering-v0`` or ``CyclicSteering-v0`` env from ``gym.make`` or an instance of
+        their classes, under wrappers that keep its physical action box (``ValueError`` otherwise).
     scale
         Half-width of the box per coefficient, in units of ``NominalModel.action_scale()``: a
         finite number > 0. The default, :data:`~ilc_steering.agents.base.RESIDUAL_SCALE`, is the

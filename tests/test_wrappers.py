@@ -265,3 +265,19 @@ def test_same_step_autoreset_makes_every_step_a_trial(mode):
             rewards, -(info["final_info"]["cartesian_error"] + 1.0 * info["final_info"]["orientation_error"])
         )
     envs.close()
+
+
+def test_cyclic_vector_env_noise_is_seeded_and_leaves_the_truth_alone():
+    noisy = [native(3, "cyclic_home_goal", measurement_noise=1e-3) for _ in range(2)]
+    exact = native(3, "cyclic_home_goal")
+    c = np.tile(exact.unwrapped.nominal_models[0].solve(), (3, 1))
+    outs = []
+    for envs in [*noisy, exact]:
+        envs.reset(seed=5)
+        outs.append(envs.step(c))
+    assert data_equivalence(outs[0], outs[1], exact=True)  # the same seed, the same draws
+    info, truth = outs[0][4], outs[2][4]
+    np.testing.assert_array_equal(info["true_cartesian_error"], truth["cartesian_error"])
+    measured = info["cartesian_error"] - truth["cartesian_error"]
+    assert np.all(measured != 0) and np.all(np.abs(measured) < 1e-2)  # measured with mm-sized errors
+    assert not np.array_equal(outs[0][0], outs[2][0])  # the observation is the noisy measurement
