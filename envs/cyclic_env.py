@@ -17,7 +17,7 @@ from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import TrialView, check_action, check_flag, check_render_mode, reward, trial_info
 
-__all__ = ["CyclicSteeringEnv", "make_cyclic_env"]
+__all__ = ["CyclicSteeringEnv", "check_cycles", "make_cyclic_env"]
 
 Array = npt.NDArray[np.float64]
 
@@ -210,6 +210,12 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         return self._view.scene(f"{self.config.name}: cycle {cycle}, reached waypoint {waypoint}")
 
 
+def check_cycles(cycles: Any) -> None:
+    """``ValueError`` unless ``cycles`` is a whole number >= 1 or ``None`` (the config's ``learning.trials``)."""
+    if cycles is not None and (isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1):
+        raise ValueError(f"cycles must be a whole number >= 1 or None, got {cycles!r}")
+
+
 def make_cyclic_env(
     config: str | Path | SteeringConfig = "cyclic_home_goal",
     cycles: int | None = None,
@@ -219,8 +225,7 @@ def make_cyclic_env(
 ) -> gym.Env[Array, npt.NDArray[np.float32]]:
     """The registered entry point: a :class:`CyclicSteeringEnv` truncated after ``cycles`` cycles
     (default: the config's ``learning.trials``) through ``TimeLimit``."""
-    if cycles is not None and (isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1):
-        raise ValueError(f"cycles must be a whole number >= 1 or None, got {cycles!r}")
+    check_cycles(cycles)
     env = CyclicSteeringEnv(config, render_mode, record_trajectory, measurement_noise)
     count = env.config.learning.trials if cycles is None else int(cycles)
     return TimeLimit(env, max_episode_steps=count * env.num_segments)
