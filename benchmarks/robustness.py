@@ -92,7 +92,13 @@ def main(args: Args) -> list[dict[str, Any]]:
     def median(value: float | None) -> str:
         return "-" if value is None else f"{value:g}"
 
-    header = ["map", "axes", "grid", "oracle: solvable", *(f"{m}: converged of solvable (median trials)" for m in METHODS)]
+    header = [
+        "map",
+        "axes",
+        "grid",
+        "oracle: solvable",
+        *(f"{m}: converged of solvable (median trials)" for m in METHODS),
+    ]
     cells = [
         [
             row["map"],
