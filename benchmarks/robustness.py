@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.inputs import read_json
+from ilc_steering.output import MAX_RESULT_BYTES
 from ilc_steering.sweep import SweepArgs
 from ilc_steering.sweep import main as sweep
 from ilc_steering.tables import markdown_table, write_results
@@ -78,7 +80,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         row: dict[str, Any] = {
             "map": name,
             "grid": size,
-            "axes": " x ".join(key for key, _, _ in axes) or "wheelbase x wheel radius (ratios)",
+            "axes": " x ".join(read_json(args.out / name / "sweep.json", MAX_RESULT_BYTES)["axes"]),
             "solvable": by_method["oracle"]["converged_fraction"],
         }
         for method in METHODS:
