@@ -82,8 +82,8 @@ __all__ = [
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 MAX_SEED = 2**32 - 1
 MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc")
-BLACKBOX = ("least_squares", "gauss_newton", "nelder_mead", "cma_es")
-RL = ("ppo", "sac", "td3")
+BLACKBOX = ("least_squares", "noisy_least_squares", "gauss_newton", "nelder_mead", "cma_es", "bayes_opt")
+RL = ("ppo", "sac", "td3", "crossq", "tqc")
 METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
 SCENARIOS = (
     "forward_parking",
@@ -206,6 +206,10 @@ def budget(args: Args, prior: str, method: str, scenario: str) -> int:
         if args.rl_trials is not None:
             return args.rl_trials
         return int(hyperparameters(method, scenario, prior)["n_timesteps"])
+    if method == "bayes_opt":  # a GP's trial costs about 0.25 s: BO's budget is its own (agents/bayes_opt.py)
+        from ilc_steering.agents.bayes_opt import MAX_TRIALS
+
+        return min(args.blackbox_trials, MAX_TRIALS)
     return args.blackbox_trials
 
 
@@ -294,6 +298,10 @@ def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> d
 
         learner = with_cost(learner, context)
     result = measure(env, learner, trials, seed, method)
+    if method in RL:  # which implementation made the cell: SBX or SB3 (agents/rl.py)
+        from ilc_steering.agents.rl import implementation
+
+        result["implementation"] = implementation(method)
     env.close()
     return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
 
