@@ -173,14 +173,15 @@ def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) ->
         unknown = sorted(set(params) - allowed)
         if unknown:
             raise ConfigError(
-                f"{where}.{unknown[0]}: unknown key for {implementation(algorithm, backend)} {cls.__name__}"
+                f"{where}.{unknown[0]}: unknown key for {cls.__name__} ({implementation(algorithm, backend)})"
             )
         policy = cls.policy_aliases.get(params.get("policy", "MlpPolicy"))
         accepted = set(inspect.signature(policy.__init__).parameters) if policy is not None else set()
         unknown = sorted(set(params.get("policy_kwargs") or {}) - accepted)
         if unknown:
             raise ConfigError(
-                f"{where}.policy_kwargs.{unknown[0]}: unknown key for {implementation(algorithm, backend)}"
+                f"{where}.policy_kwargs.{unknown[0]}: unknown key for {cls.__name__}'s policy "
+                f"({implementation(algorithm, backend)})"
             )
     if not isinstance(params.get("n_timesteps"), int) or params["n_timesteps"] < 1:
         raise ConfigError(f"{where}.n_timesteps: the budget must be an integer >= 1 [trials]")
@@ -189,7 +190,8 @@ def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) ->
         raise ConfigError(f"{where}.eval_every: must be an integer >= 1 [trials] or absent")
     std = params.get("initial_std")
     if std is not None and (algorithm not in _SQUASHED or not isinstance(std, float) or not 0 < std <= 1):
-        raise ConfigError(f"{where}.initial_std: {', '.join(_SQUASHED)} only, a number in (0, 1] [search units]")
+        names = ", ".join(_CLASS_NAMES[a] for a in _SQUASHED)
+        raise ConfigError(f"{where}.initial_std: {names} only, a number in (0, 1] [search units]")
     return params
 
 

@@ -76,7 +76,7 @@ def test_bad_backend_is_a_one_line_error(monkeypatch: pytest.MonkeyPatch) -> Non
 
 def test_a_key_only_one_backend_knows_is_refused() -> None:
     params = {**rl.hyperparameters("sac", "forward_parking"), "qf_learning_rate": 1e-3}  # SBX only
-    with pytest.raises(ConfigError, match=r"here\.qf_learning_rate: unknown key for stable-baselines3"):
+    with pytest.raises(ConfigError, match=r"here\.qf_learning_rate: unknown key for SAC \(stable-baselines3 "):
         rl.check_hyperparameters("sac", params, "here")
     kwargs = {**rl.hyperparameters("crossq", "forward_parking"), "policy_kwargs": {"renorm_warmup": 5}}
     with pytest.raises(ConfigError, match=r"here\.policy_kwargs\.renorm_warmup: unknown key"):
