@@ -52,9 +52,9 @@ class Args:
     """The RL methods timed."""
     scenario: str = "forward_parking"
     """The task."""
-    short: int = 200
+    short: int = 100
     """Trials of the short run."""
-    long: int = 1200
+    long: int = 600
     """Trials of the long run."""
     repeats: int = 3
     """Timed pairs of runs per (algorithm, implementation); the median is reported."""

@@ -213,6 +213,22 @@ def budget(args: Args, prior: str, method: str, scenario: str) -> int:
     return args.blackbox_trials
 
 
+def implementation(method: str) -> str:
+    """What made a cell of ``method``: for RL the package and version of the backend in use (SBX or
+    SB3, :func:`ilc_steering.agents.rl.implementation`), for a black-box method its optimizer's, else
+    this library's (a user's learner: its ``module:attr``)."""
+    from importlib import metadata
+
+    if method in RL:
+        from ilc_steering.agents.rl import implementation as rl_implementation
+
+        return rl_implementation(method)
+    if is_custom(method):
+        return method
+    package = {"cma_es": "cma", "bayes_opt": "botorch"}.get(method, "scipy" if method in BLACKBOX else None)
+    return f"{package} {metadata.version(package)}" if package else f"ilc-steering {__version__}"
+
+
 def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
     """The learner of ``method`` for ``scenario`` (its config's name), built from ``context`` alone."""
     from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
@@ -298,10 +314,7 @@ def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> d
 
         learner = with_cost(learner, context)
     result = measure(env, learner, trials, seed, method)
-    if method in RL:  # which implementation made the cell: SBX or SB3 (agents/rl.py)
-        from ilc_steering.agents.rl import implementation
-
-        result["implementation"] = implementation(method)
+    result["implementation"] = implementation(method)
     env.close()
     return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
 
