@@ -60,6 +60,8 @@ class Args:
     """Timed pairs of runs per (algorithm, implementation); the median is reported."""
     budget: int = 10_000
     """The cell budget ``cell_s`` is given for [trials]."""
+    modes: tuple[str, ...] = MODES
+    """The implementations timed, of :data:`MODES`."""
 
 
 def _cell_seconds(algorithm: str, mode: str, scenario: str, trials: int, seed: int) -> float:
@@ -102,7 +104,10 @@ def main(args: Args) -> list[dict[str, Any]]:
     check_output_dir(args.out, "--out")
     algorithms = args.algorithms[:2] if args.quick else args.algorithms
     short, long, repeats = (20, 60, 1) if args.quick else (args.short, args.long, args.repeats)
-    installed = [m for m in MODES if m != "sbx" or "sbx" in rl._installed_backends()]
+    unknown = [m for m in args.modes if m not in MODES]
+    if unknown:
+        raise ValueError(f"--modes: unknown {unknown[0]!r}; choose from {list(MODES)}")
+    installed = [m for m in args.modes if m != "sbx" or "sbx" in rl._installed_backends()]
     rows: list[dict[str, Any]] = []
     for algorithm in algorithms:
         for mode in installed:
@@ -133,7 +138,7 @@ def main(args: Args) -> list[dict[str, Any]]:
             ("sb3, 1 thread", "speedup_vs_sb3_1_thread"),
             ("sb3, torch default threads", "speedup_vs_sb3_default"),
         ):
-            row[key] = mine[mode]["cell_s"] / row["cell_s"] if mode in mine else None
+            row[key] = mine[mode]["cell_s"] / row["cell_s"] if mode in mine else float("nan")
     lines = [
         [
             r["algorithm"],
@@ -180,8 +185,9 @@ def parse(argv: list[str] | None = None) -> Args:
     parser.add_argument("--out", type=Path, default=Args.out, help="folder for rl_speed.{json,csv,md}")
     parser.add_argument("--algorithms", nargs="+", default=list(Args.algorithms), help="RL methods to time")
     parser.add_argument("--repeats", type=int, default=Args.repeats, help="timed pairs of runs (median)")
+    parser.add_argument("--modes", nargs="+", default=list(MODES), help=f"implementations to time, of {list(MODES)}")
     ns = parser.parse_args(argv)
-    return Args(quick=ns.quick, out=ns.out, algorithms=tuple(ns.algorithms), repeats=ns.repeats)
+    return Args(quick=ns.quick, out=ns.out, algorithms=tuple(ns.algorithms), repeats=ns.repeats, modes=tuple(ns.modes))
 
 
 if __name__ == "__main__":
