@@ -13,6 +13,11 @@ restarts from a new seeded start near the centre, until the trial loop stops it 
 - :func:`least_squares`: ``scipy.optimize.least_squares`` on the residual vector, Levenberg-
   Marquardt with a 2-point Jacobian (every function evaluation one trial), the residual taken
   at the point projected onto the box; its restarts use TRF within the box, which LM cannot;
+- :func:`noisy_least_squares`: TRF on the residual averaged over ``repeats`` trials, with
+  forward-difference probes sized to move the residual well above the measurement noise
+  (scipy's default step differences noise), restarted where it stops;
+- :func:`bayes_opt` (:mod:`ilc_steering.agents.bayes_opt`, the ``bo`` extra): TuRBO-1 with
+  BoTorch on the log cost;
 - :func:`gauss_newton`: Gauss-Newton on the same residual with a forward-difference Jacobian
   (one probe trial per coefficient) and step halving;
 - :func:`nelder_mead`: scipy's Nelder-Mead (adaptive) on the cost;
@@ -39,7 +44,17 @@ from ilc_steering.agents.adapters import PullLearner, SearchBox
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.core.score import OFF_CHART_PENALTY
 
-__all__ = ["BLACKBOX_METHODS", "cma_es", "gauss_newton", "least_squares", "make_learner", "nelder_mead", "residual"]
+__all__ = [
+    "BLACKBOX_METHODS",
+    "bayes_opt",
+    "cma_es",
+    "gauss_newton",
+    "least_squares",
+    "make_learner",
+    "nelder_mead",
+    "noisy_least_squares",
+    "residual",
+]
 
 Array = npt.NDArray[np.float64]
 Optimizer = Callable[[gym.Env[Any, Any], LearnerContext], None]
@@ -148,8 +163,81 @@ def least_squares(env: gym.Env[Any, Any], context: LearnerContext) -> None:
             )
 
 
+def noisy_least_squares(
+    env: gym.Env[Any, Any],
+    context: LearnerContext,
+    probe: float = 0.1,
+    repeats: int = 1,
+    resizes: int = 3,
+    growth: float = 2.0,
+) -> None:
+    """Gauss-Newton on :func:`residual` averaged over ``repeats`` trials at each point, built not
+    to be fooled by measurement noise:
+
+    - forward-difference probes sized to the residual, not to the coefficients: each column's
+      step is rescaled until its probe moves the residual by about ``probe`` [residual units: m,
+      rad] (at most ``resizes`` more probes while a change is over 3 times off). A noise of sigma
+      then perturbs a column by about sigma / probe of its size; scipy's fixed step (1.5e-8 of the
+      coefficient) differences noise, and no one step fits every column here (the residual's
+      sensitivities to the coefficients differ by 300 times);
+    - full steps with no acceptance test, as ILC takes them: near the noise floor a test of
+      "did the residual fall?" rejects good steps at random and stalls (scipy's TRF and LM do);
+      only a residual ``growth`` times the best one so far counts as a failed step, and sends it
+      back to the best point with a Jacobian measured there.
+
+    The Jacobian is measured again whenever a step fails. Every trial counts, probes and repeats
+    included."""
+    if not probe > 0 or repeats < 1 or resizes < 0 or not growth > 1:
+        raise ValueError(
+            "noisy_least_squares: probe > 0, repeats >= 1, resizes >= 0 and growth > 1, "
+            f"got {probe!r}, {repeats!r}, {resizes!r}, {growth!r}"
+        )
+    size = context.model.profile.num_coefficients
+    steps = np.full(size, 1e-4)  # [search units]; the first Jacobian resizes them
+
+    def averaged(y: Array) -> Array:
+        return np.mean([residual(_trial(env, y)[1]) for _ in range(repeats)], axis=0)  # type: ignore[no-any-return]
+
+    def jacobian(y: Array, r: Array) -> Array:
+        columns = []
+        for j in range(size):
+            for _ in range(resizes + 1):
+                h = steps[j] if y[j] + steps[j] <= 1.0 else -steps[j]
+                shifted = y.copy()
+                shifted[j] += h
+                change = averaged(shifted) - r
+                moved = float(np.linalg.norm(change))
+                steps[j] = np.clip(abs(h) * probe / moved, 1e-9, 0.5) if moved > 0 else min(10 * abs(h), 0.5)
+                if probe / 3 <= moved <= 3 * probe:
+                    break
+            columns.append(change / h)
+        return np.column_stack(columns)
+
+    for restart in count():
+        best_x = x = context.start_point(restart)
+        best_r = r = averaged(x)
+        inverse = np.linalg.pinv(jacobian(x, r))
+        for _ in range(10 * size + 10):  # a stuck run restarts from a new start
+            x = np.clip(x - inverse @ r, -1.0, 1.0)
+            r = averaged(x)
+            if np.linalg.norm(r) < np.linalg.norm(best_r):
+                best_x, best_r = x, r
+            elif np.linalg.norm(r) > growth * np.linalg.norm(best_r):
+                x, r = best_x, best_r
+                inverse = np.linalg.pinv(jacobian(x, r))
+
+
+def bayes_opt(env: gym.Env[Any, Any], context: LearnerContext) -> None:
+    """TuRBO-1 with BoTorch on the log cost: :func:`ilc_steering.agents.bayes_opt.bayes_opt`."""
+    from ilc_steering.agents.bayes_opt import bayes_opt as turbo
+
+    turbo(env, context)
+
+
 BLACKBOX_METHODS: dict[str, Optimizer] = {
     "least_squares": least_squares,
+    "noisy_least_squares": noisy_least_squares,
+    "bayes_opt": bayes_opt,
     "gauss_newton": gauss_newton,
     "nelder_mead": nelder_mead,
     "cma_es": cma_es,

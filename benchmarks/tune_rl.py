@@ -34,6 +34,11 @@ GRID: dict[str, dict[str, list[Any]]] = {
     "td3": {"gradient_steps": [2, 4], "noise_std": [0.005, 0.01, 0.02]},
     "sac": {"gradient_steps": [1, 2], "target_entropy": [-12.0, -16.0]},
     "ppo": {"n_steps": [16, 64], "policy_kwargs.log_std_init": [-3.0, -4.0]},
+    "crossq": {
+        "gradient_steps": [1, 2],
+        "policy_kwargs.net_arch": [{"pi": [64, 64], "qf": [256, 256]}, {"pi": [256, 256], "qf": [1024, 1024]}],
+    },
+    "tqc": {"gradient_steps": [1, 2], "top_quantiles_to_drop_per_net": [0, 2]},
 }
 """Per algorithm, the values tried of each hyperparameter (``a.b``: key ``b`` of the dict ``a``)."""
 
@@ -52,6 +57,8 @@ class Args:
     """Budget of each candidate run [trials]."""
     workers: int = 0
     """Worker processes; 0: one per core."""
+    algorithms: tuple[str, ...] = tuple(GRID)
+    """The algorithms swept."""
 
 
 def candidates(algorithm: str) -> list[dict[str, Any]]:
@@ -93,9 +100,13 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
 
 def main(args: Args) -> list[dict[str, Any]]:
 
+    from ilc_steering.agents import rl
     from ilc_steering.backends import run_calls
 
-    grid = {a: candidates(a)[:2] if args.quick else candidates(a) for a in GRID}
+    unknown = [a for a in args.algorithms if a not in GRID]
+    if unknown:
+        raise ValueError(f"--algorithms: no grid for {unknown[0]!r}; choose from {list(GRID)}")
+    grid = {a: candidates(a)[:2] if args.quick else candidates(a) for a in args.algorithms}
     seeds = args.seeds[:1] if args.quick else args.seeds
     trials = 60 if args.quick else args.trials
     calls = {
@@ -155,7 +166,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     header = ["algorithm", "candidate", "median trials to 1 cm", "reached", "median best error", ""]
     text = (
         f"Tuning sweep on {args.scenario}, prior=nominal, seeds {list(seeds)}, {trials} trials per run "
-        f"(python benchmarks/tune_rl.py). The sweep itself cost {spent} trials.\n\n"
+        f"(python benchmarks/tune_rl.py, {rl.rl_backend()}). The sweep itself cost {spent} trials.\n\n"
         + markdown_table(header, lines, [False, False, True, True, True, False])
     )
     flat = [{**r, "overrides": str(r["overrides"])} for r in rows]
@@ -170,8 +181,9 @@ def parse(argv: list[str] | None = None) -> Args:
     parser.add_argument("--out", type=Path, default=Args.out, help="folder for tuning.{csv,json,md}")
     parser.add_argument("--trials", type=int, default=Args.trials, help="budget of each candidate run [trials]")
     parser.add_argument("--workers", type=int, default=0, help="worker processes (0: one per core)")
+    parser.add_argument("--algorithms", nargs="+", default=list(GRID), help="algorithms to sweep")
     ns = parser.parse_args(argv)
-    return Args(quick=ns.quick, out=ns.out, trials=ns.trials, workers=ns.workers)
+    return Args(quick=ns.quick, out=ns.out, trials=ns.trials, workers=ns.workers, algorithms=tuple(ns.algorithms))
 
 
 if __name__ == "__main__":

@@ -90,8 +90,8 @@ __all__ = [
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 MAX_SEED = 2**32 - 1
 MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc", "robust_ilc")
-BLACKBOX = ("least_squares", "gauss_newton", "nelder_mead", "cma_es")
-RL = ("ppo", "sac", "td3")
+BLACKBOX = ("least_squares", "noisy_least_squares", "gauss_newton", "nelder_mead", "cma_es", "bayes_opt")
+RL = ("ppo", "sac", "td3", "crossq", "tqc")
 METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
 SCENARIOS = (
     "forward_parking",
@@ -225,7 +225,27 @@ def budget(args: Args, prior: str, method: str, scenario: str) -> int:
         if args.rl_trials is not None:
             return args.rl_trials
         return int(hyperparameters(method, scenario, prior)["n_timesteps"])
+    if method == "bayes_opt":  # a GP's trial costs about 0.25 s: BO's budget is its own (agents/bayes_opt.py)
+        from ilc_steering.agents.bayes_opt import MAX_TRIALS
+
+        return min(args.blackbox_trials, MAX_TRIALS)
     return args.blackbox_trials
+
+
+def implementation(method: str) -> str:
+    """What made a cell of ``method``: for RL the package and version of the backend in use (SBX or
+    SB3, :func:`ilc_steering.agents.rl.implementation`), for a black-box method its optimizer's, else
+    this library's (a user's learner: its ``module:attr``)."""
+    from importlib import metadata
+
+    if method in RL:
+        from ilc_steering.agents.rl import implementation as rl_implementation
+
+        return rl_implementation(method)
+    if is_custom(method):
+        return method
+    package = {"cma_es": "cma", "bayes_opt": "botorch"}.get(method, "scipy" if method in BLACKBOX else None)
+    return f"{package} {metadata.version(package)}" if package else f"ilc-steering {__version__}"
 
 
 def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
@@ -319,6 +339,7 @@ def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> d
 
         learner = with_cost(learner, context)
     result = measure(env, learner, trials, seed, method)
+    result["implementation"] = implementation(method)
     env.close()
     return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
 

@@ -153,7 +153,7 @@ def test_rl_hyperparameter_files_load_and_unknown_keys_are_named():
             assert hyperparameters(algorithm, "chained_perturbed", prior)["eval_every"] >= 1  # the default
     with pytest.raises(ConfigError, match=r"ppo.yaml: nominal.default.n_step: unknown key for PPO"):
         check_hyperparameters("ppo", {"n_timesteps": 10, "n_step": 64}, "configs/rl/ppo.yaml: nominal.default")
-    with pytest.raises(ConfigError, match="initial_std: SAC only"):
+    with pytest.raises(ConfigError, match="initial_std: SAC, CrossQ, TQC only"):
         check_hyperparameters("td3", {"n_timesteps": 10, "initial_std": 0.1}, "td3")
     with pytest.raises(ValueError, match="prior must be one of"):
         hyperparameters("sac", "forward_parking", "optimistic")
