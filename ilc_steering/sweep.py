@@ -56,6 +56,7 @@ from ilc_steering.output import (
 __all__ = ["SweepArgs", "gain_text", "lockstep", "main", "main_with_failures", "read_row", "run_row"]
 
 Array = npt.NDArray[np.float64]
+Mask = npt.NDArray[np.bool_]
 MAX_GRID = 201
 """The most points per axis: 201 x 201 plants is 40,401 learners."""
 
@@ -161,7 +162,8 @@ def row_plants(args: SweepArgs, config: SteeringConfig, row: int, reach: float =
         base = plant.true_factors()  # the config's true plant: the grid is against the nominal
         return [plant.with_true_factors(np.array(point) / base) for point in points]
     (k0, _, _), (k1, _, _) = args.axes
-    return [replace(config.plant, **{k0: float(x), k1: float(y)}).plant() for x, y in points]
+    plant_config: Any = config.plant  # a robot's config dataclass (the PlantConfig protocol)
+    return [replace(plant_config, **{k0: float(x), k1: float(y)}).plant() for x, y in points]
 
 
 def centre_row(args: SweepArgs, config: SteeringConfig) -> int:
@@ -275,7 +277,8 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
     keys = [key for key, _, _ in args.axes]
     if keys[0] == keys[1]:
         raise ValueError(f"--axis: {keys[0]} is given twice; a map has two different axes")
-    fields = {f.name for f in dataclass_fields(config.plant)} - {"model"}
+    plant_config: Any = config.plant
+    fields = {f.name for f in dataclass_fields(plant_config)} - {"model"}
     for key, low, high in args.axes:
         if key not in fields:
             raise ValueError(f"--axis {key}: not a key of this plant; choose from {sorted(fields)}")
@@ -380,26 +383,26 @@ def read_oracle(path: Path, key: dict[str, Any], size: int) -> dict[str, Any]:
     hint = "delete it to recompute it"
     try:
         found = read_json(path, MAX_RESULT_BYTES)
-    except ValueError as error:
-        raise ValueError(f"not an oracle map: {error}; {hint}") from None
+    except ValueError as problem:
+        raise ValueError(f"not an oracle map: {problem}; {hint}") from None
     if not isinstance(found, dict):
         raise ValueError(f"{path}: not an oracle map (a JSON object); {hint}")
     for name, value in key.items():
         if found.get(name) != value:
             raise ValueError(f"{path}: holds {name} {found.get(name)!r}, not {value!r}; {hint}")
-    solvable, error = found.get("solvable"), found.get("error")
+    solvable: Any = found.get("solvable")
+    errors: Any = found.get("error")
     shape_ok = all(
         isinstance(grid, list) and len(grid) == size and all(isinstance(r, list) and len(r) == size for r in grid)
-        for grid in (solvable, error)
+        for grid in (solvable, errors)
     )
     if not shape_ok:
         raise ValueError(f"{path}: not a {size} x {size} oracle map; {hint}")
-    if not all(isinstance(v, bool) for r in solvable for v in r):  # type: ignore[union-attr]
+    if not all(isinstance(v, bool) for r in solvable for v in r):
         raise ValueError(f"{path}: solvable holds a value that is not true or false; {hint}")
-    if not all(v is None or (isinstance(v, (int, float)) and v >= 0) for r in error for v in r):  # type: ignore[union-attr]
+    if not all(v is None or (isinstance(v, (int, float)) and v >= 0) for r in errors for v in r):
         raise ValueError(f"{path}: error holds a value that is not an error >= 0 or null; {hint}")
-    pairs = zip(solvable, error)  # type: ignore[arg-type]
-    if any(s != (e is not None and e < SOLVED) for rs, re in pairs for s, e in zip(rs, re)):
+    if any(s != (e is not None and e < SOLVED) for rs, re in zip(solvable, errors) for s, e in zip(rs, re)):
         raise ValueError(f"{path}: solvable disagrees with error < {SOLVED:g}; {hint}")
     return found
 
@@ -468,7 +471,7 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
 
 
 def summary(
-    args: SweepArgs, maps: dict[tuple[str, float], list[dict[str, Any]]], solvable: Array | None = None
+    args: SweepArgs, maps: dict[tuple[str, float], list[dict[str, Any]]], solvable: Mask | None = None
 ) -> list[dict[str, Any]]:
     """One line per map: where it converged (and, with the oracle's ``solvable`` map, on which
     share of the region where the true plant can reach the goal), and how fast."""
@@ -518,7 +521,7 @@ def plot_map(
     rows: list[dict[str, Any]],
     names: list[str],
     path: Path,
-    solvable: Array | None = None,
+    solvable: Mask | None = None,
 ) -> None:
     """The heat map of one map: trials to tolerance over the grid, grey where not within budget,
     and with the oracle's map the edge of the region where the true plant can reach the goal."""
