@@ -22,6 +22,7 @@ def cells(folder):
     for path in sorted((folder / "cells").glob("*.json")):
         cell = json.loads(path.read_text())
         cell.pop("wall_s")
+        cell.pop("update_s", None)  # a learner's own update time, like wall_s a timing
         found[path.name] = cell
     return found
 
