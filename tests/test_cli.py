@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+from ilc_steering import compare
 from ilc_steering.cli import main
 
 
@@ -92,4 +93,5 @@ def test_compare_quick_runs_every_method(tmp_path, capsys):
         assert f"| forward_parking | {method} |" in table
     for method in ("ppo", "sac", "td3"):
         assert f"| forward_parking_noisy | {method} |" in table
-    assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 6 * 11 * 2  # priors, scenarios, methods, seeds
+    methods = len(compare.DEFAULT_METHODS)
+    assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 6 * methods * 2  # priors, scenarios, methods, seeds

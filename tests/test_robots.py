@@ -142,7 +142,7 @@ def test_the_nominal_plant_ends_where_eq_23_says(name):
     family = ModelFamily(model)
     rng = np.random.default_rng(2)
     c = model.solve() * (1 + 0.02 * rng.standard_normal((6, model.profile.num_coefficients)))
-    q, inside = family.configurations(np.zeros(2), c)
+    q, inside = family.configurations(np.zeros(family.size), c)
     assert inside.all()
     z = family.to_chained(q)
     expected = np.array([model.final_state(ci) for ci in c])
