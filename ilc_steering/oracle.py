@@ -184,13 +184,10 @@ def _improve(
     start: Array,
     solution: Array,
     error: Array,
-    mask: npt.NDArray[np.bool_] | None = None,
 ) -> None:
-    """Search from ``start`` (rows with NaN skipped) where ``mask`` and the plant is not solved yet,
+    """Search from ``start`` (rows with NaN skipped) where the plant is not solved yet,
     keeping the better of the result and ``solution`` / ``error`` (updated in place)."""
     todo = np.all(np.isfinite(start), axis=1) & (error >= SOLVED)
-    if mask is not None:
-        todo &= mask
     index = np.flatnonzero(todo)
     if index.size == 0:
         return
