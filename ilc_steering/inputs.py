@@ -1,8 +1,11 @@
 """One way in for every file the library reads: its size checked before it is read, its depth after.
 
-Configs (YAML), run files (``plot``) and the rows and cells of a resumed run all come through
-:func:`read_text`: a file larger than its limit is refused from its size, before a byte is read
-(and read at most ``limit + 1`` bytes, should it grow meanwhile), so a 3 GB file costs nothing.
+Configs (YAML), run files (``plot``), the rows and cells of a resumed run, committed runs
+(``--against``) and the oracle all come through :func:`read_text`. It opens only regular files,
+with ``O_NONBLOCK`` so that a FIFO cannot block it (:func:`open_regular`), and turns every
+``OSError`` into a one-line ``ValueError`` naming the path. A file larger than its limit is
+refused from its size, before a byte is read (and read at most ``limit + 1`` bytes, should it
+grow meanwhile), so a 3 GB file costs nothing.
 :func:`read_json` then parses it and bounds its nesting (:data:`MAX_DEPTH`), which the parsers
 would otherwise meet as a ``RecursionError``. Each error is a ``ValueError`` naming the file.
 """
@@ -15,32 +18,99 @@ import stat
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MAX_DEPTH", "check_depth", "read_json", "read_text"]
+__all__ = [
+    "MAX_DEPTH",
+    "check_depth",
+    "describe",
+    "is_file",
+    "kind_of",
+    "open_regular",
+    "read_bytes",
+    "read_json",
+    "read_text",
+]
 
 MAX_DEPTH = 64
 """The deepest nesting (mappings and lists within one another) of a file the library reads."""
+
+
+def describe(error: OSError) -> str:
+    """An ``OSError`` as a few words (``"Too many levels of symbolic links"``), for a one-line refusal."""
+    return error.strerror or type(error).__name__
+
+
+def kind_of(mode: int) -> str:
+    """What a file of mode ``mode`` is, in words."""
+    kinds = [(stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device")]
+    kinds += [(stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")]
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
+def open_regular(path: Path, origin: str | None = None) -> int:
+    """A file descriptor of the regular file ``path``, opened for reading.
+
+    Opened with ``O_NONBLOCK`` so that a FIFO (or a device) cannot block, then checked with
+    ``fstat``: anything but a regular file is refused. Every ``OSError`` (a missing file, a
+    dangling link, a symbolic-link loop, a path under a regular file, a name too long, no
+    permission) is a ``ValueError`` naming ``origin`` (default: the path)."""
+    where = origin or str(path)
+    flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        descriptor = os.open(os.fspath(path), flags)
+    except (OSError, ValueError) as error:  # ValueError: a NUL in the path
+        problem = describe(error) if isinstance(error, OSError) else "a path cannot hold a NUL character"
+        raise ValueError(f"{where}: cannot read it: {problem}") from None
+    try:
+        mode = os.fstat(descriptor).st_mode
+        if not stat.S_ISREG(mode):
+            raise ValueError(f"{where}: is {kind_of(mode)}, not a regular file")
+        os.set_blocking(descriptor, True)
+    except BaseException:
+        os.close(descriptor)
+        raise
+    return descriptor
+
+
+def read_bytes(path: Path, limit: int, origin: str | None = None) -> bytes:
+    """The bytes of the regular file ``path`` (:func:`open_regular`), at most ``limit``."""
+    where = origin or str(path)
+    descriptor = open_regular(path, where)
+    try:
+        with os.fdopen(descriptor, "rb") as file:
+            size = os.fstat(file.fileno()).st_size
+            if size > limit:
+                raise ValueError(f"{where}: {size} bytes; at most {limit} bytes are read")
+            raw = file.read(limit + 1)
+    except OSError as error:  # EIO, EISDIR on odd file systems
+        raise ValueError(f"{where}: cannot read it: {describe(error)}") from None
+    if len(raw) > limit:
+        raise ValueError(f"{where}: more than {limit} bytes; at most {limit} bytes are read")
+    return raw
 
 
 def read_text(path: Path, limit: int, origin: str | None = None) -> str:
     """The UTF-8 text of the regular file ``path``, at most ``limit`` bytes; ``ValueError`` naming
     ``origin`` (default: the path) otherwise."""
     where = origin or str(path)
-    try:
-        with open(path, "rb") as file:
-            info = os.fstat(file.fileno())
-            if not stat.S_ISREG(info.st_mode):
-                raise ValueError(f"{where}: not a regular file")
-            if info.st_size > limit:
-                raise ValueError(f"{where}: {info.st_size} bytes; at most {limit} bytes are read")
-            raw = file.read(limit + 1)
-    except OSError as error:
-        raise ValueError(f"{where}: cannot read it: {error.strerror or error}") from None
-    if len(raw) > limit:
-        raise ValueError(f"{where}: more than {limit} bytes; at most {limit} bytes are read")
+    raw = read_bytes(path, limit, where)
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{where}: not UTF-8 text (byte {error.start})") from None
+
+
+def is_file(path: Path) -> bool:
+    """Whether ``path`` names something (a regular file or not: reading it says which); never raises.
+
+    ``Path.exists`` raises on a name too long or a folder without permission; a run's reader asks
+    this instead and leaves the refusal, with its reason, to :func:`read_text`."""
+    try:
+        os.stat(path)
+    except FileNotFoundError:
+        return os.path.islink(path)  # a dangling link is there, and refused when read
+    except (OSError, ValueError):
+        return True  # there is a problem: reading it names it
+    return True
 
 
 def check_depth(data: Any, origin: str, max_depth: int = MAX_DEPTH) -> None:

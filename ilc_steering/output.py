@@ -22,12 +22,13 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.inputs import read_json
+from ilc_steering.inputs import describe, is_file, kind_of, read_json
 
 __all__ = [
     "check_output_dir",
     "check_output_file",
     "check_run_settings",
+    "check_writable",
     "content_hash",
     "differences",
     "injective_name",
@@ -39,14 +40,17 @@ __all__ = [
 
 
 def _problem(error: OSError) -> str:
-    return error.strerror or str(error)
+    return describe(error)
 
 
 def check_output_dir(path: Path, option: str) -> Path:
     """Create the folder ``path`` if needed and check that files can be written in it; ``ValueError``
-    naming ``option`` otherwise."""
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"{option} {path}: exists and is not a folder")
+    naming ``option`` otherwise (every ``OSError``: a loop of links, a path under a file, a name too long)."""
+    if "\x00" in str(path):
+        raise ValueError(f"{option}: a path cannot hold a NUL character")
+    kind = _not_regular(path, option)
+    if kind is not None and kind != "a folder":
+        raise ValueError(f"{option} {path}: is {kind}, not a folder")
     try:
         path.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path, prefix=".write-check-"):
@@ -56,41 +60,58 @@ def check_output_dir(path: Path, option: str) -> Path:
     return path
 
 
-def _not_regular(path: Path) -> str | None:
-    """What ``path`` is, when it exists and is not a regular file (symbolic links followed)."""
+def _not_regular(path: Path, option: str = "") -> str | None:
+    """What ``path`` is, when it exists and is not a regular file (symbolic links followed);
+    ``ValueError`` naming ``option`` when it cannot be looked at (a loop of links, a name too long)."""
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        return None  # absent, or a dangling link: refused by the rename's folder check or written anew
-    if stat.S_ISREG(mode):
-        return None
-    kinds = [(stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device")]
-    kinds += [(stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")]
-    return next((name for test, name in kinds if test(mode)), "not a regular file")
+        return None  # absent, or a dangling link: written anew (the link's target, see _target)
+    except NotADirectoryError:
+        raise ValueError(f"{option} {path}: a part of the path is a file, not a folder".lstrip()) from None
+    except OSError as error:
+        raise ValueError(f"{option} {path}: cannot use it ({_problem(error)})".lstrip()) from None
+    return None if stat.S_ISREG(mode) else kind_of(mode)
+
+
+def _target(path: Path) -> Path:
+    """The file a write to ``path`` replaces: ``path``, or the file its symbolic links name."""
+    return Path(os.path.realpath(path)) if os.path.islink(path) else path
 
 
 def check_output_file(path: Path, option: str) -> Path:
     """Check that the file ``path`` can be written (its folder is created if needed): it must be
-    absent or a regular file."""
+    absent or a regular file, its folder writable, its name one the file system takes. Every
+    problem is a ``ValueError`` naming ``option``, before any work is done."""
     if "\x00" in str(path):
         raise ValueError(f"{option}: a path cannot hold a NUL character")
-    kind = _not_regular(path)
+    kind = _not_regular(path, option)
     if kind == "a folder":
         raise ValueError(f"{option} {path}: is a folder, not a file")
     if kind is not None:
         raise ValueError(f"{option} {path}: is {kind}, not a regular file; give a file path")
-    folder = path.parent
-    if folder.exists() and not folder.is_dir():
-        raise ValueError(f"{option} {path}: {folder} is not a folder")
+    target = _target(path)
+    folder = target.parent
     try:
+        if folder.exists() and not folder.is_dir():
+            raise ValueError(f"{option} {path}: {folder} is not a folder")
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=folder, prefix=".write-check-"):
             pass
+        if target.exists():
+            if not os.access(target, os.W_OK):
+                raise ValueError(f"{option} {path}: exists and cannot be written")
+        else:  # the name itself (its length, its characters) is the file system's to accept
+            os.close(os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+            os.unlink(target)
     except OSError as error:
         raise ValueError(f"{option} {path}: cannot be written ({_problem(error)})") from None
-    if path.exists() and not os.access(path, os.W_OK):
-        raise ValueError(f"{option} {path}: exists and cannot be written")
     return path
+
+
+def check_writable(path: Path, option: str = "output") -> Path:
+    """:func:`check_output_file`: call it on every output path before the first trial runs."""
+    return check_output_file(Path(path), option)
 
 
 def safe_name(name: str) -> str:
@@ -107,18 +128,22 @@ def _umask() -> int:
 
 def write_atomic(path: Path, content: str | bytes) -> None:
     """Write ``content`` to ``path`` through a unique temporary file, flushed to disk before the
-    rename; ``ValueError`` if ``path`` exists and is not a regular file."""
+    rename; ``ValueError`` naming the path if ``path`` exists and is not a regular file, or on any
+    ``OSError`` (the temporary file is removed)."""
     path = Path(path)
     kind = _not_regular(path)
     if kind is not None:
         raise ValueError(f"{path}: is {kind}, not a regular file; it is not replaced")
-    if path.is_symlink():
-        path = Path(os.path.realpath(path))  # write the file the link names, keep the link
+    path = _target(path)  # write the file a link names, keep the link
     try:
-        mode = stat.S_IMODE(os.stat(path).st_mode)
-    except FileNotFoundError:
-        mode = 0o666 & ~_umask()
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except FileNotFoundError:
+            mode = 0o666 & ~_umask()
+        # a short prefix: the temporary name must fit wherever the name itself fits
+        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:24]}.", suffix=".tmp")
+    except OSError as error:
+        raise ValueError(f"{path}: cannot be written ({_problem(error)})") from None
     try:
         with os.fdopen(handle, "wb") as file:
             file.write(content.encode("utf-8") if isinstance(content, str) else content)
@@ -126,6 +151,9 @@ def write_atomic(path: Path, content: str | bytes) -> None:
             os.fchmod(file.fileno(), mode)
             os.fsync(file.fileno())
         os.replace(temporary, path)
+    except OSError as error:
+        Path(temporary).unlink(missing_ok=True)
+        raise ValueError(f"{path}: cannot be written ({_problem(error)})") from None
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
@@ -190,7 +218,7 @@ def check_run_settings(
     (``results/*.json``) but no record of their settings. Returns whether the folder was a run
     already (a resume). Configs of new names are added: a resume may add scenarios."""
     stored_path = folder / "run.json"
-    resumed = stored_path.exists()
+    resumed = is_file(stored_path)
     known: dict[str, str] = {}
     if resumed:
         stored = read_json(stored_path, MAX_RESULT_BYTES)
