@@ -386,11 +386,19 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
     if hint is PlantConfig:
         _require(isinstance(value, dict), key, f"must be a mapping, got {_show(value)}")
         model = value.get("model")
+        if isinstance(model, str) and robots.ENTRY.fullmatch(model):  # "package.module:ConfigClass", as --learner
+            with _domain(f"{key}.model"):
+                cls = robots.config_class(model)
+            return _build(cls, {**value, "model": robots.model_name(cls)}, key)
         known = robots.names()
         _require(
-            isinstance(model, str) and model in known, f"{key}.model", f"must be one of {known}, got {_show(model)}"
+            isinstance(model, str) and model in known,
+            f"{key}.model",
+            f"must be one of {known} or 'package.module:ConfigClass', got {_show(model)}",
         )
-        return _build(robots.config_class(model), value, key)
+        with _domain(f"{key}.model"):  # a plugin that cannot load is named, with its package
+            cls = robots.config_class(model)
+        return _build(cls, value, key)
     if dataclasses.is_dataclass(hint):
         return _build(hint, value, key)
     if origin is tuple:

@@ -13,17 +13,31 @@ package that holds it, an entry point ``name = "package.module:ConfigClass"`` in
 ``ilc_steering.robots`` (``[project.entry-points."ilc_steering.robots"]`` of its
 ``pyproject.toml``), which every process finds (the CLI's, a comparison's workers); or, in a
 script, ``register("name", "package.module:ConfigClass")`` before its first config is loaded. The
-entries are strings, loaded on first use, so importing this package imports no robot.
+entries are strings, loaded on first use, so importing this package imports no robot. A config
+may also name the class itself, ``plant: {model: "package.module:ConfigClass"}``, as ``--learner``
+takes ``module:attr``: it is registered under its ``model`` literal when the config loads.
+
+Plugins are isolated (``docs/trust.md``): an installed entry point is only a string until a
+config names its robot, so a plugin whose module raises, does not parse or names something that
+is not a robot config breaks only the commands that use it, and those with a one-line error
+naming the package and the entry point. An entry point with a malformed name or value, or one
+that names a packaged robot (``car``) or a robot another package names, is skipped with a
+one-line warning on stderr: a packaged name is never replaced. A config class is checked against
+the :class:`~ilc_steering.core.plants.PlantConfig` protocol (and its plant class against
+:class:`~ilc_steering.core.plants.Plant`) when it is first loaded; a missing method is named.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
+import sys
+import typing
 from importlib import import_module
 from importlib.metadata import entry_points
 from typing import Any
 
-__all__ = ["ROBOTS", "config_class", "names", "nominal_plant", "register"]
+__all__ = ["ROBOTS", "config_class", "names", "nominal_plant", "register", "skipped"]
 
 ROBOTS: dict[str, str] = {
     "car": "ilc_steering.core.robots.car:CarPlantConfig",
@@ -33,12 +47,27 @@ ROBOTS: dict[str, str] = {
 }
 """``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys."""
 
+PACKAGED = frozenset(ROBOTS)
+"""The robots that ship with the library: no plugin replaces them."""
+
 _NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
-_ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+"""A ``"package.module:ConfigClass"`` entry (also accepted as ``plant.model`` itself)."""
 _LOADED: dict[str, Any] = {}
 _PLUGINS: list[bool] = []  # whether the installed packages' entry points were read
+_SOURCES: dict[str, str] = {}  # robot name -> the package and entry point that registered it
+_SKIPPED: dict[str, str] = {}  # "package: name = value" -> why the entry point was skipped
 GROUP = "ilc_steering.robots"
 """The entry-point group in which an installed package names its robots."""
+
+CONFIG_METHODS = ("plant", "nominal_map", "check_task")
+"""What a robot's config class must provide besides ``model``, ``kind``, ``plant_class``,
+``dimension`` and ``steering_limit`` (:class:`~ilc_steering.core.plants.PlantConfig`)."""
+PLANT_METHODS = (
+    "nominal_plant", "configuration", "estimate", "check_configuration", "initial_state", "kernel",
+    "with_true_factors", "true_factors", "family_names", "with_family", "reference_field",
+)  # fmt: skip
+"""What a robot's plant class must provide (:class:`~ilc_steering.core.plants.Plant`)."""
 
 
 def register(name: str, entry: str) -> None:
@@ -48,7 +77,7 @@ def register(name: str, entry: str) -> None:
         raise ValueError(
             f"a robot's name is 1-40 lower-case letters, digits or '_', starting with a letter; got {name!r}"
         )
-    if not isinstance(entry, str) or not _ENTRY.fullmatch(entry):
+    if not isinstance(entry, str) or not ENTRY.fullmatch(entry):
         raise ValueError(f"a robot's entry is 'package.module:ConfigClass', got {entry!r}")
     if ROBOTS.get(name, entry) != entry:
         raise ValueError(f"robot {name!r} is registered already, as {ROBOTS[name]!r}")
@@ -62,29 +91,116 @@ def names() -> list[str]:
     return list(ROBOTS)
 
 
+def skipped() -> dict[str, str]:
+    """The installed entry points that were skipped (``"package: name = value"``), with the reason."""
+    _read_plugins()
+    return dict(_SKIPPED)
+
+
+def _skip(where: str, reason: str) -> None:
+    _SKIPPED[where] = reason
+    print(f"ilc-steering: warning: robot plugin {where}: {reason}; skipped", file=sys.stderr)
+
+
 def _read_plugins() -> None:
-    """Register the robots the installed packages name in :data:`GROUP`, once per process."""
+    """Register the robots the installed packages name in :data:`GROUP`, once per process: strings
+    only (nothing is imported); a malformed or conflicting entry point is skipped with a warning."""
     if _PLUGINS:
         return
     _PLUGINS.append(True)
-    for point in entry_points(group=GROUP):
-        register(point.name, point.value)
+    try:
+        points = list(entry_points(group=GROUP))
+    except Exception as error:  # a broken distribution's metadata must not break the library
+        _skip("(installed metadata)", f"cannot be read ({type(error).__name__}: {error})")
+        return
+    for point in points:
+        package = getattr(getattr(point, "dist", None), "name", None) or "an unknown package"
+        where = f"{package}: {point.name} = {point.value}"
+        if point.name in PACKAGED:
+            if ROBOTS[point.name] != point.value:
+                _skip(where, f"{point.name!r} is a packaged robot, which a plugin cannot replace")
+            continue
+        if point.name in ROBOTS and ROBOTS[point.name] != point.value:
+            _skip(where, f"{point.name!r} is registered already, by {_SOURCES.get(point.name, ROBOTS[point.name])}")
+            continue
+        try:
+            register(point.name, point.value)
+        except ValueError as error:
+            _skip(where, str(error))
+            continue
+        _SOURCES[point.name] = f"package {package}, entry point {point.name} = {point.value}"
+
+
+def _source(name: str) -> str:
+    return _SOURCES.get(name, f"entry {ROBOTS[name]!r}")
 
 
 def config_class(name: str) -> Any:
-    """The config class of robot ``name``, its module imported on first use."""
-    if name not in ROBOTS:
-        _read_plugins()
+    """The config class of robot ``name`` (or of ``"module:ConfigClass"``, registered under its
+    ``model`` literal), its module imported on first use and checked against the protocol;
+    ``ValueError`` naming the robot and the package or entry that provides it."""
+    if isinstance(name, str) and ENTRY.fullmatch(name):
+        return _from_entry(name)
+    _read_plugins()  # once per process; a plugin that conflicts is reported whatever is asked for
     if name not in ROBOTS:
         raise ValueError(f"no robot is registered as {name!r}; registered: {names()}")
     if name not in _LOADED:
-        module, attribute = ROBOTS[name].split(":")
-        try:
-            cls = getattr(import_module(module), attribute)
-        except (ImportError, AttributeError) as error:
-            raise ValueError(f"robot {name!r}: cannot load {ROBOTS[name]!r}: {error}") from None
-        _LOADED[name] = cls
+        _LOADED[name] = _load(ROBOTS[name], f"robot {name!r} ({_source(name)})", name)
     return _LOADED[name]
+
+
+def _from_entry(entry: str) -> Any:
+    """The config class an entry names, registered under its ``model`` literal."""
+    cls = _load(entry, f"{entry!r}", None)
+    name = model_name(cls)
+    register(name, entry)  # a packaged name or another robot's is refused here
+    _SOURCES.setdefault(name, f"entry {entry!r}")
+    _LOADED.setdefault(name, cls)
+    return cls
+
+
+def _load(entry: str, who: str, name: str | None) -> Any:
+    """Import ``entry``, isolated: whatever the module raises is a one-line ``ValueError`` naming ``who``."""
+    module, attribute = entry.split(":")
+    try:
+        cls = getattr(import_module(module), attribute)
+    except Exception as error:  # SyntaxError, an error of the module's own code, a missing name
+        problem = " ".join(str(error).split())[:300]
+        raise ValueError(f"{who}: cannot load {entry!r}: {type(error).__name__}: {problem}") from None
+    check_robot(cls, who, name)
+    return cls
+
+
+def model_name(cls: Any) -> str:
+    hints = typing.get_type_hints(cls) if isinstance(cls, type) else {}
+    literal = typing.get_args(hints.get("model"))
+    return str(literal[0]) if len(literal) == 1 and isinstance(literal[0], str) else ""
+
+
+def check_robot(cls: Any, who: str, name: str | None = None) -> None:
+    """``ValueError`` naming ``who`` and what is missing unless ``cls`` is a robot's config class:
+    a frozen dataclass with ``model: Literal[name]``, ``kind``, ``plant_class``, ``dimension``,
+    ``steering_limit`` and :data:`CONFIG_METHODS`, whose plant class has :data:`PLANT_METHODS`."""
+    what = getattr(cls, "__qualname__", repr(cls)[:80])
+    if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
+        raise ValueError(f"{who}: {what} is not a robot's config class (a frozen dataclass; docs/robots.md)")
+    if not cls.__dataclass_params__.frozen:  # type: ignore[attr-defined]
+        raise ValueError(f"{who}: {what} must be a frozen dataclass (@dataclass(frozen=True))")
+    try:
+        model = model_name(cls)
+    except Exception as error:
+        raise ValueError(f"{who}: {what}: its type hints cannot be read ({type(error).__name__}: {error})") from None
+    if not model or (name is not None and model != name):
+        wanted = f'Literal["{name}"]' if name else 'Literal["<name>"]'
+        raise ValueError(f"{who}: {what} needs a field model: {wanted} (its registered name; docs/robots.md)")
+    for attribute in ("kind", "plant_class", "dimension", "steering_limit", *CONFIG_METHODS):
+        if not hasattr(cls, attribute) and attribute not in {f.name for f in dataclasses.fields(cls)}:
+            raise ValueError(f"{who}: {what} has no {attribute!r} (the PlantConfig protocol, docs/robots.md)")
+    plant = cls.plant_class
+    for attribute in PLANT_METHODS:
+        if not callable(getattr(plant, attribute, None)):
+            where = getattr(plant, "__qualname__", repr(plant)[:80])
+            raise ValueError(f"{who}: its plant class {where} has no method {attribute!r} (the Plant protocol)")
 
 
 def nominal_plant(chained_map: Any, dimension: int, steering_limit: float | None = None) -> Any:
