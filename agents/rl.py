@@ -44,6 +44,7 @@ from __future__ import annotations
 import inspect
 import math
 import os
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from importlib import import_module, metadata, resources
@@ -160,6 +161,8 @@ def hyperparameters(algorithm: str, scenario: str, prior: str = "nominal") -> di
         raise ConfigError(
             f"{source}: {prior}: no hyperparameters for scenario {scenario!r} and no default (has {sorted(section)})"
         )
+    if not isinstance(section[key], dict):
+        raise ConfigError(f"{source}: {prior}.{key}: must be a mapping of hyperparameters")
     return check_hyperparameters(algorithm, dict(section[key]), f"{source}: {prior}.{key}")
 
 
@@ -183,16 +186,85 @@ def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) ->
                 f"{where}.policy_kwargs.{unknown[0]}: unknown key for {cls.__name__}'s policy "
                 f"({implementation(algorithm, backend)})"
             )
-    if not isinstance(params.get("n_timesteps"), int) or params["n_timesteps"] < 1:
-        raise ConfigError(f"{where}.n_timesteps: the budget must be an integer >= 1 [trials]")
-    every = params.get("eval_every")
-    if every is not None and (not isinstance(every, int) or every < 1):
-        raise ConfigError(f"{where}.eval_every: must be an integer >= 1 [trials] or absent")
+    if "n_timesteps" not in params:
+        raise ConfigError(f"{where}.n_timesteps: missing; the budget, an integer >= 1 [trials]")
+    params = {key: _check_value(key, value, f"{where}.{key}") for key, value in params.items()}
     std = params.get("initial_std")
     if std is not None and (algorithm not in _SQUASHED or not isinstance(std, float) or not 0 < std <= 1):
         names = ", ".join(_CLASS_NAMES[a] for a in _SQUASHED)
         raise ConfigError(f"{where}.initial_std: {names} only, a number in (0, 1] [search units]")
     return params
+
+
+_INTEGERS = {  # key: the least value (an integer); -1 also allowed where listed
+    "n_timesteps": 1, "eval_every": 1, "batch_size": 1, "n_steps": 1, "n_epochs": 1, "buffer_size": 1,
+    "train_freq": 1, "gradient_steps": 1, "learning_starts": 0, "policy_delay": 1,
+    "top_quantiles_to_drop_per_net": 0, "n_critics": 1, "n_quantiles": 1, "seed": 0,
+}  # fmt: skip
+_MINUS_ONE = {"gradient_steps"}  # SB3: -1 is "as many gradient steps as trials collected"
+_NUMBERS = {  # key: (low, high, low included)
+    "learning_rate": (0.0, 1.0, False), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, True),
+    "tau": (0.0, 1.0, False), "clip_range": (0.0, 10.0, False), "noise_std": (0.0, 10.0, True),
+    "initial_std": (0.0, 1.0, False), "vf_coef": (0.0, 1e6, True), "max_grad_norm": (0.0, 1e6, False),
+    "target_policy_noise": (0.0, 10.0, True), "target_noise_clip": (0.0, 10.0, True),
+    "ent_coef": (0.0, 1e6, True), "target_entropy": (-1e6, 1e6, True),
+}  # fmt: skip
+_AUTO = {"ent_coef", "target_entropy"}  # may also be "auto" ("auto_0.01" for ent_coef)
+_NUMBER_TEXT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def _widths(layer: Any) -> bool:
+    return isinstance(layer, list) and all(
+        isinstance(w, int) and not isinstance(w, bool) and 1 <= w <= 4096 for w in layer
+    )
+
+
+def _check_value(key: str, value: Any, where: str) -> Any:
+    """``value`` of hyperparameter ``key`` checked by type and range (:data:`_INTEGERS`,
+    :data:`_NUMBERS`), a number written ``3e-4`` (text to YAML 1.1) read as the number it shows;
+    :class:`ConfigError` naming ``where`` otherwise. Keys of no table are passed on as they are."""
+    if key in _INTEGERS:
+        low = _INTEGERS[key]
+        ok = isinstance(value, int) and not isinstance(value, bool)
+        if not ok or not (value >= low or (key in _MINUS_ONE and value == -1)):
+            also = " (or -1)" if key in _MINUS_ONE else ""
+            raise ConfigError(f"{where}: must be an integer >= {low}{also}, got {value!r:.60}")
+        return value
+    if key in _NUMBERS:
+        if key in _AUTO and isinstance(value, str) and (value == "auto" or value.startswith("auto_")):
+            if value.startswith("auto_"):
+                _check_value(key, value.removeprefix("auto_"), where)
+            return value
+        if isinstance(value, str) and _NUMBER_TEXT.fullmatch(value.strip()):
+            value = float(value)  # YAML 1.1 reads 3e-4 as text; the user means the number
+        low, high, closed = _NUMBERS[key]
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        inside = number and math.isfinite(value) and (low <= value if closed else low < value) and value <= high
+        if not inside:
+            bracket = "[" if closed else "("
+            also = ' or "auto"' if key in _AUTO else ""
+            raise ConfigError(f"{where}: must be a number in {bracket}{low:g}, {high:g}]{also}, got {value!r:.60}")
+        return float(value)
+    if key == "start_at_centre" and not isinstance(value, bool):
+        raise ConfigError(f"{where}: must be true or false, got {value!r:.60}")
+    if key == "policy" and not isinstance(value, str):
+        raise ConfigError(f"{where}: must be a policy name (a string), got {value!r:.60}")
+    if key == "policy_kwargs":
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where}: must be a mapping, got {value!r:.60}")
+        arch = value.get("net_arch")
+        layers = list(arch.values()) if isinstance(arch, dict) else [arch]  # SB3 also takes {pi: [...], qf: [...]}
+        if arch is not None and not all(_widths(layer) for layer in layers):
+            raise ConfigError(
+                f"{where}.net_arch: must be a list of layer widths (integers in [1, 4096]) or a mapping of such "
+                f"lists, got {arch!r:.60}"
+            )
+        init = value.get("log_std_init")
+        if init is not None and not (
+            isinstance(init, (int, float)) and not isinstance(init, bool) and -20 <= init <= 2
+        ):
+            raise ConfigError(f"{where}.log_std_init: must be a number in [-20, 2], got {init!r:.60}")
+    return value
 
 
 def log_reward(reward: SupportsFloat) -> float:
