@@ -16,6 +16,7 @@ Figures are drawn on matplotlib's Agg canvas; no display is needed.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from math import isfinite
 from pathlib import Path
 from typing import Any
 
@@ -127,12 +128,44 @@ def _record_problem(record: dict[str, Any], cyclic: bool, config: SteeringConfig
             return f"{key!r} must be a whole number >= 0"
     for key in numbers:
         value = record.get(key)
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            return f"{key!r} must be a number"
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or not isfinite(value) or value < 0:
+            return f"{key!r} must be a finite number >= 0, got {value!r:.40}"
     state = record.get("final_state")
     size = config.plant.dimension
-    if not isinstance(state, list) or len(state) != size or not all(isinstance(v, (int, float)) for v in state):
-        return f"'final_state' must be a list of {size} numbers"
+    if not isinstance(state, list) or len(state) != size or not all(_finite(v) for v in state):
+        return f"'final_state' must be a list of {size} finite numbers"
+    if "trajectory" in record:
+        return _trajectory_problem(record["trajectory"], size)
+    return None
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and isfinite(value)
+
+
+def _trajectory_problem(data: Any, size: int) -> str | None:
+    """What is wrong with a recorded trajectory: its keys, its shapes (``t`` ``(S,)``, ``q`` ``(S, n)``,
+    ``u`` ``(S, 2)``), a value that is not a finite number, or a time axis that goes back."""
+    if not isinstance(data, dict) or not all(key in data for key in ("t", "q", "u")):
+        return "'trajectory' must be a mapping with keys t, q and u"
+    arrays = {}
+    for key in ("t", "q", "u"):
+        try:
+            arrays[key] = np.asarray(data[key], dtype=np.float64)
+        except (TypeError, ValueError):
+            return f"'trajectory.{key}' must be a (nested) list of numbers of one shape"
+        if not np.all(np.isfinite(arrays[key])):
+            return f"'trajectory.{key}' holds a value that is not a finite number (NaN or infinity)"
+    t, q, u = arrays["t"], arrays["q"], arrays["u"]
+    if t.ndim != 1 or t.size < 1:
+        return f"'trajectory.t' must be a list of times [s], got shape {t.shape}"
+    if q.shape != (t.size, size):
+        return f"'trajectory.q' must be {t.size} configurations of {size} entries (one per time), got shape {q.shape}"
+    if u.shape != (t.size, 2):
+        return f"'trajectory.u' must be {t.size} pairs of inputs (one per time), got shape {u.shape}"
+    if np.any(np.diff(t) < 0):
+        at = int(np.argmax(np.diff(t) < 0))
+        return f"'trajectory.t' must not decrease (it does after entry {at}: {t[at]:g} s, then {t[at + 1]:g} s)"
     return None
 
 
