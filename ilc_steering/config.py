@@ -315,6 +315,12 @@ class SteeringConfig:
             )
             with _domain(f"{key}.pieces", {"max_step": "simulation.max_step"}):
                 check_grid(leg.pieces, self.simulation.max_step)
+            _require(  # a step across a switch of the inputs would blur the switch the learning law relies on
+                self.simulation.max_step <= min(leg.pieces),
+                "simulation.max_step",
+                f"{self.simulation.max_step} s is longer than the shortest piece of {key} ({min(leg.pieces)} s); "
+                "give a step at most as long as every piece",
+            )
             # z1 is x in the task frame (section 2.1): eq. 12 sets the learned v1 from its change.
             z1_change = task_points[(i + 1) % len(points)][0] - task_points[i][0]
             ramp = leg.ramp or 0.0  # a trapezoid's area is its plateau times (Delta - ramp)

@@ -155,8 +155,11 @@ def row_plants(args: SweepArgs, config: SteeringConfig, row: int, reach: float =
     (:func:`centre_values`), for the oracle's continuation."""
     first, second = axis_values(args)
     c0, c1 = centre_values(args, config)
-    a = c0 + reach * (first[row] - c0)
-    points = [(a, c1 + reach * (b - c1)) for b in second]
+
+    def toward(centre: float, value: float) -> float:  # the user's value itself at reach 1 (1 + (1e-300 - 1) is 0)
+        return float(value) if reach == 1.0 else centre + reach * (value - centre)
+
+    points = [(toward(c0, first[row]), toward(c1, b)) for b in second]
     if not args.axes:
         plant = config.plant.plant()
         base = plant.true_factors()  # the config's true plant: the grid is against the nominal

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.chained_form import transition
-from ilc_steering.core.checks import require
+from ilc_steering.core.checks import DURATION_RANGE, require
 
 __all__ = ["MAX_V2_TERMS", "InputProfile", "PiecewiseProfile"]
 
@@ -121,10 +121,11 @@ class PiecewiseProfile:
 
     def __post_init__(self) -> None:
         durations, fixed = list(self.durations), list(self.v1_fixed)
+        low, high = DURATION_RANGE
         require(
-            len(durations) >= 1 and all(isfinite(d) and d > 0 for d in durations),
+            len(durations) >= 1 and all(isfinite(d) and low <= d <= high for d in durations),
             "pieces",
-            f"durations must be > 0 s, got {durations}",
+            f"durations must be in [{low:g}, {high:g}] s, got {durations}",
         )
         require(
             len(fixed) == len(durations) - 1,

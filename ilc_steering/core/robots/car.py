@@ -33,7 +33,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.core.checks import renamed, require, require_positive
+from ilc_steering.core.checks import check_factors, renamed, require, require_length
 from ilc_steering.core.plants import (
     CHART_MARGIN,
     Kernel,
@@ -112,7 +112,7 @@ class CarModel:
 
     def __post_init__(self) -> None:
         for name in ("wheelbase", "wheel_radius"):
-            require_positive(name, getattr(self, name), "m")
+            require_length(name, getattr(self, name))
 
     def to_chained(self, q: Array) -> Array:
         """The change of coordinates ``z = alpha(q)`` of section 2.1, for ``q`` of shape ``(..., 4)``."""
@@ -378,7 +378,8 @@ class CarPlant:
         return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> CarPlant:
-        true = CarModel(self.true.wheelbase * float(factors[0]), self.true.wheel_radius * float(factors[1]))
+        f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product
+        true = CarModel(self.true.wheelbase * f[0], self.true.wheel_radius * f[1])
         return replace(self, true=true)
 
     def kernel(self) -> tuple[Kernel, Array]:

@@ -68,7 +68,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
-from ilc_steering.core.checks import renamed, require_positive
+from ilc_steering.core.checks import check_factors, renamed, require_length
 from ilc_steering.core.plants import (
     CHART_MARGIN,
     Kernel,
@@ -183,7 +183,7 @@ class TrailerModel:
 
     def __post_init__(self) -> None:
         for name in ("wheelbase", "wheel_radius", "hitch_length"):
-            require_positive(name, getattr(self, name), "m")
+            require_length(name, getattr(self, name))
 
     def to_chained(self, q: Array) -> Array:
         """``z = alpha(q)`` (see the module docstring) for ``q`` of shape ``(..., 5)``."""
@@ -493,14 +493,12 @@ class TrailerPlant:
 
     def with_family(self, ratios: Array) -> TrailerPlant:
         t = self.true
-        r = [float(x) for x in ratios]
+        r = check_factors(ratios, self.family_names())
         return replace(self, true=TrailerModel(t.wheelbase * r[0], t.wheel_radius * r[1], t.hitch_length * r[2]))
 
     def with_true_factors(self, factors: Array) -> TrailerPlant:
-        t = self.true
-        return replace(
-            self, true=TrailerModel(t.wheelbase * float(factors[0]), t.wheel_radius * float(factors[1]), t.hitch_length)
-        )
+        t, f = self.true, check_factors(factors, self.factor_names)
+        return replace(self, true=TrailerModel(t.wheelbase * f[0], t.wheel_radius * f[1], t.hitch_length))
 
     def kernel(self) -> tuple[Kernel, Array]:
         limit = np.inf if self.steering_limit is None else self.steering_limit

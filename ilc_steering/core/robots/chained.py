@@ -17,7 +17,7 @@ import numpy.typing as npt
 from numba import njit, prange
 
 from ilc_steering.core.chained_form import ChainedForm
-from ilc_steering.core.checks import require
+from ilc_steering.core.checks import check_factors, require
 from ilc_steering.core.plants import Kernel, KernelLayout, PlantKind, check_magnitude
 from ilc_steering.core.stepper import drive, rk_step
 
@@ -134,7 +134,8 @@ class ChainedPlant:
         return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> ChainedPlant:
-        return replace(self, v1_gain=self.v1_gain * float(factors[0]), v2_gain=self.v2_gain * float(factors[1]))
+        f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product
+        return replace(self, v1_gain=self.v1_gain * f[0], v2_gain=self.v2_gain * f[1])
 
     def kernel(self) -> tuple[Kernel, Array]:
         return KERNEL, LAYOUT.row(v1_gain=self.v1_gain, v2_gain=self.v2_gain, dimension=self.dimension)

@@ -41,7 +41,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
-from ilc_steering.core.checks import renamed, require_positive
+from ilc_steering.core.checks import check_factors, renamed, require_length
 from ilc_steering.core.plants import (
     CHART_MARGIN,
     Kernel,
@@ -100,7 +100,7 @@ class UnicycleModel:
 
     def __post_init__(self) -> None:
         for name in ("wheel_radius", "axle_width"):
-            require_positive(name, getattr(self, name), "m")
+            require_length(name, getattr(self, name))
 
     def to_chained(self, q: Array) -> Array:
         """``z = (x, tan(theta), y)`` for ``q`` of shape ``(..., 3)``."""
@@ -280,7 +280,8 @@ class UnicyclePlant:
         return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> UnicyclePlant:
-        true = UnicycleModel(self.true.wheel_radius * float(factors[0]), self.true.axle_width * float(factors[1]))
+        f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product
+        true = UnicycleModel(self.true.wheel_radius * f[0], self.true.axle_width * f[1])
         return replace(self, true=true)
 
     def kernel(self) -> tuple[Kernel, Array]:
