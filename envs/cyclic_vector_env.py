@@ -17,7 +17,7 @@ from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.cyclic_env import check_cycles
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import check_action, check_flag, check_render_mode, reward, trial_infos
-from ilc_steering.envs.steering_vector_env import PARALLEL_FROM
+from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, check_num_envs, draw_noise, seed_streams
 
 __all__ = ["CyclicSteeringVectorEnv"]
 
@@ -46,7 +46,9 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
     ``z`` for a chained plant), or robot ``i`` at row ``i`` of an ``(N, nq)`` array.
     ``measurement_noise`` is the scalar env's; a step's noise is drawn in one call from the vector
     env's ``np_random``, so with noise the robots match the scalar env's in distribution, not draw
-    for draw.
+    for draw; after ``reset(seed=[s_0, ..., s_N-1])`` robot ``i`` draws from a stream of its own,
+    seeded as the scalar env's ``reset(seed=s_i)``. ``num_envs`` is at most
+    :data:`~ilc_steering.envs.steering_vector_env.MAX_ENVS`.
 
     >>> import gymnasium as gym
     >>> import ilc_steering
@@ -72,9 +74,8 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         parallel: bool | None = None,
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        self.num_envs = int(num_envs)
+        self.num_envs = check_num_envs(num_envs)
+        self._streams: list[np.random.Generator] | None = None
         check_cycles(cycles)
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
@@ -108,16 +109,15 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Array, dict[str, Any]]:
-        if isinstance(seed, list):
-            if len(seed) != self.num_envs:
-                raise ValueError(f"seed: a list needs one seed per env ({self.num_envs}), got {len(seed)}")
-            seed = seed[0]  # one random stream: the first seed sets it
+        seed, streams = seed_streams(seed, self.num_envs)
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
         unknown = sorted(set(options or {}) - {"start"})
         if unknown:
             raise ValueError(f"options: unknown key {unknown[0]!r}; the cyclic vector env takes 'start'")
         super().reset(seed=seed)
+        if streams is not None or seed is not None:
+            self._streams = streams  # a new int seed replaces a list's streams
         start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])
         return self._restart(np.broadcast_to(start, self._start.shape))
 
@@ -165,7 +165,7 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         leg = self._segment
         trials = self._scenario.run(applied, x0=self._x, leg=leg, parallel=self.parallel)
         self._x = trials.final
-        noise = self._scenario.draw_noise(self.np_random, self.num_envs)
+        noise = draw_noise(self._scenario, self.np_random, self._streams, self.num_envs)
         info: dict[str, Any] = trial_infos(
             self._scenario.measure(trials.final, trials.status, leg=leg, noise=noise), applied, c
         )

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -25,15 +26,45 @@ from ilc_steering.envs.steering_env import (
     trial_infos,
 )
 
-__all__ = ["ChainedSteeringVectorEnv"]
+__all__ = ["MAX_ENVS", "ChainedSteeringVectorEnv", "check_num_envs", "draw_noise", "seed_streams"]
 
 Array = npt.NDArray[np.float64]
 
-MAX_FACTOR = 100.0
-"""The largest ``true_factors`` entry: a robot 100 times its nominal size is a typo."""
+MAX_ENVS = 100_000
+"""The most envs a vector env holds (checked before anything is allocated)."""
 PARALLEL_FROM = 64
 """Batches of at least this many trials run on all cores (numba ``prange``); the results are
 bitwise the same either way, since every trial runs the same compiled code."""
+
+
+def check_num_envs(num_envs: Any) -> int:
+    """``num_envs`` as an int in ``[1, MAX_ENVS]``; ``ValueError`` before anything is allocated."""
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= MAX_ENVS:
+        raise ValueError(f"num_envs must be an integer in [1, {MAX_ENVS}], got {num_envs!r:.40}")
+    return int(num_envs)
+
+
+def seed_streams(seed: Any, num_envs: int) -> tuple[int | None, list[np.random.Generator] | None]:
+    """A vector env's ``reset(seed=...)``: an int or ``None`` seeds its one stream; a list of
+    ``num_envs`` seeds gives env ``i`` a stream of its own, seeded as a single env's ``reset(seed=s_i)``
+    seeds its ``np_random`` (so env ``i`` draws what that env would). Returns the seed of the vector
+    env's own ``np_random`` (the first of a list) and the streams (``None`` without a list)."""
+    if not isinstance(seed, (list, tuple)):
+        return seed, None
+    if len(seed) != num_envs:
+        raise ValueError(f"seed: a list needs one seed per env ({num_envs}), got {len(seed)}")
+    if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0 for s in seed):
+        raise ValueError(f"seed: every seed of a list must be an integer >= 0, got {list(seed)!r:.80}")
+    return int(seed[0]), [seeding.np_random(int(s))[0] for s in seed]
+
+
+def draw_noise(
+    scenario: Scenario, rng: np.random.Generator, streams: list[np.random.Generator] | None, count: int
+) -> Array | None:
+    """Measurement errors of ``count`` trials: from ``rng`` in one call, or one row from each stream."""
+    if streams is None or scenario.noise is None:
+        return scenario.draw_noise(rng, count)
+    return np.concatenate([scenario.draw_noise(stream, 1) for stream in streams])  # type: ignore[misc]
 
 
 class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np.float32], Array]):
@@ -43,11 +74,14 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     vectorization_mode="vector_entry_point", config=...)``. Each ``step`` takes actions of shape
     ``(N, 1 + q)`` and runs ``N`` whole trials in one call of the compiled integrator, on all
     cores from :data:`PARALLEL_FROM` trials up. ``measurement_noise`` is the scalar env's; the
-    noise of a step's trials is drawn in one call from the vector env's ``np_random``.
+    noise of a step's trials is drawn in one call from the vector env's ``np_random``, or, after
+    ``reset(seed=[s_0, ..., s_N-1])``, env ``i``'s from a stream seeded as the scalar env's
+    ``reset(seed=s_i)`` (so env ``i`` measures what that env would). ``num_envs`` is at most
+    :data:`MAX_ENVS`.
 
     ``true_factors`` ``(N, 2)`` makes every env a different robot: env ``i``'s true plant is the
     config's with its two parameters (``plant.factor_names``: a car's wheelbase and wheel radius)
-    multiplied by row ``i``, still one compiled call per step (``ilc-steering sweep`` maps a
+    multiplied by row ``i`` (each ratio in :data:`~ilc_steering.core.checks.FACTOR_RANGE`), still one compiled call per step (``ilc-steering sweep`` maps a
     learner over such a grid); ``true_plants``, a plant per env of the config's kind, gives them
     outright (a map over any plant key, a steering offset say). The learner's nominal model is the
     same for all.
@@ -83,9 +117,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         true_factors: Any = None,
         true_plants: Sequence[Plant] | None = None,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        self.num_envs = int(num_envs)
+        self.num_envs = check_num_envs(num_envs)
+        self._streams: list[np.random.Generator] | None = None
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
         self._scenario = Scenario.from_config(self.config, measurement_noise)
@@ -113,13 +146,12 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        if isinstance(seed, list):
-            if len(seed) != self.num_envs:
-                raise ValueError(f"seed: a list needs one seed per env ({self.num_envs}), got {len(seed)}")
-            seed = seed[0]  # one task, one random stream: the first seed sets it
+        seed, streams = seed_streams(seed, self.num_envs)
         if options:
             raise ValueError(f"options: the vector env takes none, got {sorted(options)}")
         super().reset(seed=seed)
+        if streams is not None or seed is not None:
+            self._streams = streams  # a new int seed replaces a list's streams
         return self._observations.copy(), self._reset_info()
 
     def step(  # type: ignore[override]  # Gymnasium annotates the flags as the action array type
@@ -128,7 +160,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")
         applied = np.clip(c, self._low, self._high)
         trials = self._scenario.run(applied, parallel=self.parallel, plant=self._plants)
-        noise = self._scenario.draw_noise(self.np_random, self.num_envs)
+        noise = draw_noise(self._scenario, self.np_random, self._streams, self.num_envs)
         final_info = trial_infos(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
         rewards = np.asarray(reward(final_info), dtype=np.float64)
         everyone = np.ones(self.num_envs, dtype=np.bool_)
@@ -149,11 +181,13 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         plant = self._scenario.plant
         names = f"(num_envs = {self.num_envs}, ({', '.join(plant.factor_names)}))"
         factors = check_action(true_factors, (self.num_envs, 2), names, what="true_factors")
-        if not np.all((factors > 0) & (factors <= MAX_FACTOR)):
-            raise ValueError(
-                f"true_factors must be in (0, {MAX_FACTOR}], got a range [{factors.min()}, {factors.max()}]"
-            )
-        return PlantBatch([plant.with_true_factors(row) for row in factors])
+        plants = []
+        for i, row in enumerate(factors):
+            try:  # the plant checks each ratio against FACTOR_RANGE, naming it with the value given
+                plants.append(plant.with_true_factors(row))
+            except ValueError as error:
+                raise ValueError(f"true_factors[{i}]: {error}") from None
+        return PlantBatch(plants)
 
     def _own_plants(self, plants: Sequence[Plant]) -> PlantBatch:
         """One given true plant per env, of the config's plant's kind and state size."""

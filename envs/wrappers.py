@@ -14,12 +14,17 @@ from ilc_steering.agents.adapters import SearchBox
 from ilc_steering.agents.base import RESIDUAL_SCALE, LearnerContext
 from ilc_steering.envs.steering_env import check_action
 
-__all__ = ["ResidualAction"]
+__all__ = ["MAX_SCALE", "ResidualAction"]
 
 Array = npt.NDArray[np.float64]
 
 
-class ResidualAction(SearchBox):
+MAX_SCALE = 100.0
+"""The largest ``scale`` [units of ``action_scale()``]: ten times the env's own box, past which every
+action is clipped by the env (``info["clipped"]``) and the box means nothing."""
+
+
+class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
     r"""Actions ``a`` in ``[-1, 1]^d`` for the coefficients ``c = c0 + s * a`` around the nominal solution.
 
     ``c0`` is the nominal model's open-loop solution ``model.solve()`` (clipped to the env's action
@@ -47,7 +52,7 @@ class ResidualAction(SearchBox):
         their classes, under wrappers that keep its physical action box (``ValueError`` otherwise).
     scale
         Half-width of the box per coefficient, in units of ``NominalModel.action_scale()``: a
-        finite number > 0. The default, :data:`~ilc_steering.agents.base.RESIDUAL_SCALE`, is the
+        number in ``(0, MAX_SCALE]``. The default, :data:`~ilc_steering.agents.base.RESIDUAL_SCALE`, is the
         comparison's box.
 
     Attributes
@@ -80,8 +85,16 @@ class ResidualAction(SearchBox):
                 f"ResidualAction wraps one env from gym.make, got {type(env).__name__}; for make_vec, "
                 "pass wrappers=[ResidualAction] with vectorization_mode='sync' or 'async'"
             )
-        if isinstance(scale, bool) or not isinstance(scale, Real) or not math.isfinite(scale) or scale <= 0:
-            raise ValueError(f"scale must be a finite number > 0 [units of action_scale()], got {scale!r:.80}")
+        if (
+            isinstance(scale, bool)
+            or not isinstance(scale, Real)
+            or not math.isfinite(scale)
+            or not 0 < scale <= MAX_SCALE
+        ):
+            raise ValueError(
+                f"scale must be a number in (0, {MAX_SCALE:g}] [units of action_scale()], got {scale!r:.80}"
+            )
+        gym.utils.RecordConstructorArgs.__init__(self, scale=scale)  # the spec records the wrapper (check_env)
         unwrapped: Any = env.unwrapped
         models = getattr(unwrapped, "nominal_models", None) or [getattr(unwrapped, "nominal_model", None)]
         if models[0] is None:
@@ -99,7 +112,9 @@ class ResidualAction(SearchBox):
         self.centres: Array = np.array([centre for centre, _ in boxes])
         self.halves: Array = np.array([half * ratio for _, half in boxes])
         self.scale = float(scale)
-        super().__init__(env, self.centres[0], self.halves[0])
+        if not (np.all(np.isfinite(self.halves)) and np.all(np.isfinite(self.centres))):
+            raise ValueError(f"scale {scale:g}: the box's half-widths overflow; give a smaller scale")
+        SearchBox.__init__(self, env, self.centres[0], self.halves[0])
 
     def action(self, action: Any) -> Array:
         """``c = c0 + s * clip(a, -1, 1)``; ``ValueError`` for a wrong shape or a non-finite ``a``."""
