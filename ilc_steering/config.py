@@ -5,9 +5,10 @@ raises :class:`ConfigError` naming the key and the file. Units are in the field 
 the packaged YAML files (``configs/``).
 
 The YAML is read strictly where YAML 1.1 (PyYAML) and a reader disagree: a number with a leading
-zero (``010``, octal 8 to YAML 1.1, 10 to YAML 1.2) and a sexagesimal one (``1:30``, 90 to YAML
-1.1) are refused for a numeric key, naming the key and both readings; the same text under a
-string key stays text. ``1e-3`` is the number it looks like; merge keys (``<<: *defaults``) are
+zero (``010``, octal 8 to YAML 1.1, 10 to YAML 1.2), a sexagesimal one (``1:30``, 90 to YAML
+1.1) and one with an underscore (``0.0_2``, 0.002 to YAML 1.1, text to YAML 1.2) are refused for
+a numeric key, naming the key and both readings; the same text under a string key stays text.
+``1e-3`` is the number it looks like; merge keys (``<<: *defaults``) are
 honoured. A file is read through :mod:`ilc_steering.inputs`: its size checked before it is read
 (:data:`MAX_FILE_BYTES`), its nesting after (:data:`~ilc_steering.inputs.MAX_DEPTH`).
 """
@@ -353,7 +354,8 @@ MAX_TRIALS = 100_000
 
 class _Ambiguous(str):
     """A YAML scalar that YAML 1.1 reads as a number other than the one its text shows (``010``,
-    ``1:30``): kept as its text, refused by :func:`_coerce` under a numeric key, with both readings."""
+    ``1:30``) or that YAML 1.2 reads as text (``1_0``, ``0.0_2``): kept as its text, refused by
+    :func:`_coerce` under a numeric key, with both readings."""
 
     reading: str = ""
 
@@ -378,7 +380,7 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
         else:
             raise ConfigError(
                 f"{key}: {str(value)!r} is ambiguous: YAML 1.1 reads it as {value.reading}; "
-                "write the number without a leading zero or colon (e.g. 10, 90)"
+                "write the number without a leading zero, colon or underscore (e.g. 10, 90, 0.002)"
             )
     origin = typing.get_origin(hint)
     if isinstance(hint, types.UnionType):
@@ -508,7 +510,7 @@ def _strict_number(kind: str) -> Any:
     def construct(loader: Any, node: Any) -> Any:
         text = str(node.value)
         number = base(loader, node)
-        if ":" in text or _LEADING_ZERO.fullmatch(text):
+        if ":" in text or "_" in text or _LEADING_ZERO.fullmatch(text):  # YAML 1.2 reads 1_0 and 0.0_2 as text
             marked = _Ambiguous(text)
             marked.reading = f"{number:g}" if isinstance(number, float) else str(number)
             return marked
