@@ -308,6 +308,11 @@ class SteeringConfig:
                 "learning.cost",
                 f"{cost} needs task.v2_terms > n - 1 = {n - 1}, spare coefficients for a null space of W",
             )
+        chained_map = self.plant.nominal_map()
+        z1 = []
+        for (key, _), q in zip(points, task_points):
+            with _domain(key):
+                z1.append(float(np.asarray(chained_map.to_chained(q), dtype=np.float64)[..., 0]))
         for i, (key, leg) in enumerate(self.legs()):
             _require(
                 leg.v2_terms >= n - 1,
@@ -322,16 +327,18 @@ class SteeringConfig:
                 f"{self.simulation.max_step} s is longer than the shortest piece of {key} ({min(leg.pieces)} s); "
                 "give a step at most as long as every piece",
             )
-            # z1 is x in the task frame (section 2.1): eq. 12 sets the learned v1 from its change.
-            z1_change = task_points[(i + 1) % len(points)][0] - task_points[i][0]
+            # eq. 12 sets the learned v1 from the change of z1 (x in the task frame for the car, section
+            # 2.1; whatever the robot's chained map makes it for another robot)
+            z1_change = z1[(i + 1) % len(points)] - z1[i]
             ramp = leg.ramp or 0.0  # a trapezoid's area is its plateau times (Delta - ramp)
             fixed = sum(v * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
             travel = abs(z1_change - fixed) + sum(abs(v) * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
             _require(
                 travel > MIN_TRAVEL,
                 f"{key}.v1_fixed",
-                f"the start and goal share z1 (x in the task frame): v1 covers only {travel:.3g} along z1, so W is "
-                "singular (eq. 11); add a piece with a nonzero fixed v1, as in the paper's parallel parking",
+                f"the start and goal share z1 (the chained form's first coordinate; x in the task frame for a car): "
+                f"v1 covers only {travel:.3g} along z1, so W is singular (eq. 11); add a piece with a nonzero "
+                "fixed v1, as in the paper's parallel parking",
             )
 
 

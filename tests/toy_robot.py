@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
-from ilc_steering.core.checks import require, require_positive
+from ilc_steering.core.checks import check_factors, require, require_positive
 from ilc_steering.core.plants import (
     CHART_MARGIN,
     Kernel,
@@ -62,12 +62,19 @@ class SkateMap:
         return np.asarray(np.asarray(v1) / c), np.asarray(np.asarray(v2) * c * c)
 
     def outline(self, q: Array) -> list[tuple[Array, bool]]:
-        """A triangle pointing along the heading [m]."""
-        x, y, theta = (float(v) for v in q[:3])
-        ahead, side = np.array([np.cos(theta), np.sin(theta)]), np.array([-np.sin(theta), np.cos(theta)])
-        centre = np.array([x, y])
-        corners = [centre + 0.1 * ahead, centre - 0.05 * ahead + 0.05 * side, centre - 0.05 * ahead - 0.05 * side]
-        return [(np.array([*corners, corners[0]]), False)]
+        """A triangle pointing along the heading [m]: for configurations ``(..., 3)`` (one, or a batch
+        of them: rendering draws a trial's snapshots at once), polylines ``(..., 4, 2)``."""
+        q = np.asarray(q, dtype=np.float64)
+        theta = q[..., 2]
+        ahead = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+        side = np.stack([-np.sin(theta), np.cos(theta)], axis=-1)
+        centre = q[..., :2]
+        tip, left, right = (
+            centre + 0.1 * ahead,
+            centre - 0.05 * ahead + 0.05 * side,
+            centre - 0.05 * ahead - 0.05 * side,
+        )
+        return [(np.stack([tip, left, right, tip], axis=-2), False)]
 
     def curvature_cost(self, q: Array, dt: Array) -> Array:
         return heading_curvature_cost(q)
@@ -155,9 +162,8 @@ class SkatePlant:
         return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> SkatePlant:
-        return replace(
-            self, speed_gain=self.speed_gain * float(factors[0]), turn_gain=self.turn_gain * float(factors[1])
-        )
+        f = check_factors(factors, self.factor_names)  # each ratio in FACTOR_RANGE, named with its value
+        return replace(self, speed_gain=self.speed_gain * f[0], turn_gain=self.turn_gain * f[1])
 
     def kernel(self) -> tuple[Kernel, Array]:
         return KERNEL, LAYOUT.row(speed_gain=self.speed_gain, turn_gain=self.turn_gain)

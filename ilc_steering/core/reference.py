@@ -21,7 +21,7 @@ from ilc_steering.core.plants import Plant
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CarPlant, car_velocity, chained_inputs
 
-__all__ = ["lab_car_trial", "reference_trial", "trial"]
+__all__ = ["STEERING_COMMAND", "lab_car_trial", "reference_trial", "steering_entry", "trial"]
 
 Array = npt.NDArray[np.float64]
 Field = Callable[[float, Array], Array]
@@ -34,13 +34,15 @@ def reference_trial(
     limit: float = np.inf,
     rtol: float = 1e-12,
     chart: Callable[[float, Array], float] | None = None,
+    steering: int = 3,
 ) -> Array:
     """The state at ``breakpoints[-1]`` of ``dx/dt = field(t, x)`` from ``x0``, by DOP853 at
-    ``rtol`` (= atol), restarted at the breakpoints and at every ``|x[3]| = limit``; the trial
-    halts where ``chart(t, x)`` falls to 0 (the robot leaves the chart), if given."""
+    ``rtol`` (= atol), restarted at the breakpoints and at every ``|x[steering]| = limit`` (the
+    steering command at its stop; :func:`trial` finds its entry by name); the trial halts where
+    ``chart(t, x)`` falls to 0 (the robot leaves the chart), if given."""
 
     def crossing(t: float, x: Array) -> float:
-        return float(abs(x[3]) - limit)
+        return float(abs(x[steering]) - limit)
 
     crossing.terminal = True  # type: ignore[attr-defined]
     if chart is not None:
@@ -49,7 +51,7 @@ def reference_trial(
     for t, t1 in pairwise(breakpoints):
         while t < t1:
             # Off an event by a hair, so the restarted solver does not stop on it again.
-            events = [crossing] if np.isfinite(limit) and abs(abs(x[3]) - limit) > 1e-13 else []
+            events = [crossing] if np.isfinite(limit) and abs(abs(x[steering]) - limit) > 1e-13 else []
             sol = solve_ivp(
                 field, (t, t1), x, method="DOP853", rtol=rtol, atol=rtol, events=events + ([chart] if chart else [])
             )
@@ -67,7 +69,25 @@ def trial(plant: Plant, profile: InputProfile, x0: Array, c: Array, rtol: float 
     on the field the plant's robot module writes from its equations
     (:meth:`~ilc_steering.core.plants.Plant.reference_field`)."""
     field, limit, chart = plant.reference_field(profile, c)
-    return reference_trial(field, x0, profile.breakpoints, limit, rtol, chart)
+    return reference_trial(field, x0, profile.breakpoints, limit, rtol, chart, steering_entry(plant, limit))
+
+
+STEERING_COMMAND = "phi_c"
+"""The name, in a kernel's state layout, of the steering command a steering limit stops."""
+
+
+def steering_entry(plant: Plant, limit: float) -> int:
+    """The state entry the steering stop ``limit`` [rad] acts on: the one the plant's kernel layout
+    names :data:`STEERING_COMMAND`; ``ValueError`` for a finite limit and no such entry."""
+    state = plant.kernel()[0].layout.state
+    if STEERING_COMMAND in state:
+        return state.index(STEERING_COMMAND)
+    if np.isfinite(limit):
+        raise ValueError(
+            f"{type(plant).__name__}: a steering limit needs a state entry named {STEERING_COMMAND!r} in its "
+            f"kernel's layout (the command the stop acts on), got {list(state)}"
+        )
+    return 0  # no stop: the entry is never read
 
 
 def lab_car_trial(plant: CarPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
