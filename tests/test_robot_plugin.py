@@ -85,3 +85,33 @@ def test_the_robot_runs_through_run_sweep_and_compare(skate, tmp_path):
     cli("compare", "--quick", "--scenarios", str(skate), "--methods", "ilc", "newton_ilc", "--priors", "nominal",
         "--seeds", "0", "--out", str(out), "--workers", "1")  # fmt: skip
     assert (out / "compare.json").is_file()
+
+
+def test_the_guides_outline_takes_one_configuration_or_a_batch(skate):
+    from toy_robot import SkateMap
+
+    one = SkateMap().outline(np.array([0.0, 0.0, 0.3]))[0][0]
+    batch = SkateMap().outline(np.array([[0.0, 0.0, 0.3], [1.0, 2.0, -0.2]]))[0][0]
+    assert one.shape == (4, 2) and batch.shape == (2, 4, 2)
+    np.testing.assert_allclose(batch[0], one)
+    np.testing.assert_allclose(one[0], [0.1 * np.cos(0.3), 0.1 * np.sin(0.3)])  # the tip, 0.1 m ahead
+
+
+@pytest.mark.slow
+def test_the_guides_robot_passes_check_env_with_rendering(skate):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=str(skate), render_mode="rgb_array")
+    check_env(env.unwrapped)  # render check included: outline draws a batch of configurations
+    env.reset(seed=0)
+    env.step(env.unwrapped.nominal_model.solve().astype(np.float32))
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.std() > 0
+
+
+def test_a_robot_from_module_colon_class_loads_without_registering(skate, tmp_path, monkeypatch):
+    monkeypatch.setattr(robots, "ROBOTS", {k: v for k, v in robots.ROBOTS.items() if k != "skate"})
+    monkeypatch.setattr(robots, "_LOADED", {})
+    path = tmp_path / "by_class.yaml"
+    path.write_text(skate.read_text().replace("model: skate", "model: toy_robot:SkatePlantConfig"))
+    assert load_config(path).plant.model == "skate"
