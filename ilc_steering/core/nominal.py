@@ -48,8 +48,9 @@ class ChainedMap(Protocol):
         ...
 
     def outline(self, q: Array) -> list[tuple[Array, bool]]:
-        """The polylines ``(k, 2)`` [m] that draw the robot at configuration ``q``, each with whether
-        it is a wheel (drawn thick); none for a system drawn as a point."""
+        """The polylines ``(k, 2)`` [m] that draw the robot at configuration ``q`` ``(nq,)``, or
+        ``(..., k, 2)`` for a batch ``(..., nq)`` (rendering draws a trial's snapshots in one call),
+        each with whether it is a wheel (drawn thick); none for a system drawn as a point."""
         ...
 
     def curvature_cost(self, q: Array, dt: Array) -> Array:
