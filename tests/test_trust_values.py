@@ -290,3 +290,26 @@ def test_the_docs_broyden_learner_survives_a_repeated_action_and_still_learns(mo
     context = LearnerContext(u.nominal_model, u.action_space, u.observation_space, seed=0)
     rollout = run_trials(env, my_learners.make(context), trials=4, seed=0)
     assert rollout.infos[-1]["cartesian_error"] < 5e-4 < rollout.infos[0]["cartesian_error"]
+
+
+def test_the_ranges_table_of_docs_trust_is_the_codes():
+    from ilc_steering.core import checks
+    from ilc_steering.core.grid import MAX_STEPS_PER_TRIAL
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "trust.md").read_text()
+    rows = {
+        line.split("|")[-2].strip(" `"): line.split("|")[3].strip()
+        for line in text.splitlines()
+        if line.startswith("| ")
+    }
+
+    def shown(low: float, high: float) -> str:
+        return f"[{low:g}, {high:g}]"
+
+    assert rows["LENGTH_RANGE"] == shown(*checks.LENGTH_RANGE)
+    assert rows["DURATION_RANGE"] == shown(*checks.DURATION_RANGE)
+    assert rows["FACTOR_RANGE"] == shown(*checks.FACTOR_RANGE)
+    assert rows["MAX_START_ERROR"] == shown(0, checks.MAX_START_ERROR)
+    assert rows["MAX_NOISE"] == shown(0, checks.MAX_NOISE)
+    assert rows["MAX_JITTER"] == shown(0, checks.MAX_JITTER)
+    assert f"at most {MAX_STEPS_PER_TRIAL} steps" in rows["grid.MAX_STEPS_PER_TRIAL"]
