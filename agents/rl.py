@@ -224,11 +224,11 @@ def _check_value(key: str, value: Any, where: str) -> Any:
     :data:`_NUMBERS`), a number written ``3e-4`` (text to YAML 1.1) read as the number it shows;
     :class:`ConfigError` naming ``where`` otherwise. Keys of no table are passed on as they are."""
     if key in _INTEGERS:
-        low = _INTEGERS[key]
+        least = _INTEGERS[key]
         ok = isinstance(value, int) and not isinstance(value, bool)
-        if not ok or not (value >= low or (key in _MINUS_ONE and value == -1)):
+        if not ok or not (value >= least or (key in _MINUS_ONE and value == -1)):
             also = " (or -1)" if key in _MINUS_ONE else ""
-            raise ConfigError(f"{where}: must be an integer >= {low}{also}, got {value!r:.60}")
+            raise ConfigError(f"{where}: must be an integer >= {least}{also}, got {value!r:.60}")
         return value
     if key in _NUMBERS:
         if key in _AUTO and isinstance(value, str) and (value == "auto" or value.startswith("auto_")):

@@ -64,7 +64,7 @@ def draw_noise(
     """Measurement errors of ``count`` trials: from ``rng`` in one call, or one row from each stream."""
     if streams is None or scenario.noise is None:
         return scenario.draw_noise(rng, count)
-    return np.concatenate([scenario.draw_noise(stream, 1) for stream in streams])  # type: ignore[misc]
+    return np.concatenate([scenario.draw_noise(stream, 1) for stream in streams])
 
 
 class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np.float32], Array]):
@@ -81,9 +81,9 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
 
     ``true_factors`` ``(N, 2)`` makes every env a different robot: env ``i``'s true plant is the
     config's with its two parameters (``plant.factor_names``: a car's wheelbase and wheel radius)
-    multiplied by row ``i`` (each ratio in :data:`~ilc_steering.core.checks.FACTOR_RANGE`), still one compiled call per step (``ilc-steering sweep`` maps a
-    learner over such a grid); ``true_plants``, a plant per env of the config's kind, gives them
-    outright (a map over any plant key, a steering offset say). The learner's nominal model is the
+    multiplied by row ``i`` (each ratio in :data:`~ilc_steering.core.checks.FACTOR_RANGE`), still
+    one compiled call per step (``ilc-steering sweep`` maps a learner over such a grid);
+    ``true_plants``, a plant per env of the config's kind, gives them outright (a map over any plant key, a steering offset say). The learner's nominal model is the
     same for all.
 
     Every episode is one step long, so the env resets in the same step

@@ -196,7 +196,7 @@ def check_robot(cls: Any, who: str, name: str | None = None) -> None:
     for attribute in ("kind", "plant_class", "dimension", "steering_limit", *CONFIG_METHODS):
         if not hasattr(cls, attribute) and attribute not in {f.name for f in dataclasses.fields(cls)}:
             raise ValueError(f"{who}: {what} has no {attribute!r} (the PlantConfig protocol, docs/robots.md)")
-    plant = cls.plant_class
+    plant: Any = getattr(cls, "plant_class")  # noqa: B009  (a class that passed the checks above)
     for attribute in PLANT_METHODS:
         if not callable(getattr(plant, attribute, None)):
             where = getattr(plant, "__qualname__", repr(plant)[:80])
