@@ -83,8 +83,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     config's with its two parameters (``plant.factor_names``: a car's wheelbase and wheel radius)
     multiplied by row ``i`` (each ratio in :data:`~ilc_steering.core.checks.FACTOR_RANGE`), still
     one compiled call per step (``ilc-steering sweep`` maps a learner over such a grid);
-    ``true_plants``, a plant per env of the config's kind, gives them outright (a map over any plant key, a steering offset say). The learner's nominal model is the
-    same for all.
+    ``true_plants``, a plant per env of the config's kind, gives them outright (a map over any
+    plant key, a steering offset say). The learner's nominal model is the same for all.
 
     Every episode is one step long, so the env resets in the same step
     (``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``) and every step is a trial: the
