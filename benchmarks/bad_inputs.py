@@ -386,6 +386,7 @@ def attacks(tmp: str) -> list[tuple[str, str, str, Any]]:
     """,
     )
     attacks += issue26_attacks(tmp, cfg)
+    attacks += issue34_attacks(tmp, cfg)
     return attacks
 
 
@@ -746,6 +747,133 @@ def issue26_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
             ),
         )
     )
+    return out
+
+
+def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
+    """Issue 34's classes this battery can replay in one process each: files that block or crash
+    (3), plugins (4), the environment (5), physical ranges (6), wrappers and vector envs (9), RL
+    hyperparameters (10) and small ones (12)."""
+    out: list[tuple[str, str, str, Any]] = []
+
+    def cli(cls: str, desc: str, *argv: str) -> None:
+        out.append((cls, desc, "cli", list(argv)))
+
+    def py(cls: str, desc: str, code: str) -> None:
+        out.append((cls, desc, "py", PRE + textwrap.dedent(code)))
+
+    fifo = os.path.join(tmp, "run.fifo")
+    os.mkfifo(fifo)
+    loop = os.path.join(tmp, "loop.json")
+    os.symlink(loop, loop)
+    dangling = os.path.join(tmp, "dangling.json")
+    os.symlink(os.path.join(tmp, "nowhere", "x.json"), dangling)
+    plain = os.path.join(tmp, "plain")
+    Path(plain).write_text("x")
+    cli("files34", "plot on a FIFO", "plot", fifo, "--out", os.path.join(tmp, "pf"))
+    cli("files34", "plot on a symlink loop", "plot", loop, "--out", os.path.join(tmp, "pl"))
+    cli("files34", "--json under a regular file", "run", "forward_parking", "--trials", "1", "--json",
+        os.path.join(plain, "x.json"))  # fmt: skip
+    cli("files34", "--json a symlink loop", "run", "forward_parking", "--trials", "1", "--json", loop)
+    cli("files34", "--json a name too long", "run", "forward_parking", "--trials", "1", "--json",
+        os.path.join(tmp, "n" * 300 + ".json"))  # fmt: skip
+    cli("files34", "--plots a FIFO", "run", "forward_parking", "--trials", "1", "--plots", fifo)
+    plugin = """
+        import sys, types, importlib.metadata as md
+        from pathlib import Path
+        root = Path("plugin34"); root.mkdir(exist_ok=True)
+        (root / "broken_plugin.py").write_text("raise RuntimeError('plugin broke')")
+        info = root / "broken-0.1.dist-info"; info.mkdir(exist_ok=True)
+        (info / "METADATA").write_text("Metadata-Version: 2.1\\nName: broken\\nVersion: 0.1\\n")
+        (info / "entry_points.txt").write_text("[ilc_steering.robots]\\n{name} = broken_plugin:Config\\n")
+        sys.path.insert(0, str(root))
+        from ilc_steering.config import load_config
+        {check}
+        """
+    unrelated = 'print("CLEAR" if load_config("forward_parking").plant.model == "car" else "ACCEPTED")'
+    packaged = (
+        'from ilc_steering.core import robots\nok = robots.config_class("car").__module__.startswith("ilc_steering")'
+    )
+    packaged += '\nprint("CLEAR" if ok else "ACCEPTED")'
+    for name, desc, check in (
+        ("rover", "a plugin that raises breaks an unrelated run", unrelated),
+        ("car", "a plugin that registers car", packaged),
+    ):
+        py("plugins34", desc, plugin.replace("{name}", name).replace("{check}", check))  # fmt: skip
+    py("plugins34", "a plain dataclass as plant.model", """
+        from dataclasses import dataclass
+        from ilc_steering.config import load_config
+        import yaml
+        data = yaml.safe_load(open("forward34.yaml").read()); data["plant"]["model"] = "dataclasses:dataclass"
+        try:
+            load_config(data); print("ACCEPTED")
+        except ValueError as error:
+            print("CLEAR" if "dataclass" in str(error) else "UNCLEAR")
+        """)  # fmt: skip
+    Path(tmp, "forward34.yaml").write_text((CONFIGS / "forward_parking.yaml").read_text())
+    py("env34", "ILC_STEERING_RL_BACKEND=jax", """
+        import os; os.environ["ILC_STEERING_RL_BACKEND"] = "jax"
+        from ilc_steering.agents.rl import rl_backend
+        try:
+            rl_backend(); print("ACCEPTED")
+        except ValueError as error:
+            print("CLEAR" if "ILC_STEERING_RL_BACKEND" in str(error) else "UNCLEAR")
+        """)  # fmt: skip
+    cli("ranges34", "wheelbase 1e-300", "run", cfg("r1.yaml", [("wheelbase: 0.2 ", "wheelbase: 1.0e-300 ")]))
+    cli("ranges34", "pieces of 1 us", "run", cfg("r2.yaml", [("pieces: [5.0]", "pieces: [1.0e-6]")]))
+    cli(
+        "ranges34",
+        "start error of 1 km",
+        "run",
+        cfg("r3.yaml", append="simulation: {start_error: [1000.0, 0, 0, 0]}\n"),
+    )
+    py("ranges34", "vector env true factors 1e-300", """
+        from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+        try:
+            ChainedSteeringVectorEnv(2, config="forward_parking", true_factors=np.full((2, 2), 1e-300))
+            print("ACCEPTED")
+        except ValueError as error:
+            print("CLEAR" if "1e-300" in str(error) else "UNCLEAR")
+        """)  # fmt: skip
+    py("wrappers34", "ResidualAction(scale=1e308)", """
+        from ilc_steering.envs.wrappers import ResidualAction
+        try:
+            ResidualAction(gym.make("ilc_steering/ChainedSteering-v0"), scale=1e308); print("ACCEPTED")
+        except ValueError:
+            print("CLEAR")
+        """)  # fmt: skip
+    py("wrappers34", "CyclicSteeringVectorEnv(10**9)", """
+        from ilc_steering.envs.cyclic_vector_env import CyclicSteeringVectorEnv
+        try:
+            CyclicSteeringVectorEnv(10**9); print("ACCEPTED")
+        except ValueError:
+            print("CLEAR")
+        """)  # fmt: skip
+    py("wrappers34", "ResidualAction under check_env", """
+        from gymnasium.utils.env_checker import check_env
+        from ilc_steering.envs.wrappers import ResidualAction
+        check_env(ResidualAction(gym.make("ilc_steering/ChainedSteering-v0")), skip_render_check=True); print("CLEAR")
+        """)  # fmt: skip
+    py("wrappers34", "vector reset(seed=[1, 2]) ignores the second seed", """
+        from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+        rewards = []
+        for seeds in ([1, 2], [1, 3]):
+            envs = ChainedSteeringVectorEnv(2, config="forward_parking_noisy"); envs.reset(seed=seeds)
+            c = envs.nominal_model.solve().astype(np.float32)
+            rewards.append(envs.step(np.tile(c, (2, 1)))[1])
+        print("CLEAR" if rewards[0][1] != rewards[1][1] and rewards[0][0] == rewards[1][0] else "ACCEPTED")
+        """)  # fmt: skip
+    for key, value in (("learning_rate", "-0.001"), ("batch_size", "256.5"), ("n_timesteps", "True")):
+        py("rlyaml34", f"configs/rl/ppo.yaml {key}: {value}", f"""
+            from ilc_steering.agents.rl import check_hyperparameters, hyperparameters
+            params = {{**hyperparameters("ppo", "forward_parking"), {key!r}: {value}}}
+            try:
+                check_hyperparameters("ppo", params, "configs/rl/ppo.yaml: nominal.default"); print("ACCEPTED")
+            except ValueError as error:
+                print("CLEAR" if {key!r} in str(error) and "ppo.yaml" in str(error) else "UNCLEAR")
+            """)  # fmt: skip
+    cli("small34", "YAML 0.0_2", "run", cfg("s1.yaml", append="simulation: {max_step: 0.0_2}\n"))
+    cli("small34", "max_step coarser than a piece", "run", cfg("s2.yaml", append="simulation: {max_step: 6.0}\n"))
     return out
 
 

@@ -68,7 +68,7 @@ def test_scale_is_in_units_of_the_action_scale():
 
 @pytest.mark.parametrize("scale", [0, -0.3, float("nan"), float("inf"), True, "0.3", None, [0.3]])
 def test_bad_scale_is_refused_by_name(scale):
-    with pytest.raises(ValueError, match=r"^scale must be a finite number > 0") as error:
+    with pytest.raises(ValueError, match=r"^scale must be a number in \(0, 100\]") as error:
         residual(scale=scale)
     assert "\n" not in str(error.value)
 
