@@ -27,6 +27,7 @@ from ilc_steering.inputs import describe, is_file, kind_of, read_json
 __all__ = [
     "check_output_dir",
     "check_output_file",
+    "check_reports",
     "check_run_settings",
     "check_writable",
     "content_hash",
@@ -112,6 +113,13 @@ def check_output_file(path: Path, option: str) -> Path:
 def check_writable(path: Path, option: str = "output") -> Path:
     """:func:`check_output_file`: call it on every output path before the first trial runs."""
     return check_output_file(Path(path), option)
+
+
+def check_reports(folder: Path, names: Collection[str], option: str = "--out") -> None:
+    """Check, before any work, that each report ``folder/name`` a run writes at its end (``compare.json``,
+    ``sweep.md``, a figure) can be written: a FIFO or a folder in its place is refused now, naming it."""
+    for name in names:
+        check_output_file(Path(folder) / name, f"{option} ({name})")
 
 
 def safe_name(name: str) -> str:

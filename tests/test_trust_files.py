@@ -105,3 +105,13 @@ def test_an_output_folder_that_cannot_be_one_is_refused_naming_the_option(tmp_pa
     path = _hostile(tmp_path, kind, "out")
     with pytest.raises(ValueError, match="^--out"):
         check_output_dir(path, "--out")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder", "loop"])
+def test_a_report_path_that_cannot_be_written_is_refused_before_any_work(tmp_path, kind):
+    from ilc_steering.output import check_reports
+
+    _hostile(tmp_path, kind, "compare.md")
+    with pytest.raises(ValueError, match=r"^--out \(compare\.md\)"):
+        check_reports(tmp_path, ["compare.json", "compare.md"])
+    assert not (tmp_path / "compare.json").exists()  # the check leaves nothing behind
