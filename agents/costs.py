@@ -145,9 +145,12 @@ class NullSpaceCost:
             return float(self.values(candidate)[0])
 
         start = np.zeros(basis.shape[1])
-        result = minimize(
-            J, start, method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-14, "maxfev": MAX_EVALUATIONS}
-        )
+        # J is inf outside the box; Nelder-Mead's convergence test subtracts two such values (NaN, which
+        # it treats as not converged): numpy's warning of it is noise from scipy's files, not the user's
+        with np.errstate(invalid="ignore"):
+            result = minimize(
+                J, start, method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-14, "maxfev": MAX_EVALUATIONS}
+            )
         return shifted(result.x) if result.fun < J(start) else np.array(c, dtype=np.float64)
 
     # Costs of recorded configurations q (B, S, nq) with step lengths dt (S - 1,) [s].

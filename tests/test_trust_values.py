@@ -313,3 +313,20 @@ def test_the_ranges_table_of_docs_trust_is_the_codes():
     assert rows["MAX_NOISE"] == shown(0, checks.MAX_NOISE)
     assert rows["MAX_JITTER"] == shown(0, checks.MAX_JITTER)
     assert f"at most {MAX_STEPS_PER_TRIAL} steps" in rows["grid.MAX_STEPS_PER_TRIAL"]
+
+
+@pytest.mark.slow
+def test_a_valid_config_with_a_cost_runs_without_a_warning_from_scipys_files():
+    """Section 7's null-space search meets ``inf`` outside its box; scipy's Nelder-Mead subtracted
+    two of them and numpy warned from scipy's file (parallel_parking_servo with a cost, measured)."""
+    import dataclasses
+    import warnings
+
+    from ilc_steering.runner import run_ilc
+
+    data = dataclasses.asdict(load_config("parallel_parking_servo"))
+    data["task"]["v2_terms"], data["task"]["action_bound"] = 5, None
+    data["learning"]["cost"] = "path_length"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        run_ilc(load_config(data), 4)
