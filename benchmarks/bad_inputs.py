@@ -792,9 +792,9 @@ def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
         """
     unrelated = 'print("CLEAR" if load_config("forward_parking").plant.model == "car" else "ACCEPTED")'
     packaged = (
-        'from ilc_steering.core import robots\nok = robots.config_class("car").__module__.startswith("ilc_steering")'
+        'import ilc_steering.core.robots as r; ok = r.config_class("car").__module__.startswith("ilc_steering"); '
     )
-    packaged += '\nprint("CLEAR" if ok else "ACCEPTED")'
+    packaged += 'print("CLEAR" if ok else "ACCEPTED")'
     for name, desc, check in (
         ("rover", "a plugin that raises breaks an unrelated run", unrelated),
         ("car", "a plugin that registers car", packaged),

@@ -217,7 +217,7 @@ def test_cyclic_vector_env_parallel_equals_serial():
 @pytest.mark.parametrize(
     ("kwargs", "reset", "message"),
     [
-        ({"num_envs": 0}, None, "num_envs must be an integer >= 1"),
+        ({"num_envs": 0}, None, r"num_envs must be an integer in \[1, 100000\]"),
         ({"cycles": 0}, None, "cycles must be a whole number >= 1"),
         ({"config": "forward_parking"}, None, "needs task.waypoints"),
         ({"render_mode": "rgb_array"}, None, "render_mode must be one of"),
