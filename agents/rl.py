@@ -45,7 +45,7 @@ import inspect
 import math
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from importlib import import_module, metadata, resources
 from typing import Any, SupportsFloat
@@ -65,6 +65,7 @@ __all__ = [
     "RL_BACKENDS",
     "TORCH_THREADS",
     "algorithm_class",
+    "backend_setting",
     "build",
     "check_hyperparameters",
     "hyperparameters",
@@ -114,6 +115,14 @@ def rl_backend() -> str:
             ) from None
         return "sb3"
     return "sbx" if asked == "auto" else asked
+
+
+def backend_setting(methods: Iterable[str]) -> dict[str, str]:
+    """The run setting that pins the RL backend, ``{"rl_backend": "sbx"}``, when ``methods`` holds an
+    RL algorithm (``{}`` otherwise): read (and :data:`BACKEND_VARIABLE` checked) once, before any
+    cell runs, and recorded with a run's settings, so a run resumed under another backend is
+    refused (its RL cells were computed by the other one)."""
+    return {"rl_backend": rl_backend()} if any(m in RL_ALGORITHMS for m in methods) else {}
 
 
 def _module(algorithm: str, backend: str) -> str:

@@ -330,3 +330,14 @@ def test_a_valid_config_with_a_cost_runs_without_a_warning_from_scipys_files():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         run_ilc(load_config(data), 4)
+
+
+def test_the_backend_setting_pins_rl_runs_only_and_checks_the_variable(monkeypatch):
+    from ilc_steering.agents.rl import backend_setting
+
+    monkeypatch.setenv(BACKEND_VARIABLE, "sb3")
+    assert backend_setting(["ilc", "ppo"]) == {"rl_backend": "sb3"}
+    assert backend_setting(["ilc", "least_squares"]) == {}
+    monkeypatch.setenv(BACKEND_VARIABLE, "jax")
+    with pytest.raises(ValueError, match=BACKEND_VARIABLE):
+        backend_setting(["sac"])
