@@ -68,6 +68,7 @@ __all__ = [
     "backend_setting",
     "build",
     "check_hyperparameters",
+    "check_value",
     "hyperparameters",
     "implementation",
     "log_reward",
@@ -197,7 +198,7 @@ def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) ->
             )
     if "n_timesteps" not in params:
         raise ConfigError(f"{where}.n_timesteps: missing; the budget, an integer >= 1 [trials]")
-    params = {key: _check_value(key, value, f"{where}.{key}") for key, value in params.items()}
+    params = {key: check_value(key, value, f"{where}.{key}") for key, value in params.items()}
     std = params.get("initial_std")
     if std is not None and (algorithm not in _SQUASHED or not isinstance(std, float) or not 0 < std <= 1):
         names = ", ".join(_CLASS_NAMES[a] for a in _SQUASHED)
@@ -228,7 +229,7 @@ def _widths(layer: Any) -> bool:
     )
 
 
-def _check_value(key: str, value: Any, where: str) -> Any:
+def check_value(key: str, value: Any, where: str) -> Any:
     """``value`` of hyperparameter ``key`` checked by type and range (:data:`_INTEGERS`,
     :data:`_NUMBERS`), a number written ``3e-4`` (text to YAML 1.1) read as the number it shows;
     :class:`ConfigError` naming ``where`` otherwise. Keys of no table are passed on as they are."""
@@ -242,7 +243,7 @@ def _check_value(key: str, value: Any, where: str) -> Any:
     if key in _NUMBERS:
         if key in _AUTO and isinstance(value, str) and (value == "auto" or value.startswith("auto_")):
             if value.startswith("auto_"):
-                _check_value(key, value.removeprefix("auto_"), where)
+                check_value(key, value.removeprefix("auto_"), where)
             return value
         if isinstance(value, str) and _NUMBER_TEXT.fullmatch(value.strip()):
             value = float(value)  # YAML 1.1 reads 3e-4 as text; the user means the number

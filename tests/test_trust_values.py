@@ -239,15 +239,24 @@ _BAD = {
 @FAST
 @given(data=st.data(), key=st.sampled_from(sorted(_BAD)))
 def test_an_rl_hyperparameter_of_the_wrong_type_or_range_is_refused_naming_file_and_key(data, key):
+    from ilc_steering.agents.rl import check_value
+
     value = data.draw(_BAD[key])
-    params = {**hyperparameters("ppo", "forward_parking"), key: value}
-    with pytest.raises(ConfigError, match=rf"^configs/rl/ppo\.yaml: nominal\.default\.{key}: must be"):
+    where = f"configs/rl/ppo.yaml: nominal.default.{key}"
+    with pytest.raises(ConfigError, match=rf"^{re.escape(where)}: must be"):
+        check_value(key, value, where)
+
+
+@pytest.mark.slow
+def test_the_packaged_hyperparameters_pass_and_a_bad_one_is_named_with_its_file():
+    for algorithm in ("ppo", "sac", "td3", "crossq", "tqc"):
+        for prior in ("nominal", "none"):
+            assert hyperparameters(algorithm, "forward_parking", prior)["n_timesteps"] >= 1
+    params = {**hyperparameters("ppo", "forward_parking"), "batch_size": 256.5}
+    with pytest.raises(ConfigError, match=r"^configs/rl/ppo\.yaml: nominal\.default\.batch_size: must be an integer"):
         check_hyperparameters("ppo", params, "configs/rl/ppo.yaml: nominal.default")
-
-
-def test_a_number_written_3e_4_is_the_number():
     params = {**hyperparameters("ppo", "forward_parking"), "learning_rate": "3e-4"}
-    assert check_hyperparameters("ppo", params, "x")["learning_rate"] == 3e-4
+    assert check_hyperparameters("ppo", params, "x")["learning_rate"] == 3e-4  # YAML 1.1's text, the number
 
 
 # class 12: small ones
