@@ -33,6 +33,7 @@ __all__ = [
     "content_hash",
     "differences",
     "injective_name",
+    "open_lock",
     "safe_name",
     "write_atomic",
     "write_figure",
@@ -113,6 +114,22 @@ def check_output_file(path: Path, option: str) -> Path:
 def check_writable(path: Path, option: str = "output") -> Path:
     """:func:`check_output_file`: call it on every output path before the first trial runs."""
     return check_output_file(Path(path), option)
+
+
+def open_lock(path: Path) -> int:
+    """A descriptor of the lock file ``path`` (created if absent, mode 0644 under umask 022), opened so
+    that a FIFO cannot block it and checked to be a regular file; ``ValueError`` naming it otherwise.
+    Hold ``fcntl.flock`` on it, and ``os.close`` it when the run ends."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
+    try:
+        descriptor = os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o666)
+    except OSError as error:  # ENXIO: a FIFO with no reader; ELOOP, EACCES, ...
+        raise ValueError(f"{path}: cannot open the run folder's lock ({_problem(error)})") from None
+    mode = os.fstat(descriptor).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(descriptor)
+        raise ValueError(f"{path}: the run folder's lock is {kind_of(mode)}, not a regular file; remove it")
+    return descriptor
 
 
 def check_reports(folder: Path, names: Collection[str], option: str = "--out") -> None:

@@ -115,3 +115,23 @@ def test_a_report_path_that_cannot_be_written_is_refused_before_any_work(tmp_pat
     with pytest.raises(ValueError, match=r"^--out \(compare\.md\)"):
         check_reports(tmp_path, ["compare.json", "compare.md"])
     assert not (tmp_path / "compare.json").exists()  # the check leaves nothing behind
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize("kind", ["fifo", "loop", "folder", "link_to_fifo", "missing"])
+def test_a_run_folders_lock_cannot_block_and_is_a_regular_file(tmp_path, kind):
+    import fcntl
+
+    from ilc_steering.output import open_lock
+
+    path = _hostile(tmp_path, kind, ".lock")
+    if kind != "missing":
+        with pytest.raises(ValueError, match=r"\.lock"):
+            open_lock(path)
+        return
+    descriptor = open_lock(path)
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(descriptor)
+    assert path.is_file()
