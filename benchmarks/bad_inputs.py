@@ -790,7 +790,7 @@ def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
         from ilc_steering.config import load_config
         {check}
         """
-    unrelated = 'print("CLEAR" if load_config("forward_parking").plant.model == "car" else "ACCEPTED")'
+    unrelated = 'print("CLEAR" if load_config("forward_parking").name == "forward_parking" else "ACCEPTED")'
     packaged = (
         'import ilc_steering.core.robots as r; ok = r.config_class("car").__module__.startswith("ilc_steering"); '
     )
