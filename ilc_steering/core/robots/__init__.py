@@ -37,7 +37,19 @@ from importlib import import_module
 from importlib.metadata import entry_points
 from typing import Any
 
-__all__ = ["ROBOTS", "config_class", "names", "nominal_plant", "register", "skipped"]
+__all__ = [
+    "ENTRY",
+    "GROUP",
+    "PACKAGED",
+    "ROBOTS",
+    "check_robot",
+    "config_class",
+    "model_name",
+    "names",
+    "nominal_plant",
+    "register",
+    "skipped",
+]
 
 ROBOTS: dict[str, str] = {
     "car": "ilc_steering.core.robots.car:CarPlantConfig",
