@@ -53,7 +53,7 @@ def test_a_row_is_the_first_factor_fixed_and_the_second_swept():
 def test_the_vector_env_refuses_bad_true_factors():
     with pytest.raises(ValueError, match=r"true_factors must have shape \(3, 2\)"):
         ChainedSteeringVectorEnv(3, "forward_parking", true_factors=np.ones((2, 2)))
-    with pytest.raises(ValueError, match=r"true_factors\[1\]: wheelbase_ratio: must be a ratio in \[0.001, 1000\], got 0.0"):
+    with pytest.raises(ValueError, match=r"true_factors\[1\]: wheelbase_ratio: must be a ratio in .*, got 0.0"):
         ChainedSteeringVectorEnv(2, "forward_parking", true_factors=[[1.0, 1.0], [0.0, 1.0]])
     with pytest.raises(ValueError, match="true_factors must be finite"):
         ChainedSteeringVectorEnv(2, "forward_parking", true_factors=[[1.0, np.nan], [1.0, 1.0]])
