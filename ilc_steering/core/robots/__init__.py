@@ -30,6 +30,7 @@ ROBOTS: dict[str, str] = {
     "chained": "ilc_steering.core.robots.chained:ChainedPlantConfig",
     "unicycle": "ilc_steering.core.robots.unicycle:UnicyclePlantConfig",
     "car_trailer": "ilc_steering.core.robots.car_trailer:TrailerPlantConfig",
+    "highway_parking": "ilc_steering.envs.highway:HighwayPlantConfig",  # an external plant (extra [highway])
 }
 """``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys."""
 
