@@ -209,52 +209,65 @@ class HighwayParkingPlant(ExternalPlantBase):
         self.frames.clear()
         states, actions = [q], []
         status, halted = OK, q
-        success = False
+        command = float(q[3])  # the steering command the adapter integrates from u2 (the servo's state)
         for k in range(steps):
             if status == OK and abs(q[2]) >= pi / 2 - CHART_MARGIN:
                 status, halted = LEFT_CHART, states[-2] if len(states) > 1 else q
             if status == OK:
-                phi_mid, speed_end = self._follow(profile, c, q, k * ACTION_STEP)
-                accel = (speed_end / np.cos(np.arctan(0.5 * np.tan(phi_mid))) - vehicle.speed) / ACTION_STEP
+                acted_on = np.array([q[0], q[1], q[2], command])
+                phi_mid, command, speed_end = self._follow(profile, c, acted_on, k * ACTION_STEP)
+                beta = np.arctan(0.5 * np.tan(np.clip(phi_mid, -STEERING, STEERING)))
+                accel = (speed_end / np.cos(beta) - vehicle.speed) / ACTION_STEP
                 action = np.array([accel / ACCELERATION, phi_mid / STEERING])
             else:  # out of the chart, eqs. 4-5 break down: brake to a stop, wheels straight
                 action = np.array([-vehicle.speed / ACTION_STEP / ACCELERATION, 0.0])
-            _, _, _, _, info = env.step(action)
+            # env.step's dynamics without its observation, reward and info (pandas, 2/3 of a step's
+            # time); tests/test_highway.py replays the logged actions through env.step, bit for bit
+            env.unwrapped._simulate(action)
             actions.append(action.tolist())
-            success = bool(info.get("is_success", False))
             if self.render_mode is not None:
                 self.frames.append(env.render())
             q = self._measure(vehicle)
             states.append(q)
         final = q if status == OK else halted
-        log = {"seed": self.seed, "actions": actions, "crashed": bool(vehicle.crashed), "is_success": success}
+        log = {"seed": self.seed, "actions": actions, "crashed": bool(vehicle.crashed), "is_success": _success(env)}
         return final, status, np.array(states), log
 
     @staticmethod
-    def _follow(profile: InputProfile, c: Array, q: Array, t0: float) -> tuple[float, float]:
-        """The nominal closed loop (eqs. 3-5, nominal geometry) from ``q`` at ``t0`` over one action
-        step by RK4: its steering angle at mid-step [rad] and rear-axle speed at the end [m/s]."""
+    def _follow(profile: InputProfile, c: Array, q: Array, t0: float) -> tuple[float, float, float]:
+        """The nominal closed loop (eqs. 3-5, nominal geometry, the wheel at the stop beyond
+        ``STEERING`` while the command winds on) from ``q`` (its ``phi`` the adapter's steering
+        command) at ``t0`` over one action step by RK4: the steering command at mid-step and at the
+        end [rad], and the rear axle's speed at the end [m/s]."""
         model = nominal_map()
         h = ACTION_STEP / SUBSTEPS
+        # every RK4 stage falls on a half step: the inputs of the whole step in one call
+        v1s, v2s = profile.evaluate(c, t0 + 0.5 * h * np.arange(2 * SUBSTEPS + 1))
+        ell, rho = model.wheelbase, model.wheel_radius
 
-        def field_(t: float, x: Array) -> Array:
-            v1, v2 = profile.evaluate(c, np.array(t))
-            u1, u2 = chained_inputs(x[2], x[3], float(v1), float(v2), model.wheelbase, model.wheel_radius)
-            return np.array(car_velocity(x[2], x[3], u1, u2, model.wheelbase, model.wheel_radius))
+        def field_(i: int, x: Array) -> Array:
+            phi = min(max(x[3], -STEERING), STEERING)
+            u1, u2 = chained_inputs(x[2], phi, float(v1s[i]), float(v2s[i]), ell, rho)
+            return np.array(car_velocity(x[2], phi, u1, u2, ell, rho))
 
-        x, t, phi_mid = q.copy(), t0, float(q[3])
+        x, phi_mid = q.copy(), float(q[3])
         for i in range(SUBSTEPS):
-            k1 = field_(t, x)
-            k2 = field_(t + h / 2, x + h / 2 * k1)
-            k3 = field_(t + h / 2, x + h / 2 * k2)
-            k4 = field_(t + h, x + h * k3)
+            k1 = field_(2 * i, x)
+            k2 = field_(2 * i + 1, x + h / 2 * k1)
+            k3 = field_(2 * i + 1, x + h / 2 * k2)
+            k4 = field_(2 * i + 2, x + h * k3)
             x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            t += h
             if i == SUBSTEPS // 2 - 1:
                 phi_mid = float(x[3])
-        v1, _ = profile.evaluate(c, np.array(t))
-        speed = float(v1) / np.cos(x[2]) * model.wheel_radius
-        return phi_mid, speed
+        speed = float(v1s[-1]) / np.cos(x[2]) * rho
+        return phi_mid, float(x[3]), speed
+
+
+def _success(env: Any) -> bool:
+    """parking-v0's own success test (its ``info["is_success"]``) at the car's present state."""
+    parking = env.unwrapped
+    obs = parking.observation_type_parking.observe()
+    return bool(parking._is_success(obs["achieved_goal"], obs["desired_goal"]))
 
 
 def replay(seed: int, actions: list[list[float]], render_mode: str | None = None) -> tuple[Array, bool, Any]:
