@@ -118,7 +118,9 @@ def parking_task(seed: int) -> tuple[Array, Array]:
     goal_heading = float(vehicle.goal.heading)
     goal_heading += 2 * pi * np.round((start[2] - goal_heading) / (2 * pi))
     gx, gy = (float(p) for p in vehicle.goal.position)
-    goal = np.array([gx - 0.5 * LENGTH * np.cos(goal_heading), gy - 0.5 * LENGTH * np.sin(goal_heading), goal_heading, 0])
+    goal = np.array(
+        [gx - 0.5 * LENGTH * np.cos(goal_heading), gy - 0.5 * LENGTH * np.sin(goal_heading), goal_heading, 0]
+    )
     env.close()
     turn = abs(goal[2] - start[2])
     if turn > MAX_TURN:
@@ -195,7 +197,9 @@ class HighwayParkingPlant(ExternalPlantBase):
         q[2] = np.angle(np.exp(1j * q[2]))
         return q
 
-    def _trial(self, profile: InputProfile, x0: Array, c: Array, steps: int) -> tuple[Array, int, Array, dict[str, Any]]:
+    def _trial(
+        self, profile: InputProfile, x0: Array, c: Array, steps: int
+    ) -> tuple[Array, int, Array, dict[str, Any]]:
         env = self.env
         env.reset(seed=self.seed)
         vehicle = env.unwrapped.vehicle
@@ -308,29 +312,98 @@ class HighwayPlantConfig:
             raise ValueError("highway_parking is a one-trial task (parking-v0 resets the car for each trial)")
 
 
-PIECES = (15.0,)
-"""[s] the task's one piece (a whole number of 0.2 s action steps)."""
+PROFILES: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = (((15.0,), ()), ((10.0, 10.0), (2.0,)))
+"""The input profiles a task may take, as ``(pieces [s], v1_fixed [m/s])`` (whole 0.2 s action steps):
+one forward stroke, or a stroke learned and a second one at 2 m/s; :func:`choose_frame` takes the one
+whose nominal path steers least."""
 RAMP = 3.0
-"""[s] the trapezoid's ramp: the speed rises from rest and falls back to it."""
+"""[s] the trapezoid's ramp: the speed rises from rest and falls back to it at both ends of each piece."""
 V2_TERMS = 4
 """``q``: one spare coefficient of ``v2`` beyond ``n - 1 = 3``."""
+FRAME_GRID = np.radians(1.0)
+"""[rad] the spacing of the task frames :func:`choose_frame` tries."""
+CHART_SLACK = np.radians(10.0)
+"""[rad] how far inside the chart's edge (``|theta| = pi/2``, task frame) the nominal path must stay."""
+STEERING_USE = 1.0
+"""The largest fraction of the ±45° stop the nominal path may use."""
+LOT = (35.0 - 3.0, 21.0 - 3.0)
+"""[m] the half-sizes of parking-v0's walled lot less the car's half-diagonal and the wall's half-width:
+the box the car's centre must stay in."""
+
+
+def _profile(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> Any:
+    from ilc_steering.core.trapezoid import TrapezoidProfile
+
+    return TrapezoidProfile(pieces, v1_fixed, V2_TERMS, RAMP)
+
+
+def nominal_path(start: Array, goal: Array, frame: float, profile: InputProfile) -> Array:
+    """The nominal car's path (world configurations ``(S, 4)``) of the nominal solution from ``start`` to
+    ``goal`` with ``profile`` in the task frame rotated by ``frame`` [rad], without a steering stop."""
+    from ilc_steering.core.nominal import NominalModel
+    from ilc_steering.core.robots.car import CarPlant
+    from ilc_steering.core.simulate import simulate
+
+    model = nominal_map()
+    q0, q1 = rotate(start, frame), rotate(goal, frame)
+    nominal = NominalModel(4, profile, model.to_chained(q0), model.to_chained(q1), model, STEERING)
+    trials = simulate(CarPlant(model, model), profile, q0[None], nominal.solve()[None], 1 / 32, record=True)
+    if trials.states is None or trials.status[0] != OK:
+        return np.full((1, 4), np.inf)
+    return rotate(trials.states[0], -frame)
+
+
+def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
+    """The task frame [rad] and the profile (an index of :data:`PROFILES`) whose nominal path
+    (:func:`nominal_path`) needs the least steering angle while it stays :data:`CHART_SLACK` inside
+    the chart and its centre inside :data:`LOT`, and that angle [rad] (``inf``: no frame keeps it in)."""
+    edge = pi / 2 - CHART_SLACK
+    low, high = max(start[2], goal[2]) - edge, min(start[2], goal[2]) + edge
+    best = (0.5 * (start[2] + goal[2]), 0, np.inf)
+    with np.errstate(all="ignore"):  # a path that blows up is left out below
+        for index, (pieces, v1_fixed) in enumerate(PROFILES):
+            profile = _profile(pieces, v1_fixed)
+            for frame in np.arange(low, high + 1e-12, FRAME_GRID):
+                path = nominal_path(start, goal, float(frame), profile)
+                theta = path[:, 2] - frame
+                heading = np.stack([np.cos(path[:, 2]), np.sin(path[:, 2])], axis=-1)
+                centre = path[:, :2] + 0.5 * LENGTH * heading
+                inside = bool(np.all(np.abs(theta) < edge) and np.all(np.abs(centre) < LOT))
+                steering = float(np.max(np.abs(path[:, 3])))
+                if inside and steering < best[2]:
+                    best = (float(frame), index, steering)
+    return best
 
 
 def highway_config(seed: int, name: str | None = None, trials: int = 15) -> dict[str, Any]:
     """The config (as a mapping for :func:`~ilc_steering.config.load_config`) of parking-v0 ``seed``'s
-    task, to 1 cm / 0.01 rad; ``ValueError`` naming the seed when one chart cannot serve it."""
+    task, to 1 cm / 0.01 rad, in the frame :func:`choose_frame` finds; ``ValueError`` naming the seed
+    when one chart cannot serve it (the turn, or a nominal path past :data:`STEERING_USE` of the stop)."""
     start, goal = parking_task(seed)
+    frame, index, steering = choose_frame(start, goal)
+    pieces, v1_fixed = PROFILES[index]
+    if steering > STEERING_USE * STEERING:
+        needs = (
+            "no frame keeps its path in the chart and the lot"
+            if steering == np.inf
+            else (f"its nominal path needs {np.degrees(steering):.0f}° of steering in the best frame")
+        )
+        raise ValueError(
+            f"parking-v0 seed {seed}: this task cannot serve it in one chart: {needs} "
+            f"(the car stops at 45°; it needs a waypoint)"
+        )
     return {
         "name": name or f"highway_parking_seed{seed}",
         "plant": {"model": "highway_parking", "seed": seed},
         "task": {
             "start": start.tolist(),
             "goal": goal.tolist(),
-            "pieces": list(PIECES),
-            "v1_fixed": [],
+            "pieces": list(pieces),
+            "v1_fixed": list(v1_fixed),
             "v2_terms": V2_TERMS,
             "v1_shape": "trapezoid",
             "ramp": RAMP,
+            "frame": frame,
         },
         "learning": {
             "nu_a": 1.0,
@@ -349,16 +422,17 @@ def _yaml(config: dict[str, Any]) -> str:
             f"# python -m ilc_steering.envs.highway --seed {config['plant']['seed']}",
             f"name: {config['name']}",
             "plant:",
-            "  model: highway_parking   # highway-env's car steps the trials (pip install \"ilc-steering[highway]\")",
+            '  model: highway_parking   # highway-env\'s car steps the trials (pip install "ilc-steering[highway]")',
             f"  seed: {config['plant']['seed']}                  # parking-v0's reset seed: the start and the goal below",
             "task:",
             f"  start: {task['start']!r}   # rear axle x [m], y [m], theta [rad], phi [rad]",
             f"  goal:  {task['goal']!r}    # parking-v0's spot, the rear axle L/2 behind its centre",
             f"  pieces: {task['pieces']!r}          # Delta_i [s], whole 0.2 s action steps",
-            "  v1_fixed: []",
+            f"  v1_fixed: {task['v1_fixed']!r}        # v1 on pieces 2..p [m/s]",
             f"  v2_terms: {task['v2_terms']}               # q",
             "  v1_shape: trapezoid       # the speed rises from rest and falls back to it",
             f"  ramp: {task['ramp']}                 # [s]",
+            f"  frame: {task['frame']!r}   # [rad] the task frame with the least steering (choose_frame)",
             "learning:",
             f"  nu_a: {learning['nu_a']}                 # gain of eq. 33",
             f"  nu_b: {learning['nu_b']}                 # gain of eq. 34",
