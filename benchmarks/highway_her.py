@@ -175,7 +175,7 @@ def main(args: Args) -> list[dict[str, Any]]:
             ]
         )
     header = ["seed", "env steps", "parking-v0 success", "10 cm / 0.05 rad", "1 cm / 0.01 rad", "mean error [m]"]
-    table = markdown_table(header + ["crashes", "s per 1000 steps"], summary, [False] + [True] * 7)
+    table = markdown_table([*header, "crashes", "s per 1000 steps"], summary, [False] + [True] * 7)
     markdown = (
         f"# TQC + HER in parking-v0 ({'--quick: ' if args.quick else ''}RL Zoo's hyperparameters), "
         f"evaluated on goal seeds {list(goals)}\n\n{table}"

@@ -90,7 +90,7 @@ def nominal_map() -> CarModel:
 def _make_env(render_mode: str | None = None) -> Any:
     try:
         import gymnasium as gym
-        import highway_env  # noqa: F401  # registers parking-v0
+        import highway_env  # registers parking-v0
     except ImportError:
         raise ValueError('highway_parking needs highway-env: pip install "ilc-steering[highway]"') from None
     gym.register_envs(highway_env)
@@ -423,7 +423,7 @@ def _yaml(config: dict[str, Any]) -> str:
             f"name: {config['name']}",
             "plant:",
             '  model: highway_parking   # highway-env\'s car steps the trials (pip install "ilc-steering[highway]")',
-            f"  seed: {config['plant']['seed']}                  # parking-v0's reset seed: the start and the goal below",
+            f"  seed: {config['plant']['seed']}                  # parking-v0's reset seed: the start and goal below",
             "task:",
             f"  start: {task['start']!r}   # rear axle x [m], y [m], theta [rad], phi [rad]",
             f"  goal:  {task['goal']!r}    # parking-v0's spot, the rear axle L/2 behind its centre",

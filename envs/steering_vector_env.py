@@ -12,8 +12,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.external import ExternalTrials
+from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import Plant, PlantBatch
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (

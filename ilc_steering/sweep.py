@@ -230,7 +230,8 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
     if config.is_cyclic:
         raise ValueError(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
     if is_external(config.plant.plant()):  # its plants cannot be varied: a map over it would be faked
-        raise ValueError(f"{args.config}: an external plant (plant.model {config.plant.model}); sweep maps true factors")
+        model = config.plant.model
+        raise ValueError(f"{args.config}: an external plant (plant.model {model}); sweep maps true factors")
     Scenario.from_config(config).refuse_disturbances("sweep")
     import gymnasium as gym
 

@@ -13,11 +13,11 @@ import pytest
 pytest.importorskip("highway_env", reason='the [highway] extra: pip install "ilc-steering[highway]"')
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
-import ilc_steering  # noqa: E402, F401  (registers the envs)
-from ilc_steering.config import load_config  # noqa: E402
-from ilc_steering.core.external import ExternalPlant, is_external  # noqa: E402
-from ilc_steering.envs import highway  # noqa: E402
-from ilc_steering.envs.scenario import Scenario  # noqa: E402
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.config import load_config
+from ilc_steering.core.external import ExternalPlant, is_external
+from ilc_steering.envs import highway
+from ilc_steering.envs.scenario import Scenario
 
 ENV = "ilc_steering/ChainedSteering-v0"
 
