@@ -91,7 +91,10 @@ def _summary(rows: list[dict[str, Any]], learner: str, seeds: tuple[int, ...], t
 
     later = [r for r in mine if r["seed"] != seeds[0]]
     reached = sum(1 for r in mine if r.get("trials_to_1cm"))
-    show = lambda v: "-" if v is None else (f"> {trials}" if v == never else f"{v:g}")  # noqa: E731
+
+    def show(value: float | None) -> str:
+        return "-" if value is None else (f"> {trials}" if value == never else f"{value:g}")
+
     return [
         learner,
         f"{reached}/{len(mine)}",

@@ -188,7 +188,7 @@ class HighwayParkingPlant(ExternalPlantBase):
         logs = [o[3] for o in outcomes]
         if not record:
             return ExternalTrials(final, status, logs=logs)
-        times = ACTION_STEP * np.arange(steps + 1)
+        times = ACTION_STEP * np.arange(steps + 1, dtype=np.float64)
         return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
 
     def _measure(self, vehicle: Any) -> Array:
@@ -246,7 +246,7 @@ class HighwayParkingPlant(ExternalPlantBase):
         model = nominal_map()
         h = ACTION_STEP / SUBSTEPS
         # every RK4 stage falls on a half step: the inputs of the whole step in one call
-        v1s, v2s = profile.evaluate(c, t0 + 0.5 * h * np.arange(2 * SUBSTEPS + 1))
+        v1s, v2s = profile.evaluate(c, t0 + 0.5 * h * np.arange(2 * SUBSTEPS + 1, dtype=np.float64))
         ell, rho = model.wheelbase, model.wheel_radius
 
         def field_(i: int, x: Array) -> Array:

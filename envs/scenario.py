@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.checks import check_jitter, check_noise
-from ilc_steering.core.external import ExternalPlant, is_external
+from ilc_steering.core.external import ExternalPlant
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -84,10 +84,10 @@ class Scenario:
         start_error: float | Sequence[float] | None = None,
         parameter_jitter: float | None = None,
     ) -> None:
-        if is_external(plant):  # someone else's code: it reports in the task frame, and has no factors to jitter
+        if isinstance(plant, ExternalPlant):  # someone else's code: it reports in the task frame, nothing to jitter
             if parameter_jitter:
                 raise ValueError("simulation.parameter_jitter: an external plant has no true factors to jitter")
-            plant = plant.with_frame(frame)  # type: ignore[union-attr]
+            plant = plant.with_frame(frame)  # type: ignore[assignment]  # an ExternalPlant serves as the Plant here
         self.plant = plant
         self.kind = plant.kind
         self.frame = frame
