@@ -81,28 +81,30 @@ def _cell(learner: str, seed: int, trials: int) -> dict[str, Any]:
     }
 
 
-def _summary(rows: list[dict[str, Any]], learner: str, seeds: tuple[int, ...], trials: int) -> list[str]:
+def _summary(rows: list[dict[str, Any]], learner: str, trials: int) -> list[str]:
+    """A learner's line: goals served and reached, the medians over all goals (a refused or missed
+    goal counts as more than the budget) and over the goals served, the first served goal apart."""
     mine = [r for r in rows if r["learner"] == learner]
-    never = trials + 1  # a goal not reached counts as more than the budget, for the median
+    served = [r for r in mine if not r["refused"]]
+    never = trials + 1
 
-    def count(rs: list[dict[str, Any]], key: str) -> float | None:
-        values = [r.get(key) or never for r in rs]
-        return median(values) if values else None
-
-    later = [r for r in mine if r["seed"] != seeds[0]]
-    reached = sum(1 for r in mine if r.get("trials_to_1cm"))
-
-    def show(value: float | None) -> str:
-        return "-" if value is None else (f"> {trials}" if value == never else f"{value:g}")
+    def count(rs: list[dict[str, Any]], key: str) -> str:
+        if not rs:
+            return "-"
+        value = median([r.get(key) or never for r in rs])
+        return f"> {trials}" if value == never else f"{value:g}"
 
     return [
         learner,
-        f"{reached}/{len(mine)}",
-        show(count(mine, "trials_to_success")),
-        show(count(mine, "trials_to_1cm")),
-        show(count(mine[:1], "trials_to_1cm")),
-        show(count(later, "trials_to_1cm")),
-        str(sum(r.get("crashes", 0) for r in mine)),
+        f"{len(served)}/{len(mine)}",
+        f"{sum(1 for r in mine if r.get('trials_to_1cm'))}/{len(mine)}",
+        count(mine, "trials_to_success"),
+        count(mine, "trials_to_1cm"),
+        count(served, "trials_to_success"),
+        count(served, "trials_to_1cm"),
+        count(served[:1], "trials_to_1cm"),
+        count(served[1:], "trials_to_1cm"),
+        str(sum(r.get("crashes") or 0 for r in mine)),
     ]
 
 
@@ -112,7 +114,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         seeds, learners, trials = (4, 13), ("robust_ilc",), 4
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for learner in learners:
         for seed in seeds:
             path = cells / f"{learner}_seed{seed}_trials{trials}.json"
@@ -123,8 +125,19 @@ def main(args: Args) -> list[dict[str, Any]]:
             write_atomic(path, json.dumps(row))
             rows.append(row)
             print(json.dumps(row), flush=True)
-    header = ["learner", "1 cm reached", "median to success", "median to 1 cm", "first goal", "later goals", "crashes"]
-    table = markdown_table(header, [_summary(rows, name, seeds, trials) for name in learners], [False] + [True] * 6)
+    header = [
+        "learner",
+        "goals served",
+        "1 cm reached",
+        "median to success (all)",
+        "median to 1 cm (all)",
+        "median to success (served)",
+        "median to 1 cm (served)",
+        "first served goal",
+        "later served goals",
+        "crashes",
+    ]
+    table = markdown_table(header, [_summary(rows, name, trials) for name in learners], [False] + [True] * 9)
     per_seed = markdown_table(
         ["learner", "seed", "to success", "to 1 cm", "crashes", "first error [m]", "refused"],
         [
@@ -145,6 +158,8 @@ def main(args: Args) -> list[dict[str, Any]]:
         "Trials counted from 1 (the first trial included); a goal not reached counts as more than the budget.\n\n"
         f"{table}\n{per_seed}"
     )
+    keys = list(dict.fromkeys(key for row in rows for key in row))  # a refused goal's row has fewer
+    rows = [{key: row.get(key) for key in keys} for row in rows]
     write_results(rows, args.out, "highway_parking", markdown, {"seeds": list(seeds), "trials": trials})
     print(table)
     return rows
