@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from math import pi
 from typing import Any, ClassVar, Literal
 
@@ -312,10 +313,16 @@ class HighwayPlantConfig:
             raise ValueError("highway_parking is a one-trial task (parking-v0 resets the car for each trial)")
 
 
-PROFILES: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = (((15.0,), ()), ((10.0, 10.0), (2.0,)))
+PROFILES: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = (
+    ((15.0,), ()),
+    ((10.0, 10.0), (2.0,)),
+    ((10.0, 15.0), (2.0,)),
+    ((10.0, 10.0), (4.0,)),
+    ((8.0, 8.0, 8.0), (-2.0, 2.0)),
+)
 """The input profiles a task may take, as ``(pieces [s], v1_fixed [m/s])`` (whole 0.2 s action steps):
-one forward stroke, or a stroke learned and a second one at 2 m/s; :func:`choose_frame` takes the one
-whose nominal path steers least."""
+one stroke whose speed is learned, or that stroke followed by fixed ones (forward at 2 or 4 m/s, or
+back and forth at 2 m/s); :func:`choose_frame` takes the one whose nominal path steers least."""
 RAMP = 3.0
 """[s] the trapezoid's ramp: the speed rises from rest and falls back to it at both ends of each piece."""
 V2_TERMS = 4
@@ -375,12 +382,18 @@ def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
     return best
 
 
+@lru_cache(maxsize=64)
+def _task(seed: int) -> tuple[Array, Array, float, int, float]:
+    """:func:`parking_task` and :func:`choose_frame` of ``seed``, once per process."""
+    start, goal = parking_task(seed)
+    return (start, goal, *choose_frame(start, goal))
+
+
 def highway_config(seed: int, name: str | None = None, trials: int = 15) -> dict[str, Any]:
     """The config (as a mapping for :func:`~ilc_steering.config.load_config`) of parking-v0 ``seed``'s
     task, to 1 cm / 0.01 rad, in the frame :func:`choose_frame` finds; ``ValueError`` naming the seed
     when one chart cannot serve it (the turn, or a nominal path past :data:`STEERING_USE` of the stop)."""
-    start, goal = parking_task(seed)
-    frame, index, steering = choose_frame(start, goal)
+    start, goal, frame, index, steering = _task(seed)
     pieces, v1_fixed = PROFILES[index]
     if steering > STEERING_USE * STEERING:
         needs = (
