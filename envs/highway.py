@@ -333,6 +333,9 @@ CHART_SLACK = np.radians(10.0)
 """[rad] how far inside the chart's edge (``|theta| = pi/2``, task frame) the nominal path must stay."""
 STEERING_USE = 1.0
 """The largest fraction of the ±45° stop the nominal path may use."""
+STEERING_SPARE = 0.1
+"""The fraction of the stop a profile's path leaves spare for :func:`choose_frame` to take it before
+the later (longer) profiles."""
 LOT = (35.0 - 3.0, 21.0 - 3.0)
 """[m] the half-sizes of parking-v0's walled lot less the car's half-diagonal and the wall's half-width:
 the box the car's centre must stay in."""
@@ -361,15 +364,19 @@ def nominal_path(start: Array, goal: Array, frame: float, profile: InputProfile)
 
 
 def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
-    """The task frame [rad] and the profile (an index of :data:`PROFILES`) whose nominal path
-    (:func:`nominal_path`) needs the least steering angle while it stays :data:`CHART_SLACK` inside
-    the chart and its centre inside :data:`LOT`, and that angle [rad] (``inf``: no frame keeps it in)."""
+    """The task frame [rad] and the profile (an index of :data:`PROFILES`) for a task, and the
+    steering angle [rad] its nominal path (:func:`nominal_path`) needs: for each profile in turn,
+    the frame whose path needs the least steering while it stays :data:`CHART_SLACK` inside the
+    chart and its centre inside :data:`LOT`; the first profile whose path keeps
+    :data:`STEERING_SPARE` of the stop spare, else the one that steers least (``inf``: no frame
+    keeps any path in)."""
     edge = pi / 2 - CHART_SLACK
     low, high = max(start[2], goal[2]) - edge, min(start[2], goal[2]) + edge
     best = (0.5 * (start[2] + goal[2]), 0, np.inf)
     with np.errstate(all="ignore"):  # a path that blows up is left out below
         for index, (pieces, v1_fixed) in enumerate(PROFILES):
             profile = _profile(pieces, v1_fixed)
+            mine = (best[0], index, np.inf)
             for frame in np.arange(low, high + 1e-12, FRAME_GRID):
                 path = nominal_path(start, goal, float(frame), profile)
                 theta = path[:, 2] - frame
@@ -377,8 +384,12 @@ def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
                 centre = path[:, :2] + 0.5 * LENGTH * heading
                 inside = bool(np.all(np.abs(theta) < edge) and np.all(np.abs(centre) < LOT))
                 steering = float(np.max(np.abs(path[:, 3])))
-                if inside and steering < best[2]:
-                    best = (float(frame), index, steering)
+                if inside and steering < mine[2]:
+                    mine = (float(frame), index, steering)
+            if mine[2] <= (1 - STEERING_SPARE) * STEERING:
+                return mine  # the simplest profile that steers well inside the stop
+            if mine[2] < best[2]:
+                best = mine
     return best
 
 
