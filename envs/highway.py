@@ -66,6 +66,8 @@ __all__ = [
 Array = npt.NDArray[np.float64]
 
 ENV_ID = "parking-v0"
+HIGHWAY = PlantKind("highway_parking", True, CAR.coordinates, CAR.inputs)
+"""A car (the library's configuration, rear axle first), stepped by highway-env."""
 LENGTH = 5.0
 """[m] highway-env's ``Vehicle.LENGTH``: the nominal wheelbase (``tests/test_highway.py`` checks it)."""
 ACCELERATION = 5.0
@@ -137,7 +139,7 @@ class HighwayParkingPlant(ExternalPlantBase):
     """parking-v0's car for ``seed``, stepped by highway-env, reporting the library's configuration
     in the task frame (the world rotated by ``frame`` [rad]). See the module for the adapter."""
 
-    kind: ClassVar[PlantKind] = CAR
+    kind: ClassVar[PlantKind] = HIGHWAY
     factor_names: ClassVar[tuple[str, str]] = ("wheelbase_ratio", "wheel_radius_ratio")
     name: ClassVar[str] = "highway-env's parking car"
     seed: int
@@ -291,7 +293,7 @@ class HighwayPlantConfig:
     model: Literal["highway_parking"]
     seed: int  # parking-v0's reset seed: the car's start and the goal (task.start, task.goal must be its)
 
-    kind: ClassVar[PlantKind] = CAR
+    kind: ClassVar[PlantKind] = HIGHWAY
     plant_class: ClassVar[type] = HighwayParkingPlant
     dimension: ClassVar[int] = 4
     steering_limit: ClassVar[float] = STEERING
