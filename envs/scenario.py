@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.checks import check_jitter, check_noise
+from ilc_steering.core.external import ExternalPlant
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -83,6 +84,10 @@ class Scenario:
         start_error: float | Sequence[float] | None = None,
         parameter_jitter: float | None = None,
     ) -> None:
+        if isinstance(plant, ExternalPlant):  # someone else's code: it reports in the task frame, nothing to jitter
+            if parameter_jitter:
+                raise ValueError("simulation.parameter_jitter: an external plant has no true factors to jitter")
+            plant = plant.with_frame(frame)  # type: ignore[assignment]  # an ExternalPlant serves as the Plant here
         self.plant = plant
         self.kind = plant.kind
         self.frame = frame
@@ -223,6 +228,8 @@ class Scenario:
             x0 = np.empty((c.shape[0], self.x_start.shape[0]))
             x0[:] = self.x_start
         profile = self.nominals[leg].profile
+        if isinstance(self.plant, ExternalPlant):  # it runs its own trials (a disturbance was refused above)
+            return self.plant.run_trials(profile, np.ascontiguousarray(x0), c, record)
         true = self.plant if plant is None else plant
         return simulate(true, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
 

@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.nominal import ChainedMap, NominalModel
 from ilc_steering.core.score import TRUE_KEYS, trial_cost
 from ilc_steering.core.trajectory import Trajectory
@@ -289,6 +290,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         trials = self._scenario.run(applied[None], None if x0 is None else x0[None], record, plant=plant)
         noise = self._scenario.draw_noise(self.np_random, 1)
         info = trial_info(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
+        if isinstance(trials, ExternalTrials):  # what the external plant logged (its own actions, a crash)
+            info["plant"] = trials.logs[0]
         if record:
             trajectory = self._scenario.trajectory(trials, applied[None])
             self._view.add(trajectory, info, keep=1)

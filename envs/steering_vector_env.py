@@ -13,6 +13,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import Plant, PlantBatch
 from ilc_steering.envs.scenario import Scenario
@@ -162,6 +163,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         trials = self._scenario.run(applied, parallel=self.parallel, plant=self._plants)
         noise = draw_noise(self._scenario, self.np_random, self._streams, self.num_envs)
         final_info = trial_infos(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
+        if isinstance(trials, ExternalTrials):  # what the external plant logged, one dict per env
+            final_info["plant"] = np.array(trials.logs, dtype=object)
         rewards = np.asarray(reward(final_info), dtype=np.float64)
         everyone = np.ones(self.num_envs, dtype=np.bool_)
         final_obs = np.empty(self.num_envs, dtype=object)

@@ -113,8 +113,10 @@ class TaskConfig:
     action_bound: tuple[float, ...] | None = None  # |c_i| bounds; None: 10x NominalModel.action_scale()
     v1_shape: Literal["constant", "trapezoid"] = "constant"  # v1 on each piece: a level, or section 5's trapezoid
     ramp: float | None = None  # [s] trapezoid only: the ramp at both ends of every piece, < half the shortest
+    frame: float | None = None  # [rad] rotation of the task frame; None: frame_angle's (the orientations' middle)
 
     def __post_init__(self) -> None:
+        _require(self.frame is None or isfinite(self.frame), "frame", f"must be a finite angle [rad], got {self.frame}")
         for key in ("start", "goal"):
             _require(all(isfinite(v) for v in getattr(self, key)), key, "values must be finite")
         _profile(self)
@@ -285,6 +287,8 @@ class SteeringConfig:
         if self.plant.kind.has_pose:
             with _domain(points[-1][0]):
                 frame = frame_angle(*(point[2] for _, point in points))
+            if isinstance(self.task, TaskConfig) and self.task.frame is not None:
+                frame = self.task.frame  # the points' chart is checked in it below
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         plant = self.plant.plant()
         with _domain("plant", prefix="plant."):

@@ -159,6 +159,7 @@ class TrialRecord:
     left_chart: bool = False  # the trial stopped where eqs. 4-5 break down (see the env's Episode End)
     clipped: bool = False  # the env clipped the learner's action to its box (task.action_bound)
     trajectory: Trajectory | None = None
+    plant: dict[str, Any] | None = None  # an external plant's log of the trial (highway-env: its actions, a crash)
 
     def to_json(self) -> dict[str, Any]:
         record = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -207,6 +208,7 @@ def _record(index: int, info: dict[str, Any]) -> TrialRecord:
         action=info["action"].tolist(),
         left_chart=bool(info["left_chart"]),
         clipped=bool(info.get("clipped", False)),
+        plant=info.get("plant"),
     )
 
 

@@ -38,6 +38,7 @@ from ilc_steering import __version__
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.backends import MAX_WORKERS, check_workers
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.external import is_external
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.score import TRUE_KEYS, within_tolerance
 from ilc_steering.envs.scenario import Scenario
@@ -231,6 +232,9 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
     config = load_config(args.config)
     if config.is_cyclic:
         raise ValueError(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
+    if is_external(config.plant.plant()):  # its plants cannot be varied: a map over it would be faked
+        model = config.plant.model
+        raise ValueError(f"{args.config}: an external plant (plant.model {model}); sweep maps true factors")
     Scenario.from_config(config).refuse_disturbances("sweep")
     import gymnasium as gym
 

@@ -16,6 +16,7 @@ from ilc_steering.agents.newton import make_newton
 from ilc_steering.agents.newton_ilc import make_newton_ilc
 from ilc_steering.config import load_config, packaged_configs
 from ilc_steering.core import robots
+from ilc_steering.core.external import is_external
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.plants import Kernel, Plant, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
@@ -65,6 +66,10 @@ def test_plant_contract(model):
     assert x0.shape == (plant.state_dim,)
     np.testing.assert_array_equal(plant.configuration(x0), q0)
     assert plant.configuration(np.stack([x0, x0])).shape == (2, q0.size)
+    if is_external(plant):  # someone else's code runs its trials (tests/test_highway.py): no kernel
+        with pytest.raises(ValueError, match="someone else's code"):
+            plant.kernel()
+        return
     field, params = plant.kernel()
     assert isinstance(field, Kernel) and params.dtype == np.float64 and params.shape == (len(field.layout.params),)
     profile = config.legs()[0][1].profile()

@@ -56,6 +56,7 @@ ROBOTS: dict[str, str] = {
     "chained": "ilc_steering.core.robots.chained:ChainedPlantConfig",
     "unicycle": "ilc_steering.core.robots.unicycle:UnicyclePlantConfig",
     "car_trailer": "ilc_steering.core.robots.car_trailer:TrailerPlantConfig",
+    "highway_parking": "ilc_steering.envs.highway:HighwayPlantConfig",  # an external plant (extra [highway])
 }
 """``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys."""
 
@@ -80,6 +81,9 @@ PLANT_METHODS = (
     "with_true_factors", "true_factors", "family_names", "with_family", "reference_field",
 )  # fmt: skip
 """What a robot's plant class must provide (:class:`~ilc_steering.core.plants.Plant`)."""
+EXTERNAL_METHODS = ("configuration", "estimate", "check_configuration", "initial_state", "with_frame", "run_trials")
+"""What a plant that runs its own trials must provide instead
+(:class:`~ilc_steering.core.external.ExternalPlant`: someone else's simulator or a real robot)."""
 
 
 def register(name: str, entry: str) -> None:
@@ -192,7 +196,8 @@ def model_name(cls: Any) -> str:
 def check_robot(cls: Any, who: str, name: str | None = None) -> None:
     """``ValueError`` naming ``who`` and what is missing unless ``cls`` is a robot's config class:
     a frozen dataclass with ``model: Literal[name]``, ``kind``, ``plant_class``, ``dimension``,
-    ``steering_limit`` and :data:`CONFIG_METHODS`, whose plant class has :data:`PLANT_METHODS`."""
+    ``steering_limit`` and :data:`CONFIG_METHODS`, whose plant class has :data:`PLANT_METHODS` (or, if it runs its own trials,
+    :data:`EXTERNAL_METHODS`)."""
     what = getattr(cls, "__qualname__", repr(cls)[:80])
     if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
         raise ValueError(f"{who}: {what} is not a robot's config class (a frozen dataclass; docs/robots.md)")
@@ -209,10 +214,12 @@ def check_robot(cls: Any, who: str, name: str | None = None) -> None:
         if not hasattr(cls, attribute) and attribute not in {f.name for f in dataclasses.fields(cls)}:
             raise ValueError(f"{who}: {what} has no {attribute!r} (the PlantConfig protocol, docs/robots.md)")
     plant: Any = getattr(cls, "plant_class")  # noqa: B009  (a class that passed the checks above)
-    for attribute in PLANT_METHODS:
+    external = callable(getattr(plant, "run_trials", None))
+    protocol = "the ExternalPlant protocol" if external else "the Plant protocol"
+    for attribute in EXTERNAL_METHODS if external else PLANT_METHODS:
         if not callable(getattr(plant, attribute, None)):
             where = getattr(plant, "__qualname__", repr(plant)[:80])
-            raise ValueError(f"{who}: its plant class {where} has no method {attribute!r} (the Plant protocol)")
+            raise ValueError(f"{who}: its plant class {where} has no method {attribute!r} ({protocol})")
 
 
 def nominal_plant(chained_map: Any, dimension: int, steering_limit: float | None = None) -> Any:

@@ -1,0 +1,175 @@
+"""ILC on highway-env's parking car (``parking-v0``): trials per goal over seeds 0-19.
+
+For every parking-v0 seed and learner, a run of ``learning.trials`` trials on
+:func:`~ilc_steering.envs.highway.highway_config`'s task, counted by two rules, the first trial
+counted as 1: the first trial after which parking-v0's own success test passes
+(``info["plant"]["is_success"]``, a weighted distance below 0.12) and the first whose true errors
+are within 1 cm / 0.01 rad. A seed the task refuses (one chart cannot serve it) is a row with its
+reason. Goals are learned one after the other in seed order; ``first goal`` and ``later goals``
+summarize seed 0's row apart from the rest (no learner here carries anything from one goal to the
+next: see ``docs/highway.md``).
+
+    python benchmarks/highway_parking.py [--quick] [--out DIR]
+
+writes ``highway_parking.{csv,json,md}`` (committed in ``docs/highway``), one JSON per (learner,
+seed) under ``OUT/cells`` as it finishes: a second call resumes from them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from statistics import median
+from typing import Any
+
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.config import ConfigError, load_config
+from ilc_steering.envs.highway import highway_config
+from ilc_steering.output import write_atomic
+from ilc_steering.runner import run_ilc
+from ilc_steering.tables import markdown_table, write_results
+
+__all__ = ["Args", "main"]
+
+CM, RAD = 0.01, 0.01
+"""The tight test [m], [rad]."""
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """Two seeds, one learner, four trials: checks that the script runs (CI)."""
+    seeds: tuple[int, ...] = tuple(range(20))
+    """parking-v0's reset seeds: the goals."""
+    learners: tuple[str, ...] = ("robust_ilc", "newton_ilc", "ilc")
+    """``run --learner`` names."""
+    trials: int = 15
+    """Trials per goal."""
+    out: Path = Path("docs/highway")
+    """Where the tables go (cells under ``OUT/cells``)."""
+
+
+def _first(flags: list[bool]) -> int | None:
+    return next((i + 1 for i, flag in enumerate(flags) if flag), None)
+
+
+def _cell(learner: str, seed: int, trials: int) -> dict[str, Any]:
+    row: dict[str, Any] = {"learner": learner, "seed": seed}
+    try:
+        config = load_config(highway_config(seed, trials=trials))
+    except (ConfigError, ValueError) as error:
+        return {**row, "refused": str(error)}
+    start = time.perf_counter()
+    result = run_ilc(config, learner=learner, seed=1)
+    records = [r.to_json() for r in result.trials]
+    success = [bool(r["plant"]["is_success"]) for r in records]
+    tight = [r["cartesian_error"] <= CM and r["orientation_error"] <= RAD for r in records]
+    return {
+        **row,
+        "refused": "",
+        "trials_to_success": _first(success),
+        "trials_to_1cm": _first(tight),
+        "crashes": sum(bool(r["plant"]["crashed"]) for r in records),
+        "first_error_m": records[0]["cartesian_error"],
+        "last_error_m": records[-1]["cartesian_error"],
+        "last_error_rad": records[-1]["orientation_error"],
+        "env_steps": sum(len(r["plant"]["actions"]) for r in records),
+        "seconds": time.perf_counter() - start,
+    }
+
+
+def _summary(rows: list[dict[str, Any]], learner: str, trials: int) -> list[str]:
+    """A learner's line: goals served and reached, the medians over all goals (a refused or missed
+    goal counts as more than the budget) and over the goals served, the first served goal apart."""
+    mine = [r for r in rows if r["learner"] == learner]
+    served = [r for r in mine if not r["refused"]]
+    never = trials + 1
+
+    def count(rs: list[dict[str, Any]], key: str) -> str:
+        if not rs:
+            return "-"
+        value = median([r.get(key) or never for r in rs])
+        return f"> {trials}" if value == never else f"{value:g}"
+
+    return [
+        learner,
+        f"{len(served)}/{len(mine)}",
+        f"{sum(1 for r in mine if r.get('trials_to_1cm'))}/{len(mine)}",
+        count(mine, "trials_to_success"),
+        count(mine, "trials_to_1cm"),
+        count(served, "trials_to_success"),
+        count(served, "trials_to_1cm"),
+        count(served[:1], "trials_to_1cm"),
+        count(served[1:], "trials_to_1cm"),
+        str(sum(r.get("crashes") or 0 for r in mine)),
+    ]
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    seeds, learners, trials = args.seeds, args.learners, args.trials
+    if args.quick:
+        seeds, learners, trials = (4, 13), ("robust_ilc",), 4
+    cells = args.out / "cells"
+    cells.mkdir(parents=True, exist_ok=True)
+    rows: list[dict[str, Any]] = []
+    for learner in learners:
+        for seed in seeds:
+            path = cells / f"{learner}_seed{seed}_trials{trials}.json"
+            if path.is_file():
+                rows.append(json.loads(path.read_text()))
+                continue
+            row = _cell(learner, seed, trials)
+            write_atomic(path, json.dumps(row))
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    header = [
+        "learner",
+        "goals served",
+        "1 cm reached",
+        "median to success (all)",
+        "median to 1 cm (all)",
+        "median to success (served)",
+        "median to 1 cm (served)",
+        "first served goal",
+        "later served goals",
+        "crashes",
+    ]
+    table = markdown_table(header, [_summary(rows, name, trials) for name in learners], [False] + [True] * 9)
+    per_seed = markdown_table(
+        ["learner", "seed", "to success", "to 1 cm", "crashes", "first error [m]", "refused"],
+        [
+            [
+                r["learner"],
+                str(r["seed"]),
+                str(r.get("trials_to_success") or "-"),
+                str(r.get("trials_to_1cm") or "-"),
+                str(r.get("crashes", "-")),
+                f"{r['first_error_m']:.3g}" if "first_error_m" in r else "-",
+                r["refused"][:80],
+            ]
+            for r in rows
+        ],
+    )
+    markdown = (
+        f"# ILC on highway-env's parking car: parking-v0 seeds {seeds[0]}-{seeds[-1]}, {trials} trials per goal\n\n"
+        "Trials counted from 1 (the first trial included); a goal not reached counts as more than the budget.\n\n"
+        f"{table}\n{per_seed}"
+    )
+    keys = list(dict.fromkeys(key for row in rows for key in row))  # a refused goal's row has fewer
+    rows = [{key: row.get(key) for key in keys} for row in rows]
+    write_results(rows, args.out, "highway_parking", markdown, {"seeds": list(seeds), "trials": trials})
+    print(table)
+    return rows
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--trials", type=int, default=Args.trials)
+    parser.add_argument("--out", type=Path, default=Args.out)
+    parser.add_argument("--learners", default=",".join(Args.learners))
+    cli = parser.parse_args()
+    main(Args(cli.quick, Args.seeds, tuple(cli.learners.split(",")), cli.trials, cli.out))

@@ -1,0 +1,112 @@
+"""A plant that is someone else's code: a simulator or a robot that runs one trial as a Python call.
+
+The library's own plants hand the simulator a compiled vector field (:class:`~ilc_steering.core.plants.Plant`).
+A plant written elsewhere (another simulator, a real car behind a driver) cannot: it takes a trial's
+input profile and coefficients and returns where the robot ended, and optionally the states it
+passed through. :class:`ExternalPlant` is that contract; the controller's view stays the library's
+nominal model (:class:`~ilc_steering.core.nominal.NominalModel`), built from the config's
+``nominal_map()`` as for any robot.
+
+The envs, ``run`` and ``compare`` take an external plant like any other
+(:meth:`~ilc_steering.envs.scenario.Scenario.run` hands it the trial). What needs the plant's
+equations is refused with one line, never faked: the compiled kernel (``kernel``), true factors
+(``with_true_factors``: ``parameter_jitter``, a vector env's ``true_factors``, a robustness map,
+``sweep --axis``), a model family (``with_family``) and the ``solve_ivp`` reference
+(``reference_field``). :class:`ExternalPlantBase` holds those refusals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, NoReturn, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.plants import Kernel, PlantKind
+from ilc_steering.core.profiles import InputProfile
+from ilc_steering.core.simulate import Trials
+
+__all__ = ["ExternalPlant", "ExternalPlantBase", "ExternalTrials", "is_external"]
+
+Array = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExternalTrials(Trials):
+    """:class:`~ilc_steering.core.simulate.Trials` of an external plant, with what the plant itself
+    logged for each trial (``logs[b]``, plain JSON data: the actions it was sent, a crash, its own
+    success test); the env puts ``logs[b]`` in the trial's ``info["plant"]`` and ``run --json`` keeps it."""
+
+    logs: list[dict[str, Any]] = field(default_factory=list)
+
+
+@runtime_checkable
+class ExternalPlant(Protocol):
+    """What a plant that is someone else's code provides.
+
+    The configuration it reports is the library's (for a car: rear-axle ``x``, ``y`` [m], ``theta``,
+    ``phi`` [rad]), in the *task frame* the scenario gives it with :meth:`with_frame`; its states are
+    configurations (``state_dim`` entries, :meth:`configuration` the identity or a projection).
+    """
+
+    kind: ClassVar[PlantKind]
+    factor_names: ClassVar[tuple[str, str]]
+
+    @property
+    def state_dim(self) -> int: ...
+
+    @property
+    def steering_limit(self) -> float | None: ...
+
+    def configuration(self, x: Array) -> Array: ...
+
+    def estimate(self, x: Array) -> Array: ...
+
+    def check_configuration(self, q: Array) -> None: ...
+
+    def initial_state(self, q: Array) -> Array: ...
+
+    def with_frame(self, angle: float) -> ExternalPlant:
+        """The plant reporting configurations in the task frame, the world rotated by ``angle`` [rad]."""
+        ...
+
+    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
+        """Run ``B`` trials with coefficients ``c`` ``(B, 1 + q)`` of ``profile`` from states ``x0``
+        ``(B, state_dim)`` (task frame): their final states, status (``OK`` or ``LEFT_CHART``), the
+        states at ``times`` with ``record``, and each trial's log."""
+        ...
+
+
+def is_external(plant: object) -> bool:
+    """Whether ``plant`` runs its own trials (an :class:`ExternalPlant`) rather than a compiled field."""
+    return isinstance(plant, ExternalPlant)
+
+
+class ExternalPlantBase:
+    """The refusals every external plant shares: what needs the plant's equations (see the module)."""
+
+    name: ClassVar[str] = "an external plant"
+    """What the refusals call the plant."""
+
+    def _refuse(self, what: str) -> NoReturn:
+        raise ValueError(f"{self.name} is someone else's code: it has no {what}")
+
+    def kernel(self) -> tuple[Kernel, Array]:
+        self._refuse("compiled kernel (it runs its own trials; no numba field, no PlantBatch)")
+
+    def with_true_factors(self, factors: Array) -> Any:
+        self._refuse("true factors to scale (no parameter_jitter, true_factors, robustness map or sweep --axis)")
+
+    def true_factors(self) -> Array:
+        self._refuse("true factors to scale (no parameter_jitter, true_factors, robustness map or sweep --axis)")
+
+    def family_names(self) -> tuple[str, ...]:
+        self._refuse("model family (its equations are not the library's)")
+
+    def with_family(self, ratios: Array) -> Any:
+        self._refuse("model family (its equations are not the library's)")
+
+    def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
+        self._refuse("reference field for solve_ivp")

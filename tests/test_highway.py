@@ -1,0 +1,146 @@
+"""highway-env's parking car as an external plant, against highway-env's own env, offline."""
+
+from __future__ import annotations
+
+import os
+from math import pi
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("highway_env", reason='the [highway] extra: pip install "ilc-steering[highway]"')
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.config import load_config
+from ilc_steering.core.external import ExternalPlant, is_external
+from ilc_steering.envs import highway
+from ilc_steering.envs.scenario import Scenario
+
+ENV = "ilc_steering/ChainedSteering-v0"
+
+
+@pytest.fixture(scope="session")
+def trial() -> tuple[Any, dict[str, Any]]:
+    """One trial of the packaged task (parking-v0 seed 4), its nominal solution, recorded."""
+    env = gym.make(ENV, config="highway_parking", record_trajectory=True)
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(env.unwrapped.nominal_model.solve())
+    return env, info
+
+
+def test_constants_are_highway_envs() -> None:
+    from highway_env.envs.common.action import ContinuousAction
+    from highway_env.vehicle.kinematics import Vehicle
+
+    assert highway.LENGTH == Vehicle.LENGTH
+    assert (-highway.ACCELERATION, highway.ACCELERATION) == ContinuousAction.ACCELERATION_RANGE
+    assert (-highway.STEERING, highway.STEERING) == ContinuousAction.STEERING_RANGE
+    config = gym.make("parking-v0").unwrapped.config
+    assert config["simulation_frequency"] // config["policy_frequency"] == highway.FRAMES
+    assert 1 / config["policy_frequency"] == highway.ACTION_STEP
+
+
+def test_the_plant_is_external(trial: tuple[Any, dict[str, Any]]) -> None:
+    env, info = trial
+    plant = env.unwrapped._scenario.plant
+    assert isinstance(plant, ExternalPlant) and is_external(plant)
+    assert plant.seed == 4 and plant.frame == load_config("highway_parking").frame()
+    # the nominal solution of the library's car lands within 10 cm on highway-env's car
+    assert info["cartesian_error"] < 0.1 and info["orientation_error"] < 0.05
+    assert not info["plant"]["crashed"] and info["plant"]["is_success"]
+    assert len(info["plant"]["actions"]) == round(15.0 / highway.ACTION_STEP)
+    assert info["trajectory"].q.shape == (76, 4)
+
+
+def test_replay_is_bit_for_bit(trial: tuple[Any, dict[str, Any]]) -> None:
+    """The logged actions, run through parking-v0's public step in a fresh env, give the same car."""
+    env, info = trial
+    pose, crashed, fresh = highway.replay(4, info["plant"]["actions"])
+    mine = env.unwrapped._scenario.plant.env.unwrapped.vehicle
+    theirs = fresh.unwrapped.vehicle
+    assert np.array_equal(mine.position, theirs.position) and mine.heading == theirs.heading
+    assert mine.speed == theirs.speed and crashed == info["plant"]["crashed"]
+    turn = np.angle(np.exp(1j * (pose[2] - info["q_final"][2])))  # highway-env's heading is not wrapped
+    np.testing.assert_allclose([*pose[[0, 1, 3]], turn], [*info["q_final"][[0, 1, 3]], 0.0], atol=1e-12)
+
+
+def test_highway_env_clips_the_actions() -> None:
+    """An action beyond [-1, 1] is highway-env's to clip: the car steers at 45° and accelerates at 5 m/s²."""
+    beyond, _, env = highway.replay(4, [[3.0, -2.5]] * 3)
+    edge, _, _ = highway.replay(4, [[1.0, -1.0]] * 3)
+    assert np.array_equal(beyond, edge)
+    assert beyond[3] == -pi / 4 and env.unwrapped.vehicle.speed == pytest.approx(3 * 5.0 * highway.ACTION_STEP)
+
+
+def test_a_goal_it_cannot_serve_is_refused_by_name() -> None:
+    with pytest.raises(ValueError, match=r"parking-v0 seed 12: the goal's heading is 180° from the start's"):
+        highway.parking_task(12)
+    with pytest.raises(ValueError, match=r"parking-v0 seed 11: this task cannot serve it in one chart: its nominal"):
+        highway.highway_config(11)
+
+
+def test_a_task_for_any_seed_loads() -> None:
+    config = load_config(highway.highway_config(13))
+    start, goal = highway.parking_task(13)
+    assert config.plant.seed == 13 and np.allclose(config.task.start, start) and np.allclose(config.task.goal, goal)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: gym.make(ENV, config="highway_parking", parameter_jitter=0.01), "no true factors to jitter"),
+        (
+            lambda: gym.make_vec(
+                ENV,
+                num_envs=2,
+                vectorization_mode="vector_entry_point",
+                config="highway_parking",
+                true_factors=np.ones((2, 2)),
+            ),
+            "someone else's code: it has no true factors",
+        ),
+    ],
+)
+def test_what_cannot_apply_is_refused(make: Any, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_refusals_name_what_is_missing() -> None:
+    plant = load_config("highway_parking").plant.plant()
+    for call in (plant.kernel, plant.true_factors, plant.family_names, lambda: plant.with_true_factors(np.ones(2))):
+        with pytest.raises(ValueError, match="highway-env's parking car is someone else's code: it has no"):
+            call()
+
+
+def test_a_start_elsewhere_is_refused() -> None:
+    scenario = Scenario.from_config(load_config("highway_parking"), start_error=0.1)
+    x0, _ = scenario.draw_disturbance(np.random.default_rng(0))
+    assert x0 is not None
+    with pytest.raises(ValueError, match="is not parking-v0 seed 4's start"):
+        scenario.run(scenario.nominal.solve()[None], x0[None])
+
+
+def test_the_vector_env_loops() -> None:
+    env = gym.make_vec(ENV, num_envs=2, vectorization_mode="vector_entry_point", config="highway_parking")
+    env.reset(seed=0)
+    c = env.unwrapped.nominal_model.solve()
+    _, rewards, _, _, info = env.step(np.stack([c, c * 1.001]))
+    final = info["final_info"]
+    assert final["plant"][0]["actions"] != final["plant"][1]["actions"] and rewards[0] != rewards[1]
+
+
+@pytest.mark.slow
+def test_robust_ilc_parks_to_a_centimetre_within_8_trials() -> None:
+    from ilc_steering.runner import run_ilc
+
+    result = run_ilc("highway_parking", trials=8, learner="robust_ilc")
+    assert result.converged_at is not None and result.converged_at <= 8
+    assert not any(record.plant and record.plant["crashed"] for record in result.trials)
+    replayed, _, _ = highway.replay(4, result.trials[-1].plant["actions"])  # type: ignore[index]
+    final = np.array(result.trials[-1].final_state)
+    turn = np.angle(np.exp(1j * (replayed[2] - final[2])))
+    np.testing.assert_allclose([*replayed[[0, 1, 3]], turn], [*final[[0, 1, 3]], 0.0], atol=1e-12)
