@@ -196,8 +196,8 @@ def model_name(cls: Any) -> str:
 def check_robot(cls: Any, who: str, name: str | None = None) -> None:
     """``ValueError`` naming ``who`` and what is missing unless ``cls`` is a robot's config class:
     a frozen dataclass with ``model: Literal[name]``, ``kind``, ``plant_class``, ``dimension``,
-    ``steering_limit`` and :data:`CONFIG_METHODS`, whose plant class has :data:`PLANT_METHODS` (or, if it runs its own trials,
-    :data:`EXTERNAL_METHODS`)."""
+    ``steering_limit`` and :data:`CONFIG_METHODS`, whose plant class has :data:`PLANT_METHODS` (or,
+    if it runs its own trials, :data:`EXTERNAL_METHODS`)."""
     what = getattr(cls, "__qualname__", repr(cls)[:80])
     if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
         raise ValueError(f"{who}: {what} is not a robot's config class (a frozen dataclass; docs/robots.md)")
