@@ -4,6 +4,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from ilc_steering import compare
 from ilc_steering.cli import main
 
@@ -85,8 +87,9 @@ def test_python_dash_m_entry_point(tmp_path):
     assert "converged at trial 4" in done.stdout
 
 
-def test_compare_quick_runs_every_method(tmp_path, capsys):
-    assert main(["compare", "--quick", "--out", str(tmp_path)]) == 0
+@pytest.mark.slow
+def test_compare_quick_runs_every_method(quick_comparison):
+    tmp_path = quick_comparison  # main(["compare", "--quick", "--out", ...]) == 0, once per session (conftest.py)
     table = (tmp_path / "compare.md").read_text()
     model_based = ("ilc", "ilc_paper", "newton", "newton_ilc")
     for method in (*model_based, "least_squares", "gauss_newton", "nelder_mead", "cma_es"):
