@@ -42,6 +42,8 @@ def test_the_reproduction_tables_are_what_reproduce_printed():
     for text in (README, paper):
         assert table(text, "| scenario | paper figures |") == printed
     assert "converged at trial 4" in REPRODUCED and "1.000e-01" in REPRODUCED and "1.000e-03" in REPRODUCED
+    seeds = table(REPRODUCED, "| scenario | paper iterations |")
+    assert len(seeds) == 2 and table(paper, "| scenario | paper iterations |") == seeds
 
 
 def test_the_layout_page_names_every_module():
