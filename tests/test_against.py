@@ -17,6 +17,8 @@ from ilc_steering.compare import Args, run_cell, run_cells
 ROOT = Path(__file__).resolve().parents[1]
 LEARNERS = (ROOT / "docs" / "learners.md").read_text()  # "Your own learner", its last section
 SCRIPT = Path(sys.executable).with_name("ilc-steering")
+pytestmark = pytest.mark.slow  # compare runs and fresh ilc-steering processes
+
 MY_BAY = (ROOT / "configs" / "parallel_parking.yaml").read_text().replace("name: parallel_parking", "name: my_bay")
 COMMITTED = ["--quick", "--methods", "ilc", "least_squares", "--priors", "nominal", "--workers", "1"]
 

@@ -41,6 +41,7 @@ def test_chained_run_prints_the_error_norm(capsys):
     assert "error norm" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # reproduce: six tasks and 10 seeds of two experiments
 def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, capsys):
     figures = tmp_path.parent / f"{tmp_path.name}-figures"
     assert main(["reproduce", "--json-dir", str(tmp_path), "--plots", str(figures)]) == 0
@@ -74,6 +75,7 @@ def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, 
     assert sorted(p.name for p in figures.iterdir()) == sorted(one_trial + cyclic)
 
 
+@pytest.mark.slow  # a fresh process
 def test_python_dash_m_entry_point(tmp_path):
     # Outside the checkout: from its root, `python -m` would find the bare ilc_steering/ folder first.
     done = subprocess.run(

@@ -69,4 +69,5 @@ def test_block_runs_on_its_own(page, index, lang, code, tmp_path):
     work = tmp_path / "work"
     work.mkdir()
     result = subprocess.run(command, capture_output=True, text=True, cwd=work, env=env, timeout=900)
-    assert result.returncode == 0, f"{page}, block {index} failed:\n{code}\n{result.stdout[-1000:]}\n{result.stderr[-2000:]}"
+    output = f"{result.stdout[-1000:]}\n{result.stderr[-2000:]}"
+    assert result.returncode == 0, f"{page}, block {index} failed:\n{code}\n{output}"
