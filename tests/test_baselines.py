@@ -63,6 +63,7 @@ def test_rl_cell_says_which_implementation_made_it(backend: str, monkeypatch: py
     assert cell["implementation"].split()[0] == expected
 
 
+@pytest.mark.slow  # an SBX training
 def test_sbx_is_the_default_backend_where_installed(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(rl.BACKEND_VARIABLE, raising=False)
     assert rl.rl_backend() == "sbx"
@@ -86,6 +87,7 @@ def test_a_key_only_one_backend_knows_is_refused() -> None:
 
 
 @pytest.mark.parametrize("algorithm", ["td3", "sac", "crossq", "tqc", "ppo"])
+@pytest.mark.slow  # JAX and torch compile a network each
 def test_sbx_and_sb3_act_in_the_same_units(algorithm: str) -> None:
     """Same hyperparameters: the same [-1, 1] action box, and the same first deterministic trial,
     the box's centre (start_at_centre), so the same physical coefficients c = c0."""
