@@ -63,7 +63,6 @@ def test_rl_cell_says_which_implementation_made_it(backend: str, monkeypatch: py
     assert cell["implementation"].split()[0] == expected
 
 
-@pytest.mark.slow  # an SBX training
 def test_sbx_is_the_default_backend_where_installed(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(rl.BACKEND_VARIABLE, raising=False)
     assert rl.rl_backend() == "sbx"
