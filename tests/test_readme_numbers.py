@@ -109,3 +109,13 @@ def test_the_test_tiers_times_are_the_logged_runs():
     assert f"ran {passed} tests in {seconds} s" in text
     assert f"{float(user) + float(sys_):.1f} s\nof CPU time (user {user} s, sys {sys_} s)" in text
     assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text
+
+
+def test_the_slow_tiers_time_is_the_logged_run():
+    text = (ROOT / "docs/tests.md").read_text()
+    log = (ROOT / "docs/benchmarks/test_tiers/slow.txt").read_text()
+    failed, passed, seconds = re.search(r"(\d+) failed, (\d+) passed, \d+ deselected, .* in ([\d.]+)s", log).groups()
+    user, sys_ = re.search(r"user ([\d.]+) s, sys ([\d.]+) s", log).groups()
+    loads = re.findall(r"load average: ([\d.]+),", log)
+    assert f"{int(failed) + int(passed)} tests in {seconds} s, on {float(user) + float(sys_):.1f} s of CPU time" in text
+    assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text and failed == "1"
