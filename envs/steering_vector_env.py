@@ -94,6 +94,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ``SyncVectorEnv`` in the same mode would give them (tested, bit for bit). ``rewards``,
     ``terminations`` (all ``True``) and ``truncations`` (all ``False``) are the trials'.
 
+    Examples
+    --------
     >>> import gymnasium as gym
     >>> import ilc_steering
     >>> envs = gym.make_vec("ilc_steering/ChainedSteering-v0", num_envs=3,

@@ -1,5 +1,5 @@
 """``compare --against``: a user's learner against a committed run, computing only its own cells; and
-the README's users'-learner commands, run as written from the folder that holds the module."""
+the docs' users'-learner commands (docs/learners.md), run as written from the folder that holds the module."""
 
 import json
 import re
@@ -15,15 +15,17 @@ from ilc_steering.cli import main
 from ilc_steering.compare import Args, run_cell, run_cells
 
 ROOT = Path(__file__).resolve().parents[1]
-README = (ROOT / "README.md").read_text()
+LEARNERS = (ROOT / "docs" / "learners.md").read_text()  # "Your own learner", its last section
 SCRIPT = Path(sys.executable).with_name("ilc-steering")
+pytestmark = pytest.mark.slow  # compare runs and fresh ilc-steering processes
+
 MY_BAY = (ROOT / "configs" / "parallel_parking.yaml").read_text().replace("name: parallel_parking", "name: my_bay")
 COMMITTED = ["--quick", "--methods", "ilc", "least_squares", "--priors", "nominal", "--workers", "1"]
 
 
 def users_learner() -> str:
-    """The README's ``Broyden`` and the ``make`` it says to save beside it, as ``my_learners.py``."""
-    section = README[README.index("### Your own learner") :]
+    """The docs' ``Broyden`` and the ``make`` it says to save beside it, as ``my_learners.py``."""
+    section = LEARNERS[LEARNERS.index("## Your own learner") :]
     block = re.findall(r"```python\n(.*?)```", section, re.S)[0]
     return block[: block.index("\nenv = gym.make")] + "\n\ndef make(context):\n    return Broyden(context)\n"
 
@@ -182,7 +184,7 @@ def test_a_folder_that_is_no_compare_run_is_refused(tmp_path, capsys):
 
 
 def test_the_readmes_users_learner_commands_run_as_written_from_the_modules_folder(tmp_path):
-    section = README[README.index("### Your own learner") : README.index("## Speed")]
+    section = LEARNERS[LEARNERS.index("## Your own learner") :]
     commands = [line for block in re.findall(r"```bash\n(.*?)```", section, re.S) for line in block.splitlines()]
     joins, against = commands
     (tmp_path / "my_learners.py").write_text(users_learner())

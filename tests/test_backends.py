@@ -9,6 +9,8 @@ import ray
 from ilc_steering import compare, sweep
 from ilc_steering.backends import run_calls
 
+pytestmark = pytest.mark.slow  # a local Ray, and the quick comparison on it
+
 
 @pytest.fixture(scope="module")
 def local_ray():
@@ -27,11 +29,12 @@ def cells(folder):
     return found
 
 
-def test_the_quick_comparison_on_ray_writes_the_local_cells(tmp_path, local_ray):
-    local = compare.main(compare.Args(quick=True, seeds=compare.QUICK_SEEDS, out=tmp_path / "local"))
+def test_the_quick_comparison_on_ray_writes_the_local_cells(tmp_path, local_ray, quick_comparison):
+    # the local run: `compare --quick` (seeds QUICK_SEEDS), computed once per session (conftest.py)
+    local = sorted((quick_comparison / "cells").glob("*.json"))
     on_ray = compare.main(compare.Args(quick=True, seeds=compare.QUICK_SEEDS, out=tmp_path / "ray", backend="ray"))
-    assert len(local) == len(on_ray) == len(cells(tmp_path / "local")) > 0
-    assert cells(tmp_path / "ray") == cells(tmp_path / "local")
+    assert len(local) == len(on_ray) == len(cells(quick_comparison)) > 0
+    assert cells(tmp_path / "ray") == cells(quick_comparison)
     # and it resumes the same way: a second run computes nothing
     stamps = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "ray" / "cells").iterdir()}
     compare.main(compare.Args(quick=True, seeds=compare.QUICK_SEEDS, out=tmp_path / "ray", backend="ray"))

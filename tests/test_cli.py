@@ -4,6 +4,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from ilc_steering import compare
 from ilc_steering.cli import main
 
@@ -39,6 +41,7 @@ def test_chained_run_prints_the_error_norm(capsys):
     assert "error norm" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # reproduce: six tasks and 10 seeds of two experiments
 def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, capsys):
     figures = tmp_path.parent / f"{tmp_path.name}-figures"
     assert main(["reproduce", "--json-dir", str(tmp_path), "--plots", str(figures)]) == 0
@@ -72,6 +75,7 @@ def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, 
     assert sorted(p.name for p in figures.iterdir()) == sorted(one_trial + cyclic)
 
 
+@pytest.mark.slow  # a fresh process
 def test_python_dash_m_entry_point(tmp_path):
     # Outside the checkout: from its root, `python -m` would find the bare ilc_steering/ folder first.
     done = subprocess.run(
@@ -85,8 +89,9 @@ def test_python_dash_m_entry_point(tmp_path):
     assert "converged at trial 4" in done.stdout
 
 
-def test_compare_quick_runs_every_method(tmp_path, capsys):
-    assert main(["compare", "--quick", "--out", str(tmp_path)]) == 0
+@pytest.mark.slow
+def test_compare_quick_runs_every_method(quick_comparison):
+    tmp_path = quick_comparison  # main(["compare", "--quick", "--out", ...]) == 0, once per session (conftest.py)
     table = (tmp_path / "compare.md").read_text()
     model_based = ("ilc", "ilc_paper", "newton", "newton_ilc")
     for method in (*model_based, "least_squares", "gauss_newton", "nelder_mead", "cma_es"):

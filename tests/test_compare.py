@@ -86,6 +86,7 @@ def test_gauss_newton_reaches_the_tight_tolerance_without_a_prior():
 
 @pytest.mark.parametrize("prior", ["nominal", "none"])
 @pytest.mark.parametrize("method", ["newton", "nelder_mead", "cma_es", *RL_ALGORITHMS])
+@pytest.mark.slow  # RL trainings
 def test_every_baseline_spends_exactly_its_budget(method, prior):
     cell = run_cell(Args(**TINY), prior, method, "parallel_parking", 1)
     budget = 5 if method == "newton" else 24 if method in RL_ALGORITHMS else 30
@@ -94,6 +95,7 @@ def test_every_baseline_spends_exactly_its_budget(method, prior):
 
 
 @pytest.mark.parametrize("method", [m for m in compare.METHODS if m != "ilc_paper"])
+@pytest.mark.slow  # every method, RL included
 def test_every_methods_first_trial_is_the_conditions_start(method):
     env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
     u = env.unwrapped
@@ -107,6 +109,7 @@ def test_every_methods_first_trial_is_the_conditions_start(method):
     np.testing.assert_array_equal(half, u.action_space.high)
 
 
+@pytest.mark.slow
 def test_the_residual_box_holds_every_packaged_solution():
     for name in ("forward_parking", "forward_parking_saturated", "parallel_parking", "chained_perturbed"):
         env = gym.make("ilc_steering/ChainedSteering-v0", config=name)
@@ -204,6 +207,7 @@ def test_a_clone_without_cells_resumes_from_compare_json(tmp_path):
     assert len(list((tmp_path / "cells").glob("*.json"))) == len(before)
 
 
+@pytest.mark.slow  # worker processes
 def test_workers_give_the_cells_of_one_process(tmp_path):
     settings = dict(
         priors=("nominal", "none"), methods=("ilc", "least_squares", "td3"), scenarios=("forward_parking_noisy",)
@@ -255,6 +259,7 @@ not_a_factory = 3
 '''
 
 
+@pytest.mark.slow  # a comparison on two workers
 def test_a_users_learner_and_a_yaml_scenario_from_outside_the_package(tmp_path, monkeypatch, capsys):
     from ilc_steering.cli import main
 
@@ -282,6 +287,7 @@ def test_a_users_learner_and_a_yaml_scenario_from_outside_the_package(tmp_path, 
         assert message in capsys.readouterr().err
 
 
+@pytest.mark.slow  # a comparison with PPO
 def test_main_writes_well_formed_results(tmp_path):
     args = Args(
         out=tmp_path,

@@ -34,6 +34,7 @@ def trials(agent, count):
 
 @pytest.mark.parametrize("cost", ["path_length", "curvature"])
 @pytest.mark.parametrize("nu_b", [0.5, 1.5])
+@pytest.mark.slow
 def test_eq_36_holds_with_the_cost_active_and_the_cost_falls(cost, nu_b):
     term = NullSpaceCost(MODEL, cost)
     agent = ILCAgent(MODEL, nu_a=1.0, nu_b=nu_b, start=MODEL.solve() * 0.9, cost=term)

@@ -222,6 +222,7 @@ def test_quick_keeps_explicit_seeds_and_budgets():
     assert compare.parse(["--quick", "--model-trials", "9"]).model_trials == 9
 
 
+@pytest.mark.slow  # a comparison
 def test_compare_runs_chained_plants_and_yaml_paths(tmp_path):
     path = CONFIGS / "parallel_parking.yaml"
     args = Args(
@@ -237,6 +238,7 @@ def test_compare_runs_chained_plants_and_yaml_paths(tmp_path):
     assert cells[0]["trials_to"]["0.5mm"] is not None and cells[1]["trials_to"]["0.5mm"] == 5
 
 
+@pytest.mark.slow  # comparisons
 def test_resumed_cells_are_checked_against_their_key(tmp_path):
     args = Args(
         out=tmp_path,

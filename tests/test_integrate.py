@@ -178,6 +178,7 @@ SERVOS = [
 
 @pytest.mark.parametrize("name", ["forward_parking", "forward_parking_saturated"])
 @pytest.mark.parametrize("servo", SERVOS, ids=lambda s: "+".join(s))
+@pytest.mark.slow  # tight solve_ivp references, and the servo kernel's compilation
 def test_the_servo_perturbations_within_1e9_of_a_tight_solve_ivp(name, servo):
     import dataclasses
 
@@ -237,6 +238,7 @@ def angle_kernel(scenario, c):
 @pytest.mark.parametrize(
     "name", ["forward_parking", "forward_parking_saturated", "parallel_parking", "cyclic_home_goal"]
 )
+@pytest.mark.slow  # thousands of tight solve_ivp trials
 def test_the_batched_kernel_agrees_with_the_angle_kernel_and_a_tight_reference(name):
     """On the learner's trials both kernels are within 1e-9 of the reference (the tests above); on
     trials with every coefficient 10 % off, some of which turn the car to 85 degrees, where
@@ -265,6 +267,7 @@ def test_the_batched_kernel_lanes_do_not_interact():
 
 
 @pytest.mark.parametrize("name", ["forward_parking_saturated", "unicycle_parking", "trailer_bay", "parallel_parking"])
+@pytest.mark.slow
 def test_a_batch_of_different_plants_equals_each_plant_alone(name):
     """One kernel call with a plant per trial (each its own true parameters) gives what each plant
     gives on its own: the robustness sweep's grid is one call."""

@@ -41,6 +41,7 @@ def comparable(scenario, x):
 
 @pytest.mark.parametrize("name", ["forward_parking", "forward_parking_saturated", "experiment_forward"])
 @pytest.mark.parametrize("lab", LAB, ids=lambda s: "+".join(s))
+@pytest.mark.slow  # event-driven solve_ivp references
 def test_the_lab_robot_within_1e9_of_an_event_driven_solve_ivp(name, lab):
     scenario = scenario_with(name, **{**OFF, **lab})
     assert scenario.plant.kernel()[0] is LAB_KERNEL and scenario.plant.state_dim == 12
@@ -63,6 +64,7 @@ def test_without_imperfections_the_lab_kernel_is_the_plain_car():
     np.testing.assert_allclose(got[:4], expected, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_dead_reckoning_lags_with_coarse_encoders_and_vanishes_with_fine_ones():
     exact = scenario_with("forward_parking")
     c = exact.nominal.solve()

@@ -62,6 +62,7 @@ def run_fresh(code: str, cache: str) -> None:
     assert done.returncode == 0 and done.stdout.strip() == "ok", (done.returncode, done.stdout, done.stderr[-2000:])
 
 
+@pytest.mark.slow  # fresh processes compiling into a fresh cache
 @pytest.mark.parametrize("config", ["forward_parking_saturated", "unicycle_parking"])
 def test_a_fresh_cache_shared_by_processes_keeps_every_batch_size_bit_for_bit(tmp_path, config):
     cache = str(tmp_path / "numba-cache")

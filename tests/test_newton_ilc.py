@@ -101,6 +101,7 @@ def test_a_perturbation_inside_the_family_takes_two_trials(name):
 
 @pytest.mark.parametrize("name", ["forward_parking", "forward_parking_saturated"])
 @pytest.mark.parametrize("perturbation", [{"steering_offset": 0.02}, {"steering_lag": 0.05}, {"speed_lag": 0.1}])
+@pytest.mark.slow
 def test_outside_the_family_it_converges_no_later_than_one_trial_after_eqs_33_34(name, perturbation):
     config = config_with(name, **perturbation)
     ilc, _ = trials_to_tolerance(config, make_ilc, 12)

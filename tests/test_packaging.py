@@ -5,9 +5,12 @@ import sys
 import zipfile
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow  # builds a wheel
 def test_wheel_ships_every_subpackage_and_config(tmp_path):
     subprocess.run(
         [

@@ -51,6 +51,7 @@ def test_chained_plant_figures_are_written(tmp_path):
         assert_png(path, min_ink=0.005)
 
 
+@pytest.mark.slow
 def test_plotted_data_are_the_runs(saturated):
     run = load_run(saturated)
     last = run.trajectory(run.records[-1])
@@ -85,6 +86,7 @@ def test_cyclic_arrivals_are_numbered_in_order(cyclic):
     assert np.allclose(second.xy, cyclic["cycles"][0]["waypoints"][1]["final_state"][:2])
 
 
+@pytest.mark.slow  # figures, twice
 def test_cli_run_and_plot_write_the_same_figures(tmp_path, capsys):
     run_json = tmp_path / "run.json"
     assert (

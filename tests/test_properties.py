@@ -47,6 +47,7 @@ def paths(data, prefix=()):
 
 @FAST
 @given(base=st.sampled_from(sorted(BASE)), data=st.data(), value=values)
+@pytest.mark.slow  # many hypothesis examples
 def test_any_config_value_loads_or_is_a_config_error(base, data, value):
     config = copy.deepcopy(BASE[base])
     path = data.draw(st.sampled_from(sorted(paths(config))))
@@ -74,6 +75,7 @@ def test_any_config_value_loads_or_is_a_config_error(base, data, value):
     shape=st.sampled_from([(4,), (3,), (1, 4), (), (4, 1)]),
     fill=st.floats(allow_nan=True, allow_infinity=True) | st.integers(-(10**30), 10**30),
 )
+@pytest.mark.slow  # many hypothesis examples
 def test_any_action_runs_a_trial_or_is_a_value_error(dtype, shape, fill):
     env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
     env.reset(seed=0)
@@ -90,6 +92,7 @@ def test_any_action_runs_a_trial_or_is_a_value_error(dtype, shape, fill):
 
 @FAST
 @given(options=st.none() | st.dictionaries(st.sampled_from(["start", "strt", "seed"]), values, max_size=2) | values)
+@pytest.mark.slow  # many hypothesis examples
 def test_any_cyclic_reset_options_start_or_are_a_value_error(options):
     env = gym.make("ilc_steering/CyclicSteering-v0", config="cyclic_home_goal", cycles=1)
     try:

@@ -1,5 +1,6 @@
-"""The README's speed numbers are its committed artifacts' (``docs/benchmarks``): a table or a range
-typed by hand, or left behind by a new run, fails here."""
+"""The numbers of the README and of the docs pages are their committed artifacts' (``docs/reproduce``,
+``docs/benchmarks``, ``docs/robustness``): a table or a range typed by hand, or left behind by a new run, fails
+here. The README fits a page, and the layout page names every module."""
 
 import json
 import re
@@ -7,26 +8,62 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
+SPEED = (ROOT / "docs/speed.md").read_text()
+REPRODUCED = (ROOT / "docs/reproduce/reproduce.txt").read_text()
 
 
-def section(title):
-    start = README.index(title)
-    end = README.find("\n### ", start + len(title))
-    return README[start : end if end > 0 else None]
+def section(title, text=SPEED):
+    start = text.index(title)
+    end = text.find("\n## ", start + len(title))
+    return text[start : end if end > 0 else None]
+
+
+def table(text, header):
+    """The rows of the Markdown table of ``text`` whose header line starts with ``header``, after its rule."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(header))
+    rows = []
+    for line in lines[start + 2 :]:
+        if not line.startswith("| "):
+            break
+        rows.append(line)
+    return rows
+
+
+def test_the_readme_fits_a_page():
+    assert len(README.splitlines()) <= 200
+
+
+def test_the_reproduction_tables_are_what_reproduce_printed():
+    # docs/reproduce/reproduce.txt: `ilc-steering reproduce`'s output, committed; tests/test_cli.py checks the command
+    printed = table(REPRODUCED, "| scenario | paper figures |")
+    assert len(printed) == 6
+    paper = (ROOT / "docs/paper.md").read_text()
+    for text in (README, paper):
+        assert table(text, "| scenario | paper figures |") == printed
+    assert "converged at trial 4" in REPRODUCED and "1.000e-01" in REPRODUCED and "1.000e-03" in REPRODUCED
+    seeds = table(REPRODUCED, "| scenario | paper iterations |")
+    assert len(seeds) == 2 and table(paper, "| scenario | paper iterations |") == seeds
+
+
+def test_the_layout_page_names_every_module():
+    layout = (ROOT / "docs/layout.md").read_text()
+    folders = ("ilc_steering", "ilc_steering/core", "ilc_steering/core/robots", "envs", "agents", "benchmarks")
+    missing = [
+        f"{folder}/{path.name}"
+        for folder in folders
+        for path in sorted((ROOT / folder).glob("*.py"))
+        if path.stem not in ("__init__", "__main__") and not re.search(rf"\b{path.stem}\b", layout)
+    ]
+    assert not missing, f"docs/layout.md does not name {missing}"
 
 
 def test_the_every_robot_table_is_robots_json():
     rows = {r["robot"]: r for r in json.loads((ROOT / "docs/benchmarks/robots.json").read_text())["rows"]}
-    text = section("### Every robot, against the car")
-    lines = text.splitlines()
-    header = next(i for i, line in enumerate(lines) if line.startswith("| robot |"))
-    table = []
-    for line in lines[header + 2 :]:  # after the header and its rule, to the table's end
-        if not line.startswith("| "):
-            break
-        table.append(line)
-    assert len(table) == len(rows)
-    for line in table:
+    text = section("## Every robot, against the car")
+    found = table(text, "| robot |")
+    assert len(found) == len(rows)
+    for line in found:
         robot, task, simulated, share, floor, step = (cell.strip() for cell in line.strip("|").split("|"))
         r = rows[robot]
         assert task == r["task"]
@@ -36,7 +73,7 @@ def test_the_every_robot_table_is_robots_json():
 
 
 def test_the_first_runs_and_frame_times_quoted_are_the_artifacts():
-    text = section("### Every robot, against the car")
+    text = section("## Every robot, against the car")
     firsts = json.loads((ROOT / "docs/benchmarks/robots.json").read_text())["first_run_s"]
     lab = sorted(v for k, v in firsts.items() if k.startswith("experiment_"))
     others = sorted(v for k, v in firsts.items() if not k.startswith("experiment_"))
@@ -52,8 +89,8 @@ def test_the_first_runs_and_frame_times_quoted_are_the_artifacts():
 
 def test_the_robustness_table_is_the_committed_maps():
     # The table benchmarks/robustness.py wrote from the maps' sweep.json, and each map's own summary.
-    table = (ROOT / "docs/robustness/robustness.md").read_text().strip()
-    assert table in README
+    written = (ROOT / "docs/robustness/robustness.md").read_text().strip()
+    assert written in (ROOT / "docs/robustness.md").read_text()
     for row in json.loads((ROOT / "docs/robustness/robustness.json").read_text())["rows"]:
         summary = json.loads((ROOT / "docs/robustness" / row["map"] / "sweep.json").read_text())["rows"]
         lines = {line["method"]: line for line in summary}
@@ -61,3 +98,24 @@ def test_the_robustness_table_is_the_committed_maps():
         for method in ("ilc_paper", "newton_ilc", "robust_ilc"):
             assert row[f"{method}_of_solvable"] == lines[method]["of_solvable"]
             assert row[f"{method}_median"] == lines[method]["median_trials"]
+
+
+def test_the_test_tiers_times_are_the_logged_runs():
+    text = (ROOT / "docs/tests.md").read_text()
+    log = (ROOT / "docs/benchmarks/test_tiers/fast.txt").read_text()
+    passed, seconds = re.search(r"(\d+) passed, \d+ deselected, .* in ([\d.]+)s", log).groups()
+    user, sys_ = re.search(r"user ([\d.]+) s, sys ([\d.]+) s", log).groups()
+    loads = re.findall(r"load average: ([\d.]+),", log)
+    assert f"ran {passed} tests in {seconds} s" in text
+    assert f"{float(user) + float(sys_):.1f} s\nof CPU time (user {user} s, sys {sys_} s)" in text
+    assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text
+
+
+def test_the_slow_tiers_time_is_the_logged_run():
+    text = (ROOT / "docs/tests.md").read_text()
+    log = (ROOT / "docs/benchmarks/test_tiers/slow.txt").read_text()
+    failed, passed, seconds = re.search(r"(\d+) failed, (\d+) passed, \d+ deselected, .* in ([\d.]+)s", log).groups()
+    user, sys_ = re.search(r"user ([\d.]+) s, sys ([\d.]+) s", log).groups()
+    loads = re.findall(r"load average: ([\d.]+),", log)
+    assert f"{int(failed) + int(passed)} tests in {seconds} s, on {float(user) + float(sys_):.1f} s of CPU time" in text
+    assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text and failed == "1"

@@ -52,6 +52,7 @@ def test_an_unregistered_robot_is_refused_by_name(tmp_path):
         load_config(path)
 
 
+@pytest.mark.slow  # compiles the robot's kernel
 def test_the_robot_runs_through_the_env_and_the_vector_env_and_learns(skate):
     env = gym.make("ilc_steering/ChainedSteering-v0", config=str(skate))
     rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), 6)
@@ -63,6 +64,7 @@ def test_the_robot_runs_through_the_env_and_the_vector_env_and_learns(skate):
     assert obs.shape[0] == 5 and np.all(np.isfinite(reward)) and len(set(reward.tolist())) == 5
 
 
+@pytest.mark.slow  # compiles the robot's kernel, tight solve_ivp
 def test_the_robot_s_kernel_matches_its_own_solve_ivp_reference_within_1e_9(skate):
     scenario = Scenario.from_config(load_config(skate))
     c = scenario.nominals[0].solve() * np.array([1.05, 0.9, 1.1])
@@ -70,6 +72,7 @@ def test_the_robot_s_kernel_matches_its_own_solve_ivp_reference_within_1e_9(skat
     np.testing.assert_allclose(final, trial(scenario.plant, scenario.profile, scenario.x_start, c), rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow  # run, sweep and compare
 def test_the_robot_runs_through_run_sweep_and_compare(skate, tmp_path):
     def cli(*args):
         done = subprocess.run(

@@ -118,6 +118,7 @@ def perturbed_plants():
 
 
 @pytest.mark.parametrize(("name", "config"), list(perturbed_plants()))
+@pytest.mark.slow  # tight solve_ivp references
 def test_the_kernel_matches_solve_ivp_within_1e_9(name, config):
     """The learner's first three trials on each plant (the nominal solution and two updates)."""
     scenario = Scenario.from_config(config)

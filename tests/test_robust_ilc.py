@@ -118,6 +118,7 @@ def test_the_oracle_finds_coefficients_that_reach_the_goal_on_the_true_plant():
     assert np.allclose(info["final_info"]["true_error_norm"][reached], errors[reached], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # a map with the oracle
 def test_sweep_with_the_oracle_reports_the_share_of_the_solvable_region(tmp_path, capsys):
     out = tmp_path / "sweep"
     argv = ["sweep", "forward_parking", "--methods", "robust_ilc", "--grid", "3", "--trials", "6"]
@@ -140,6 +141,7 @@ def test_sweep_with_the_oracle_reports_the_share_of_the_solvable_region(tmp_path
     assert "oracle.json: solvable disagrees with error" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # a map
 def test_sweep_over_plant_keys(tmp_path):
     out = tmp_path / "keys"
     argv = ["sweep", "trailer_hitch", "--methods", "robust_ilc", "--grid", "2", "--trials", "4"]

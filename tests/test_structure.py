@@ -78,6 +78,7 @@ def test_the_walk_sees_every_module():
     assert "ilc_steering.core.chained_form" in edges("ilc_steering.core.nominal")
 
 
+@pytest.mark.slow  # a fresh interpreter per module
 def test_no_import_cycles():
     def visit(name, path):
         if name in path:

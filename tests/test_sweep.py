@@ -59,6 +59,7 @@ def test_the_vector_env_refuses_bad_true_factors():
         ChainedSteeringVectorEnv(2, "forward_parking", true_factors=[[1.0, np.nan], [1.0, 1.0]])
 
 
+@pytest.mark.slow  # a map
 def test_the_sweep_command_writes_a_map_and_resumes(tmp_path, capsys):
     out = tmp_path / "sweep"
     argv = ["sweep", "forward_parking", "--grid", "3", "--trials", "8", "--out", str(out), "--nu-b", "1", "0.5"]

@@ -41,6 +41,7 @@ def linear_reference(profile, c, n, z0b):
 
 @pytest.mark.parametrize("profile", PROFILES, ids=["one", "two", "three"])
 @pytest.mark.parametrize("n", [3, 4, 6])
+@pytest.mark.slow  # scipy quadrature
 def test_V_and_W_against_quadrature(profile, n):
     assert isinstance(profile, InputProfile)
     rng = np.random.default_rng(n)
@@ -172,6 +173,7 @@ def test_bad_trapezoid_keys_name_the_key(task, message):
         trapezoid_config(**task)
 
 
+@pytest.mark.slow  # scipy quadrature
 def test_V_and_W_match_scipy_quad_to_1e12():
     profile = PROFILES[1]  # experiment 2's shape: two trapezoids, forward then backward
     from scipy.integrate import quad

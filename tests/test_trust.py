@@ -378,6 +378,7 @@ def learners(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])
+@pytest.mark.slow  # worker processes
 def test_a_failing_cell_is_recorded_and_the_others_finish(learners, capsys, workers):
     out = learners / "run"
     argv = ["compare", "--quick", "--out", str(out), "--priors", "nominal", "--scenarios", "forward_parking"]
@@ -409,6 +410,7 @@ def test_a_failing_cell_is_recorded_and_the_others_finish(learners, capsys, work
         ("trust_learners:broken_factory", "its factory raised KeyError"),
     ],
 )
+@pytest.mark.slow  # worker processes
 def test_a_users_learner_error_crosses_processes_and_names_the_learner_and_the_cell(learners, method, message):
     from ilc_steering.compare import Args, run_all
 
@@ -644,6 +646,7 @@ def test_clipped_actions_are_reported_by_run_and_compare(tmp_path, capsys):
     assert "clipped" not in capsys.readouterr().out
 
 
+@pytest.mark.slow  # fresh processes
 def test_a_users_learner_in_the_working_directory_is_found_by_the_installed_script(tmp_path):
     import subprocess
     import sys
