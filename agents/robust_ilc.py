@@ -44,14 +44,22 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.agents.model_based import (
+    Trial,
+    box,
+    broyden_update,
+    final_chained,
+    law_step,
+    levenberg_marquardt,
+    measure,
+    newton_solve,
+)
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
@@ -93,15 +101,6 @@ _HALVINGS = 8
 _FIT_ITERATIONS = 20
 
 
-@dataclass
-class _Trial:
-    c: Array
-    z: Array  # measured final chained coordinates (meaningless if it left the chart)
-    q: Array  # measured final configuration
-    ok: bool  # stayed in the chart
-    error: float  # norm of the measured configuration error (inf if it left the chart)
-
-
 class RobustILC:
     """Global identification, continuation and a trust region (see the module docstring).
 
@@ -132,10 +131,10 @@ class RobustILC:
         self.theta = np.zeros(self.family.size)
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
-        self._trials: list[_Trial] = []
-        self._best: _Trial | None = None
+        self._trials: list[Trial] = []
+        self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
-        self._previous: _Trial | None = None
+        self._previous: Trial | None = None
         self._radius = np.inf  # the trust region's half-width around the best trial [action scales]
         self._stalled = 0  # updates since the best error last halved
         self._thorough = True
@@ -147,11 +146,8 @@ class RobustILC:
 
     def learn(self, info: Mapping[str, Any]) -> None:
         began = time.perf_counter()
-        c = np.asarray(info["action"], dtype=np.float64)
-        z = self.model.z_goal - np.asarray(info["error"], dtype=np.float64)
-        ok = not bool(info.get("left_chart", False)) and bool(np.all(np.isfinite(z)))
-        q = self.family.to_configuration(z) if ok else np.full(self._goal_q.shape, np.nan)
-        trial = _Trial(c, z, q, ok, float(np.linalg.norm(q - self._goal_q)) if ok else np.inf)
+        trial = measure(self.model, self.family, self._goal_q, info)
+        c, ok = trial.c, trial.ok
         self._trials.append(trial)
         if ok and trial.error < REACHED and (self._best is None or trial.error <= self._best.error):
             # At the goal to the integrator's accuracy: nothing left to learn; run it again.
@@ -191,7 +187,7 @@ class RobustILC:
 
     # identification -----------------------------------------------------------------------------
 
-    def _fit_trials(self) -> list[_Trial]:
+    def _fit_trials(self) -> list[Trial]:
         trials = self._trials
         if len(trials) <= FIT_TRIALS:
             return trials
@@ -200,7 +196,7 @@ class RobustILC:
             keep = [self._best, *keep[1:]]
         return keep
 
-    def _residuals(self, thetas: Array, trials: list[_Trial]) -> Array:
+    def _residuals(self, thetas: Array, trials: list[Trial]) -> Array:
         """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` against ``trials``."""
         m, k = thetas.shape[0], len(trials)
         c = np.tile(np.array([t.c for t in trials]), (m, 1))
@@ -233,31 +229,21 @@ class RobustILC:
         """The largest residual of the trials (the ridge left out) [m or rad]."""
         return float(np.max(np.abs(r[: -self.family.size]), initial=0.0))
 
-    def _levenberg_marquardt(self, theta: Array, trials: list[_Trial]) -> tuple[Array, Array]:
-        h, damping = 1e-6, 1e-3
-        eye = np.eye(theta.size)
-        r = self._residuals(theta[None], trials)[0]
-        for _ in range(_FIT_ITERATIONS):
-            probes = np.concatenate([theta + h * eye, theta - h * eye])
-            values = self._residuals(probes, trials)
-            J = (values[: theta.size] - values[theta.size :]).T / (2 * h)
-            gradient, normal = J.T @ r, J.T @ J
-            improved = False
-            for _ in range(_HALVINGS):
-                step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
-                candidate = np.clip(theta + step, -MAX_LOG_RATIO, MAX_LOG_RATIO)
-                r_new = self._residuals(candidate[None], trials)[0]
-                if r_new @ r_new < r @ r:
-                    theta, r, damping, improved = candidate, r_new, damping / 3, True
-                    break
-                damping *= 4
-            if not improved or np.max(np.abs(step)) < 1e-12 or self._misfit(r) < 1e-3 * FIT_TOLERANCE:
-                break
-        return theta, r
+    def _levenberg_marquardt(self, theta: Array, trials: list[Trial]) -> tuple[Array, Array]:
+        bound = np.full(theta.size, MAX_LOG_RATIO)
+        return levenberg_marquardt(
+            lambda thetas: self._residuals(thetas, trials),
+            theta,
+            -bound,
+            bound,
+            _FIT_ITERATIONS,
+            _HALVINGS,
+            lambda r: self._misfit(r) < 1e-3 * FIT_TOLERANCE,
+        )
 
     # the next trial -----------------------------------------------------------------------------
 
-    def _update_secant(self, trial: _Trial) -> None:
+    def _update_secant(self, trial: Trial) -> None:
         previous = self._previous
         self._previous = trial
         if previous is None:
@@ -265,10 +251,9 @@ class RobustILC:
         s = trial.c - previous.c
         z, ok = self._final_z(np.tile(self.theta, (2, 1)), np.stack([trial.c, previous.c]))
         if np.all(ok) and s @ s > 0:
-            r = (trial.z - z[0]) - (previous.z - z[1])
-            self._D += np.outer(r - self._D @ s, s) / (s @ s)
+            broyden_update(self._D, s, (trial.z - z[0]) - (previous.z - z[1]))
 
-    def _solve(self, trial: _Trial | None, reach: float) -> Array:
+    def _solve(self, trial: Trial | None, reach: float) -> Array:
         """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
         point ``reach`` of the way from the start to the goal."""
         model = self.model
@@ -296,11 +281,9 @@ class RobustILC:
             return self._box(c) if trial is None else self._law(trial)
         return self._box(candidates[pick][0])
 
-    def _law(self, trial: _Trial) -> Array:
+    def _law(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
-        law = ILCAgent(self.model, start=trial.c)
-        law.learn({"action": trial.c, "error": self.model.z_goal - trial.z})
-        return self._box(law.act())
+        return self._box(law_step(self.model, trial))
 
     def _mismatch(self, cs: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Mask]:
         z, ok = self._final_z(np.tile(theta, (cs.shape[0], 1)), cs)
@@ -309,34 +292,18 @@ class RobustILC:
     def _newton(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Array]:
         """Newton's method on ``F(c; theta) + D (c - anchor) = target`` from ``c``, staying in the
         model's chart; returns the last iterate and its mismatch."""
-        values, ok = self._mismatch(c[None], theta, target, D, anchor)
+
+        def mismatch(cs: Array) -> tuple[Array, Mask]:
+            return self._mismatch(cs, theta, target, D, anchor)
+
+        values, ok = mismatch(c[None])
         g = values[0] if ok[0] else np.full_like(target, np.inf)
-        steps = 1e-7 * self._scale
-        for _ in range(_NEWTON_ITERATIONS):
-            if not np.all(np.isfinite(g)) or np.linalg.norm(g) < 1e-2 * SOLVED:
-                break
-            probes = c + np.vstack([np.zeros_like(c), np.diag(steps)])
-            values, probe_ok = self._mismatch(probes, theta, target, D, anchor)
-            if not np.all(probe_ok):
-                break
-            J = (values[1:] - values[0]).T / steps
-            step = np.linalg.lstsq(J, -values[0], rcond=RCOND)[0]
-            for _ in range(_HALVINGS):  # backtracking, one trial at a time: most steps are taken whole
-                candidate = self._box(c + step)
-                g_new, ok_new = self._mismatch(candidate[None], theta, target, D, anchor)
-                if ok_new[0] and np.linalg.norm(g_new[0]) < np.linalg.norm(g):
-                    c, g = candidate, g_new[0]
-                    break
-                step = 0.5 * step
-            else:
-                break
-        return c, g
+        return newton_solve(
+            mismatch, c, g, self._box, 1e-7 * self._scale, _NEWTON_ITERATIONS, _HALVINGS, 1e-2 * SOLVED, RCOND
+        )
 
     def _final_z(self, thetas: Array, c: Array) -> tuple[Array, Mask]:
-        q, ok = self.family.configurations_many(thetas, c)
-        z = np.full_like(q, np.nan)
-        z[ok] = self.family.to_chained(q[ok])
-        return z, ok
+        return final_chained(self.family, thetas, c)
 
     def _length(self, step: Array) -> float:
         """The size of a step in action scales (the largest over the coefficients)."""
@@ -350,7 +317,7 @@ class RobustILC:
         return self._box(c)
 
     def _box(self, c: Array) -> Array:
-        return np.clip(c, self.low, self.high)
+        return box(c, self.low, self.high)
 
 
 def make_robust_ilc(context: LearnerContext) -> RobustILC:
