@@ -24,6 +24,7 @@ __all__ = [
     "box",
     "broyden_update",
     "final_chained",
+    "gauss_newton",
     "law_step",
     "levenberg_marquardt",
     "measure",
@@ -166,3 +167,46 @@ def box(c: Array, low: Array, high: Array) -> Array:
 def trust_box(origin: Array, c: Array, radius: Array, low: Array, high: Array) -> Array:
     """``c`` clipped to the box of half-widths ``radius`` around ``origin``, then to the action box."""
     return np.clip(np.clip(c, origin - radius, origin + radius), low, high)
+
+
+def gauss_newton(
+    residuals: Callable[[Array], Array],
+    c: Array,
+    low: Array,
+    high: Array,
+    steps: Array,
+    iterations: int,
+    tolerance: float = 1e-10,
+) -> tuple[Array, Array]:
+    """Least squares on ``residuals`` (batched, ``(M, p) -> (M, R)``) from ``c`` in ``[low, high]``
+    by Gauss-Newton's minimum-norm step (a pseudo-inverse: where the Jacobian is near-singular, as
+    ``W`` is for a symmetric ``v1``, it moves the spare coefficients least), halved until it lowers
+    the cost, then Levenberg-Marquardt steps (the oracle's search, on a model instead of the plant).
+    Forward differences of ``steps``. Returns the last iterate and its residual."""
+    p = c.size
+    r = residuals(c[None])[0]
+    cost, damping = float(r @ r), 1e-3
+    for _ in range(iterations):
+        if not np.isfinite(cost) or cost <= tolerance**2:
+            break
+        values = residuals(c + np.vstack([np.zeros(p), np.diag(steps)]))
+        J = (values[1:] - values[0]).T / steps
+        if not np.all(np.isfinite(J)):
+            break
+        newton = -np.linalg.pinv(J) @ r
+        gradient, normal = J.T @ r, J.T @ J
+        improved = False
+        for attempt in range(12):
+            if attempt < 6:
+                step = newton * 0.5**attempt
+            else:
+                step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
+                damping *= 4
+            candidate = np.clip(c + step, low, high)
+            r_new = residuals(candidate[None])[0]
+            if float(r_new @ r_new) < cost:
+                c, r, cost, damping, improved = candidate, r_new, float(r_new @ r_new), 1e-3, True
+                break
+        if not improved:
+            break
+    return c, r

@@ -55,6 +55,7 @@ from ilc_steering.agents.model_based import (
     box,
     broyden_update,
     final_chained,
+    gauss_newton,
     law_step,
     levenberg_marquardt,
     measure,
@@ -96,7 +97,19 @@ RCOND = 1e-7
 """Singular values of the model's Jacobian below this fraction of the largest are left out of a
 Newton step: a symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction
 would take the step far out of the box."""
+ESCALATE = 1e-6
+"""[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the servo's families."""
+ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
+"""The richer families, tried in turn when the geometry alone does not explain the trials."""
+ACTUATOR_GRID = {
+    "steering_offset": np.linspace(-0.06, 0.06, 7),
+    "steering_lag": np.array([1 / 128, 0.02, 0.04, 0.07, 0.1, 0.15]),
+}
+"""[rad, s] the grids of the servo's parameters in the global identification."""
+ACTUATOR_STARTS = 3
+"""Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
 _NEWTON_ITERATIONS = 12
+_DAMPED_ITERATIONS = 40
 _HALVINGS = 8
 _FIT_ITERATIONS = 20
 
@@ -116,7 +129,13 @@ class RobustILC:
 
     def __init__(self, model: NominalModel, start: Array, low: Array, high: Array) -> None:
         self.model = model
-        self.family = ModelFamily(model)
+        self._families = [ModelFamily(model)]
+        """The geometry's family, then (a car) with the steering offset, then with the offset and the lag."""
+        try:
+            self._families += [ModelFamily(model, actuators=names) for names in ACTUATOR_FAMILIES]
+        except ValueError:  # a robot without a steering servo
+            pass
+        self.family = self._families[0]
         self.start = np.array(start, dtype=np.float64)
         self.low = np.asarray(low, dtype=np.float64)
         self.high = np.asarray(high, dtype=np.float64)
@@ -128,6 +147,7 @@ class RobustILC:
         self.reset()
 
     def reset(self) -> None:
+        self.family = self._families[0]
         self.theta = np.zeros(self.family.size)
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
@@ -159,12 +179,12 @@ class RobustILC:
         # A learner that has stopped improving searches globally only every STALLED-th update:
         # where the true plant cannot reach the goal, that is all the search can find.
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
-        theta = self._identify()
-        if np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
+        family, theta = self._identify()
+        if family is not self.family or np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
             # The secant was learned against another model: it would only distort the new one.
             self._D[:] = 0.0
             self._previous = None
-        self.theta = theta
+        self.family, self.theta = family, theta
         best = self._best
         if best is None and not ok:
             # No trial has stayed in the chart yet: aim at a point nearer the start.
@@ -196,11 +216,13 @@ class RobustILC:
             keep = [self._best, *keep[1:]]
         return keep
 
-    def _residuals(self, thetas: Array, trials: list[Trial]) -> Array:
-        """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` against ``trials``."""
+    def _residuals(self, thetas: Array, trials: list[Trial], family: ModelFamily | None = None) -> Array:
+        """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` of ``family`` (the current
+        one by default) against ``trials``."""
+        family = self.family if family is None else family
         m, k = thetas.shape[0], len(trials)
         c = np.tile(np.array([t.c for t in trials]), (m, 1))
-        q, ok = self.family.configurations_many(np.repeat(thetas, k, axis=0), c)
+        q, ok = family.configurations_many(np.repeat(thetas, k, axis=0), c)
         q, ok = q.reshape(m, k, -1), ok.reshape(m, k)
         measured_ok = np.array([t.ok for t in trials])
         y = np.array([t.q if t.ok else np.zeros_like(self._goal_q) for t in trials])
@@ -208,37 +230,63 @@ class RobustILC:
         r = np.where((ok != measured_ok)[..., None], CHART_PENALTY, r)
         return np.concatenate([r.reshape(m, -1), RIDGE * thetas], axis=1)
 
-    def _identify(self) -> Array:
+    def _identify(self) -> tuple[ModelFamily, Array]:
         """LM from the last estimate; when that does not explain the trials to :data:`FIT_TOLERANCE`,
-        also from the best points of the grid over the whole family."""
+        also from the best points of the grid over the whole family; when that does not either,
+        the families with the steering servo's parameters (the best fit of all is kept)."""
         trials = self._fit_trials()
+        family = self.family
         r = self._residuals(self.theta[None], trials)[0]
         if self._misfit(r) < FIT_TOLERANCE:  # the last estimate explains the new trial too
-            return self.theta
-        theta, r = self._levenberg_marquardt(self.theta, trials)
+            return family, self.theta
+        theta, r = self._levenberg_marquardt(family, self.theta, trials)
         if self._misfit(r) < FIT_TOLERANCE or not self._thorough:
-            return theta
-        values = self._residuals(self._grid, trials)
-        cost = np.einsum("ij,ij->i", values, values)
-        fits = [(theta, r)] + [
-            self._levenberg_marquardt(g, trials) for g in self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
-        ]
-        return min(fits, key=lambda fit: float(fit[1] @ fit[1]))[0]
+            return family, theta
+        fits = [(family, theta, r)]
+        if family is self._families[0]:
+            values = self._residuals(self._grid, trials)
+            cost = np.einsum("ij,ij->i", values, values)
+            starts = self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
+            fits += [(family, *self._levenberg_marquardt(family, g, trials)) for g in starts]
+            best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
+            if self._misfit(best[2]) < ESCALATE or len(self._families) == 1:
+                return best[0], best[1]
+            geometry = [best[1]]
+        else:
+            geometry = [theta[: self._families[0].size]]
+        for richer in self._families[1:]:
+            # The servo's parameters on their own grid, the geometry at its best fit and at the nominal.
+            n = richer.size - geometry[0].size
+            axes = [ACTUATOR_GRID[name] for name in richer.names[-n:]]
+            grid = np.array(
+                [
+                    np.concatenate([g, a])
+                    for g in [*geometry, np.zeros_like(geometry[0])]
+                    for a in itertools.product(*axes)
+                ]
+            )
+            values = self._residuals(grid, trials, richer)
+            cost = np.einsum("ij,ij->i", values, values)
+            starts = grid[np.argsort(cost, kind="stable")[:ACTUATOR_STARTS]]
+            if richer is family:
+                starts = np.vstack([theta, starts])
+            fits += [(richer, *self._levenberg_marquardt(richer, g, trials)) for g in starts]
+        best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
+        return best[0], best[1]
 
     def _misfit(self, r: Array) -> float:
         """The largest residual of the trials (the ridge left out) [m or rad]."""
         return float(np.max(np.abs(r[: -self.family.size]), initial=0.0))
 
-    def _levenberg_marquardt(self, theta: Array, trials: list[Trial]) -> tuple[Array, Array]:
-        bound = np.full(theta.size, MAX_LOG_RATIO)
+    def _levenberg_marquardt(self, family: ModelFamily, theta: Array, trials: list[Trial]) -> tuple[Array, Array]:
         return levenberg_marquardt(
-            lambda thetas: self._residuals(thetas, trials),
+            lambda thetas: self._residuals(thetas, trials, family),
             theta,
-            -bound,
-            bound,
+            family.low,
+            family.high,
             _FIT_ITERATIONS,
             _HALVINGS,
-            lambda r: self._misfit(r) < 1e-3 * FIT_TOLERANCE,
+            lambda r: float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE,
         )
 
     # the next trial -----------------------------------------------------------------------------
@@ -277,9 +325,33 @@ class RobustILC:
         candidates.append((c, self._mismatch(c[None], self.theta, target - d, D, anchor)[0][0]))
         norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
         pick = int(np.argmin(norms))
+        if norms[pick] > SOLVED:
+            # Newton stalls where W is near-singular (a symmetric v1) or the branch folds: Gauss-Newton's
+            # minimum-norm steps on the configuration error, from the best candidate, then (a thorough
+            # update) along the homotopy from the nominal solution.
+            c_gn = self._damped(candidates[pick][0], self.theta, target - d, D, anchor)
+            candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            if self._thorough and np.linalg.norm(candidates[-1][1]) > SOLVED:
+                c_gn = self._box(model.solve(z_goal=target))
+                for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
+                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, s * D, anchor)
+                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
+            pick = int(np.argmin(norms))
         if not np.isfinite(norms[pick]):
             return self._box(c) if trial is None else self._law(trial)
         return self._box(candidates[pick][0])
+
+    def _damped(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> Array:
+        """Gauss-Newton on the model's configuration error (metres and radians, better conditioned
+        than chained coordinates far from the goal) from ``c``, within the box."""
+
+        def residuals(cs: Array) -> Array:
+            g, ok = self._mismatch(cs, theta, target, D, anchor)
+            q = self.family.to_configuration(np.where(ok[:, None], g + self.model.z_goal, self.model.z_goal))
+            return np.where(ok[:, None], q - self._goal_q, CHART_PENALTY)
+
+        return gauss_newton(residuals, c, self.low, self.high, 1e-7 * self._scale, _DAMPED_ITERATIONS)[0]
 
     def _law(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
