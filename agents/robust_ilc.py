@@ -99,6 +99,10 @@ Newton step: a symmetric ``v1`` makes ``W`` singular (to round-off), and its nea
 would take the step far out of the box."""
 ESCALATE = 1e-6
 """[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the servo's families."""
+EXPLAINED = 1e-5
+"""[m or rad] a servo family is kept only if it explains every trial this well."""
+ESCALATIONS = 2
+"""Failed escalations to the servo's families after which they are not tried again."""
 ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
 """The richer families, tried in turn when the geometry alone does not explain the trials."""
 ACTUATOR_GRID = {
@@ -151,6 +155,7 @@ class RobustILC:
         self.theta = np.zeros(self.family.size)
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
+        self._escalations = 0
         self._trials: list[Trial] = []
         self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
@@ -249,8 +254,9 @@ class RobustILC:
             starts = self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
             fits += [(family, *self._levenberg_marquardt(family, g, trials)) for g in starts]
             best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
-            if self._misfit(best[2]) < ESCALATE or len(self._families) == 1:
+            if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
                 return best[0], best[1]
+            self._escalations += 1
             geometry = [best[1]]
         else:
             geometry = [theta[: self._families[0].size]]
@@ -272,6 +278,13 @@ class RobustILC:
                 starts = np.vstack([theta, starts])
             fits += [(richer, *self._levenberg_marquardt(richer, g, trials)) for g in starts]
         best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
+        if best[0] is not self._families[0] and float(np.max(np.abs(best[2][: -best[0].size]))) > EXPLAINED:
+            # The servo does not explain the trials either (backlash, noise, another lag): its
+            # parameters would only caricature what it lacks; the geometry's fit is kept.
+            geometric = [fit for fit in fits if fit[0] is self._families[0]]
+            best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
+        else:
+            self._escalations = 0
         return best[0], best[1]
 
     def _misfit(self, r: Array) -> float:
