@@ -190,6 +190,10 @@ class RobustILC:
             self._D[:] = 0.0
             self._previous = None
         self.family, self.theta = family, theta
+        # A model that explains every trial it is fitted to is trusted whole: the trust region guards
+        # against a model that does not, and one learned before the model changed would only hold back
+        # the new model's answer.
+        explains = self._misfit(self._residuals(theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
         best = self._best
         if best is None and not ok:
             # No trial has stayed in the chart yet: aim at a point nearer the start.
@@ -200,10 +204,12 @@ class RobustILC:
             # answer from the best trial is taken within it; the secant is forgotten.
             self._D[:] = 0.0
             self._previous = None
-            self._radius = 0.5 * self._length(c - best.c)
+            self._radius = np.inf if explains else 0.5 * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
-            if best is not None:
+            if explains:
+                self._radius = np.inf
+            elif best is not None:
                 self._radius = max(self._radius, 2.0 * self._length(c - best.c))
             self._best = trial
             self._update_secant(trial)
