@@ -113,7 +113,7 @@ ACTUATOR_GRID = {
 ACTUATOR_STARTS = 3
 """Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
 _NEWTON_ITERATIONS = 12
-_DAMPED_ITERATIONS = 40
+_DAMPED_ITERATIONS = 100
 _HALVINGS = 8
 _FIT_ITERATIONS = 20
 
@@ -262,7 +262,6 @@ class RobustILC:
             best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
             if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
                 return best[0], best[1]
-            self._escalations += 1
             geometry = [best[1]]
         else:
             geometry = [theta[: self._families[0].size]]
@@ -289,8 +288,7 @@ class RobustILC:
             # parameters would only caricature what it lacks; the geometry's fit is kept.
             geometric = [fit for fit in fits if fit[0] is self._families[0]]
             best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
-        else:
-            self._escalations = 0
+            self._escalations += 1
         return best[0], best[1]
 
     def _misfit(self, r: Array) -> float:
@@ -351,6 +349,9 @@ class RobustILC:
             c_gn = self._damped(candidates[pick][0], self.theta, target - d, D, anchor)
             candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
             if self._thorough and np.linalg.norm(candidates[-1][1]) > SOLVED:
+                c_gn = self._damped(self._box(model.solve(z_goal=target)), self.theta, target - d, D, anchor)
+                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            if self._thorough and min(np.linalg.norm(g) for _, g in candidates[-2:]) > SOLVED:
                 c_gn = self._box(model.solve(z_goal=target))
                 for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
                     c_gn = self._damped(c_gn, s * self.theta, target - s * d, s * D, anchor)
