@@ -7,12 +7,19 @@ finds a wrong minimum, and Newton from the measured trial lands on a kink or off
 learner keeps the same information (the :class:`~ilc_steering.agents.base.LearnerContext` and
 each trial's measured final error, never the plant) and globalizes each of the three:
 
-1. **Global identification.** The family's parameters :math:`\theta` (a
+1. **Global identification, in widening families.** The family's parameters :math:`\theta` (a
    :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
    fitted to every trial run so far by a grid over the whole family (:data:`GRID` points per
    parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
    points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
-   under which it would have stayed in the chart is penalized by :data:`CHART_PENALTY`.
+   under which it would have stayed in the chart is penalized by :data:`CHART_PENALTY`. When the
+   geometry leaves a trial unexplained by more than :data:`ESCALATE`, and the robot has a
+   steering servo (the car), the families of :data:`ACTUATOR_FAMILIES` are fitted too: the
+   geometry plus the wheel's offset, then plus the servo's first-order lag (on grids of
+   :data:`ACTUATOR_GRID`, then Levenberg-Marquardt). The best fit is kept if it explains every
+   trial to :data:`EXPLAINED`; otherwise the geometry's fit is (a servo family that cannot
+   explain the trials would only caricature what it lacks), and after :data:`ESCALATIONS` such
+   failures the servo's families are no longer tried.
 2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
 
    .. math::
@@ -20,23 +27,36 @@ each trial's measured final error, never the plant) and globalizes each of the t
        F(c; \hat\theta) + d + D (c - c_b) = z^d, \qquad d = z_b - F(c_b; \hat\theta),
 
    (:math:`c_b, z_b` the best trial, :math:`D` a Broyden secant of the residual, as in
-   ``newton_ilc``) by Newton's method along a homotopy that starts where the answer is known: the
-   nominal model at its exact solution (:math:`\theta = 0, d = 0`). :math:`\theta` and :math:`d`
-   are moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved by Newton from the
-   last (forward differences, one batched call per iteration, minimum-norm steps for spare
-   coefficients), the model's chart a constraint of the backtracking line search. A direct Newton
-   solve from the best trial is tried as well; the one nearer the goal is kept.
+   ``newton_ilc``) by Newton's method from the best trial; when that leaves a mismatch, by
+   Gauss-Newton's minimum-norm steps on the configuration error (the pseudo-inverse moves the
+   spare coefficients least where ``W`` is near-singular, as with parallel parking's symmetric
+   ``v1``; :func:`~ilc_steering.agents.model_based.gauss_newton`) from the best candidate and from
+   the nominal solution, and then along a homotopy that starts where the answer is known: the
+   nominal model at its exact solution (:math:`\theta = 0, d = 0`), :math:`\theta` and :math:`d`
+   moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved from the last. The
+   candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification): the next trial
-   halves the step from the best trial, and the secant is reset. Until some trial stays in the
-   chart, the target itself is continued: the next trial aims at a point :math:`\lambda` of the
-   way from the start to the goal (:math:`\lambda` halved after each halted trial), so that the
-   first in-chart trial identifies the plant.
+   halves the step from the best trial, and the secant is reset. A model that explains every
+   trial it is fitted to (to :data:`FIT_TOLERANCE`) lifts the trust region: a region learned
+   while the model was wrong would only hold back the identified model's answer. Until some
+   trial stays in the chart, the target itself is continued: the next trial aims at a point
+   :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
+   halted trial), so that the first in-chart trial identifies the plant.
 
-On the nominal plant :math:`\hat\theta = 0` and :math:`d = 0`: one update lands on the goal to the
-integrator's accuracy, as ``newton_ilc`` does (``tests/test_robust_ilc.py``). Inside the model
-family the first in-chart trial identifies the plant and the next one lands on the goal; outside
-it (a steering offset, a lagging servo) the secant and the trust region carry the rest.
+**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0` and
+:math:`d = 0`: one update lands on the goal to the integrator's accuracy, as ``newton_ilc`` does
+(``tests/test_robust_ilc.py``). Inside a family (the geometry's, or a car's with its steering
+offset and lag) the trials identify the plant once they give more equations than the family
+has unknowns and the grid finds the basin (one in-chart trial for the geometry, two or three for
+the servo's four parameters), and the next trial solves the identified model, which is the plant:
+it lands on the goal whenever the model's solvers find a solution. Outside every family (backlash,
+encoder dead reckoning, a speed loop, measurement noise) nothing is identified exactly: the
+geometry's fit, the residual :math:`d` and the secant :math:`D` give a quasi-Newton iteration on
+the measured error, which converges locally (linearly, at the rate the secant's and the
+model's Jacobian errors allow) but is not guaranteed from far, and noise of the measured errors
+bounds how close it gets. It cannot converge where the true plant cannot reach the goal (the
+oracle's unsolvable region), nor where the refit model's solvers miss a solution the plant has.
 """
 
 from __future__ import annotations
