@@ -105,8 +105,9 @@ GRID_STARTS = 6
 """Grid points the Levenberg-Marquardt refinement starts from."""
 FIT_TRIALS = 8
 """The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
-THETA_CHANGE = 1e-6
-"""A refit that moves ``theta`` more than this resets the secant."""
+THETA_CHANGE = 0.02
+"""A refit that moves ``theta`` more than this resets the secant (a smaller move, as measurement noise
+makes at every trial, keeps it: the secant is what learns what the family lacks)."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10

@@ -116,6 +116,7 @@ def _trailer(folder: Path) -> dict[str, Any]:
         "solvable": int(solvable.sum()),
         "lost": int(lost.sum()),
         "lost_by_row": lost.sum(axis=1).tolist(),
+        "lost_by_column": lost.sum(axis=0).tolist(),
         "solvable_by_row": solvable.sum(axis=1).tolist(),
         "lost_final_error_median": float(np.median(error[lost])) if lost.any() else None,
         "lost_that_ever_left_the_chart": int((left[lost] > 0).sum()),
