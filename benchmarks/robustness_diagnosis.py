@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,10 +42,9 @@ class Args:
 def _servo() -> dict[str, Any]:
     config = load_config("parallel_parking_servo")
     env = gym.make("ilc_steering/ChainedSteering-v0", config=config)
-    model = env.unwrapped.nominal_model
-    low, high = (
-        np.asarray(b, dtype=np.float64) for b in (env.unwrapped.action_space.low, env.unwrapped.action_space.high)
-    )
+    unwrapped: Any = env.unwrapped
+    model = unwrapped.nominal_model
+    low, high = (np.asarray(b, dtype=np.float64) for b in (unwrapped.action_space.low, unwrapped.action_space.high))
     c = model.solve()
     env.reset(seed=0)
     info = env.step(c)[4]
@@ -67,7 +67,7 @@ def _servo() -> dict[str, Any]:
     truth = np.array([np.log(1.1), np.log(1.1), 0.02, 0.05])
     theta_s, misfit_s = fit(servo, np.array([[0, 0, o, lag] for o in (-0.04, 0.0, 0.04) for lag in (0.02, 0.05, 0.1)]))
 
-    def configuration_error(theta: np.ndarray):
+    def configuration_error(theta: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
         def residuals(cs: np.ndarray) -> np.ndarray:
             q, ok = servo.configurations_many(np.tile(theta, (len(cs), 1)), cs)
             return np.where(ok[:, None], q - goal, 10.0)
