@@ -8,7 +8,8 @@ family and the family with the steering offset and lag to that trial, as ``robus
 reports what each explains; then, on the identified model, how near the goal each solver of
 ``robust_ilc`` gets (Newton along the homotopy of the last round; Gauss-Newton's minimum-norm
 steps); and the singular values of the model's Jacobian at the nominal solution. It also counts
-the trailer map's lost cells (solvable, not converged) of the committed ``robust_ilc`` rows.
+the trailer map's lost cells (solvable, not converged) of the committed ``robust_ilc`` rows, and
+``robust_ilc``'s share of the solvable plants on the rows of the servo and lag maps computed so far.
 """
 
 from __future__ import annotations
@@ -123,8 +124,28 @@ def _trailer(folder: Path) -> dict[str, Any]:
     }
 
 
+def _map(folder: Path, method: str = "robust_ilc") -> dict[str, Any]:
+    """``method``'s share of the oracle-solvable plants over the rows of a map computed so far."""
+    solvable = np.array(json.loads((folder / "oracle.json").read_text())["solvable"], dtype=bool)
+    rows = {int(p.stem.rsplit("__", 1)[1]): json.loads(p.read_text()) for p in folder.glob(f"rows/{method}__*.json")}
+    if not rows:
+        return {"rows": 0}
+    trials = np.array([rows[k]["trials_to"] for k in sorted(rows)])
+    mask = solvable[sorted(rows)]
+    converged = mask & (trials > 0)
+    return {
+        "rows": len(rows),
+        "of_rows": int(solvable.shape[0]),
+        "solvable": int(mask.sum()),
+        "converged_of_solvable": float(converged.sum() / max(1, mask.sum())),
+        "median_trials": float(np.median(trials[converged])) if converged.any() else None,
+        "max_trials": int(trials[converged].max()) if converged.any() else None,
+    }
+
+
 def main(args: Args) -> dict[str, Any]:
-    result = {"parallel_parking_servo": _servo(), "trailer_bay": _trailer(args.trailer)}
+    maps = {name: _map(args.trailer.parent / name) for name in ("parallel_parking_servo", "parallel_parking_lag")}
+    result = {"parallel_parking_servo": _servo(), "trailer_bay": _trailer(args.trailer), "maps_robust_ilc": maps}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "diagnosis.json").write_text(json.dumps(result, indent=1) + "\n")
     return result
