@@ -124,9 +124,10 @@ def _trailer(folder: Path) -> dict[str, Any]:
     }
 
 
-def _map(folder: Path, method: str = "robust_ilc") -> dict[str, Any]:
-    """``method``'s share of the oracle-solvable plants over the rows of a map computed so far."""
-    solvable = np.array(json.loads((folder / "oracle.json").read_text())["solvable"], dtype=bool)
+def _map(folder: Path, method: str = "robust_ilc", oracle: Path | None = None) -> dict[str, Any]:
+    """``method``'s share of the oracle-solvable plants over the rows of a map computed so far (the
+    oracle of the folder ``oracle``, by default the map's own)."""
+    solvable = np.array(json.loads(((oracle or folder) / "oracle.json").read_text())["solvable"], dtype=bool)
     rows = {int(p.stem.rsplit("__", 1)[1]): json.loads(p.read_text()) for p in folder.glob(f"rows/{method}__*.json")}
     if not rows:
         return {"rows": 0}
@@ -144,7 +145,11 @@ def _map(folder: Path, method: str = "robust_ilc") -> dict[str, Any]:
 
 
 def main(args: Args) -> dict[str, Any]:
-    maps = {name: _map(args.trailer.parent / name) for name in ("parallel_parking_servo", "parallel_parking_lag")}
+    docs = args.trailer.parent
+    maps = {name: _map(docs / name) for name in ("parallel_parking_servo", "parallel_parking_lag")}
+    for method in ("ilc_paper", "newton_ilc"):
+        lag = docs / "parallel_parking_lag"
+        maps[f"parallel_parking_lag/{method}"] = _map(docs / "parallel_parking_lag_others", method, lag)
     result = {"parallel_parking_servo": _servo(), "trailer_bay": _trailer(args.trailer), "maps_robust_ilc": maps}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "diagnosis.json").write_text(json.dumps(result, indent=1) + "\n")
