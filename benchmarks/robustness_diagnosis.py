@@ -150,7 +150,7 @@ def main(args: Args) -> dict[str, Any]:
     for method in ("ilc_paper", "newton_ilc"):
         lag = docs / "parallel_parking_lag"
         maps[f"parallel_parking_lag/{method}"] = _map(docs / "parallel_parking_lag_others", method, lag)
-    result = {"parallel_parking_servo": _servo(), "trailer_bay": _trailer(args.trailer), "maps_robust_ilc": maps}
+    result = {"parallel_parking_servo": _servo(), "trailer_bay": _trailer(args.trailer), "maps": maps}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "diagnosis.json").write_text(json.dumps(result, indent=1) + "\n")
     return result
