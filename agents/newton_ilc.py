@@ -47,14 +47,20 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.agents.model_based import (
+    Trial,
+    broyden_update,
+    law_step,
+    levenberg_marquardt,
+    newton_solve,
+    trust_box,
+)
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
@@ -68,14 +74,6 @@ RIDGE = 1e-4
 """[m or rad per unit of theta] the weight that pulls ``theta`` to 0 where the trials say nothing."""
 _FIT_ITERATIONS = 20
 _SOLVE_ITERATIONS = 20
-
-
-@dataclass
-class _Trial:
-    c: Array
-    z: Array  # measured final chained coordinates
-    q: Array  # measured final configuration
-    error: float  # norm of the measured configuration error
 
 
 class NewtonILC:
@@ -123,10 +121,10 @@ class NewtonILC:
         self.theta = np.zeros(self.family.size)
         self.update_seconds: list[float] = []
         """Wall time [s] of each model update (identification and Newton solve; a fall-back costs ~0)."""
-        self._trials: list[_Trial] = []
-        self._best: _Trial | None = None
+        self._trials: list[Trial] = []
+        self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
-        self._previous: _Trial | None = None  # the last trial of the secant, None after a fall-back
+        self._previous: Trial | None = None  # the last trial of the secant, None after a fall-back
         self._next = self.start.copy()
 
     def act(self, observation: Any = None) -> Array:
@@ -142,12 +140,12 @@ class NewtonILC:
             # (from this one if there is none yet), as the paper's law would; when the step from the
             # best trial was what left the chart, half of it, and so on.
             if self._best is None:
-                self._next = self._fallback(_Trial(c, z, z, np.inf))
+                self._next = self._fallback(Trial(c, z, z, np.inf))
             else:
                 self._next = self._best.c + 0.5 * (c - self._best.c)
             return
         q = self.family.to_configuration(z)
-        trial = _Trial(c, z, q, float(np.linalg.norm(q - self._goal_q)))
+        trial = Trial(c, z, q, float(np.linalg.norm(q - self._goal_q)))
         self._trials.append(trial)
         if self._best is not None and trial.error >= self._best.error:
             self._next = self._fallback(self._best)
@@ -160,43 +158,27 @@ class NewtonILC:
         self._next = self._newton(trial)
         self.update_seconds.append(time.perf_counter() - began)
 
-    def _fallback(self, trial: _Trial) -> Array:
+    def _fallback(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``."""
-        law = ILCAgent(self.model, self.nu_a, self.nu_b, start=trial.c)
-        law.learn({"action": trial.c, "error": self.model.z_goal - trial.z})
-        return self._project(trial.c, law.act())
+        return self._project(trial.c, law_step(self.model, trial, self.nu_a, self.nu_b))
 
     def _fit(self, theta: Array) -> Array:
         """Levenberg-Marquardt on the trials' configuration residuals plus the ridge."""
         c = np.array([t.c for t in self._trials])
         y = np.array([t.q for t in self._trials])
 
-        def residual(th: Array) -> Array:
-            q, ok = self.family.configurations(th, c)
-            r = np.where(ok[:, None], q - y, 1.0)  # a halted model trial is a poor fit, not a NaN
-            return np.concatenate([r.ravel(), RIDGE * th])
+        def residuals(thetas: Array) -> Array:
+            rows = []
+            for th in thetas:
+                q, ok = self.family.configurations(th, c)
+                r = np.where(ok[:, None], q - y, 1.0)  # a halted model trial is a poor fit, not a NaN
+                rows.append(np.concatenate([r.ravel(), RIDGE * th]))
+            return np.array(rows)
 
-        r = residual(theta)
-        damping = 1e-3
-        h = 1e-6
-        for _ in range(_FIT_ITERATIONS):
-            columns = [(residual(theta + h * e) - residual(theta - h * e)) / (2 * h) for e in np.eye(theta.size)]
-            J = np.stack(columns, axis=1)
-            gradient, normal = J.T @ r, J.T @ J
-            improved = False
-            for _ in range(8):
-                step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
-                candidate = np.clip(theta + step, -MAX_LOG_RATIO, MAX_LOG_RATIO)
-                r_new = residual(candidate)
-                if r_new @ r_new < r @ r:
-                    theta, r, damping, improved = candidate, r_new, damping / 3, True
-                    break
-                damping *= 4
-            if not improved or np.max(np.abs(step)) < 1e-12:
-                break
-        return theta
+        bound = np.full(theta.size, MAX_LOG_RATIO)
+        return levenberg_marquardt(residuals, theta, -bound, bound, _FIT_ITERATIONS)[0]
 
-    def _newton(self, trial: _Trial) -> Array:
+    def _newton(self, trial: Trial) -> Array:
         """Solve ``F(c; theta) + d + D (c - c_k) = z^d`` for the next ``c`` from ``c_k``."""
         z_model, ok = self._final_z(trial.c[None])
         d = trial.z - z_model[0] if ok[0] else np.zeros_like(trial.z)
@@ -205,8 +187,7 @@ class NewtonILC:
             z_prev, ok_prev = self._final_z(previous.c[None])
             s = trial.c - previous.c
             if ok_prev[0] and s @ s > 0:
-                r = d - (previous.z - z_prev[0])
-                self._D += np.outer(r - self._D @ s, s) / (s @ s)
+                broyden_update(self._D, s, d - (previous.z - z_prev[0]))
         self._previous = trial
         target = self.model.z_goal - d
 
@@ -223,25 +204,9 @@ class NewtonILC:
         pick = int(np.argmin(norms))
         c = starts[pick].copy()
         g = values[pick] if ok[pick] else np.full_like(target, np.inf)
-        steps = 1e-7 * self._scale
-        for _ in range(_SOLVE_ITERATIONS):
-            if not np.all(np.isfinite(g)) or np.linalg.norm(g) < 1e-13:
-                break
-            probes = c + np.vstack([np.zeros_like(c), np.diag(steps)])
-            values, probe_ok = mismatch(probes)
-            if not np.all(probe_ok):
-                break
-            J = (values[1:] - values[0]).T / steps
-            step = np.linalg.lstsq(J, -values[0], rcond=None)[0]
-            for _ in range(6):
-                candidate = self._project(trial.c, c + step)
-                g_new, ok_new = mismatch(candidate[None])
-                if ok_new[0] and np.linalg.norm(g_new[0]) < np.linalg.norm(g):
-                    c, g = candidate, g_new[0]
-                    break
-                step = 0.5 * step
-            else:
-                break
+        c, _ = newton_solve(
+            mismatch, c, g, lambda c: self._project(trial.c, c), 1e-7 * self._scale, _SOLVE_ITERATIONS, 6, 1e-13
+        )
         return np.asarray(c, dtype=np.float64)
 
     def _final_z(self, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
@@ -252,8 +217,7 @@ class NewtonILC:
 
     def _project(self, origin: Array, c: Array) -> Array:
         """Into the trust region around ``origin`` and the action box."""
-        radius = TRUST_RADIUS * self._scale
-        return np.clip(np.clip(c, origin - radius, origin + radius), self.low, self.high)
+        return trust_box(origin, c, TRUST_RADIUS * self._scale, self.low, self.high)
 
 
 def make_newton_ilc(context: LearnerContext) -> NewtonILC:

@@ -7,12 +7,19 @@ finds a wrong minimum, and Newton from the measured trial lands on a kink or off
 learner keeps the same information (the :class:`~ilc_steering.agents.base.LearnerContext` and
 each trial's measured final error, never the plant) and globalizes each of the three:
 
-1. **Global identification.** The family's parameters :math:`\theta` (a
+1. **Global identification, in widening families.** The family's parameters :math:`\theta` (a
    :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
    fitted to every trial run so far by a grid over the whole family (:data:`GRID` points per
    parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
    points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
-   under which it would have stayed in the chart is penalized by :data:`CHART_PENALTY`.
+   under which it would have stayed in the chart is penalized by :data:`CHART_PENALTY`. When the
+   geometry leaves a trial unexplained by more than :data:`ESCALATE`, and the robot has a
+   steering servo (the car), the families of :data:`ACTUATOR_FAMILIES` are fitted too: the
+   geometry plus the wheel's offset, then plus the servo's first-order lag (on grids of
+   :data:`ACTUATOR_GRID`, then Levenberg-Marquardt). The best fit is kept if it explains every
+   trial to :data:`EXPLAINED`; otherwise the geometry's fit is (a servo family that cannot
+   explain the trials would only caricature what it lacks), and after :data:`ESCALATIONS` such
+   failures the servo's families are no longer tried.
 2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
 
    .. math::
@@ -20,23 +27,36 @@ each trial's measured final error, never the plant) and globalizes each of the t
        F(c; \hat\theta) + d + D (c - c_b) = z^d, \qquad d = z_b - F(c_b; \hat\theta),
 
    (:math:`c_b, z_b` the best trial, :math:`D` a Broyden secant of the residual, as in
-   ``newton_ilc``) by Newton's method along a homotopy that starts where the answer is known: the
-   nominal model at its exact solution (:math:`\theta = 0, d = 0`). :math:`\theta` and :math:`d`
-   are moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved by Newton from the
-   last (forward differences, one batched call per iteration, minimum-norm steps for spare
-   coefficients), the model's chart a constraint of the backtracking line search. A direct Newton
-   solve from the best trial is tried as well; the one nearer the goal is kept.
+   ``newton_ilc``) by Newton's method from the best trial; when that leaves a mismatch, by
+   Gauss-Newton's minimum-norm steps on the configuration error (the pseudo-inverse moves the
+   spare coefficients least where ``W`` is near-singular, as with parallel parking's symmetric
+   ``v1``; :func:`~ilc_steering.agents.model_based.gauss_newton`) from the best candidate and from
+   the nominal solution, and then along a homotopy that starts where the answer is known: the
+   nominal model at its exact solution (:math:`\theta = 0, d = 0`), :math:`\theta` and :math:`d`
+   moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved from the last. The
+   candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification): the next trial
-   halves the step from the best trial, and the secant is reset. Until some trial stays in the
-   chart, the target itself is continued: the next trial aims at a point :math:`\lambda` of the
-   way from the start to the goal (:math:`\lambda` halved after each halted trial), so that the
-   first in-chart trial identifies the plant.
+   halves the step from the best trial, and the secant is reset. A model that explains every
+   trial it is fitted to (to :data:`FIT_TOLERANCE`) lifts the trust region: a region learned
+   while the model was wrong would only hold back the identified model's answer. Until some
+   trial stays in the chart, the target itself is continued: the next trial aims at a point
+   :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
+   halted trial), so that the first in-chart trial identifies the plant.
 
-On the nominal plant :math:`\hat\theta = 0` and :math:`d = 0`: one update lands on the goal to the
-integrator's accuracy, as ``newton_ilc`` does (``tests/test_robust_ilc.py``). Inside the model
-family the first in-chart trial identifies the plant and the next one lands on the goal; outside
-it (a steering offset, a lagging servo) the secant and the trust region carry the rest.
+**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0` and
+:math:`d = 0`: one update lands on the goal to the integrator's accuracy, as ``newton_ilc`` does
+(``tests/test_robust_ilc.py``). Inside a family (the geometry's, or a car's with its steering
+offset and lag) the trials identify the plant once they give more equations than the family
+has unknowns and the grid finds the basin (one in-chart trial for the geometry, two or three for
+the servo's four parameters), and the next trial solves the identified model, which is the plant:
+it lands on the goal whenever the model's solvers find a solution. Outside every family (backlash,
+encoder dead reckoning, a speed loop, measurement noise) nothing is identified exactly: the
+geometry's fit, the residual :math:`d` and the secant :math:`D` give a quasi-Newton iteration on
+the measured error, which converges locally (linearly, at the rate the secant's and the
+model's Jacobian errors allow) but is not guaranteed from far, and noise of the measured errors
+bounds how close it gets. It cannot converge where the true plant cannot reach the goal (the
+oracle's unsolvable region), nor where the refit model's solvers miss a solution the plant has.
 """
 
 from __future__ import annotations
@@ -44,14 +64,23 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.agents.model_based import (
+    Trial,
+    box,
+    broyden_update,
+    final_chained,
+    gauss_newton,
+    law_step,
+    levenberg_marquardt,
+    measure,
+    newton_solve,
+)
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
@@ -76,8 +105,9 @@ GRID_STARTS = 6
 """Grid points the Levenberg-Marquardt refinement starts from."""
 FIT_TRIALS = 8
 """The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
-THETA_CHANGE = 1e-6
-"""A refit that moves ``theta`` more than this resets the secant."""
+THETA_CHANGE = 0.02
+"""A refit that moves ``theta`` more than this resets the secant (a smaller move, as measurement noise
+makes at every trial, keeps it: the secant is what learns what the family lacks)."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10
@@ -88,18 +118,25 @@ RCOND = 1e-7
 """Singular values of the model's Jacobian below this fraction of the largest are left out of a
 Newton step: a symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction
 would take the step far out of the box."""
+ESCALATE = 1e-6
+"""[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the servo's families."""
+EXPLAINED = 1e-5
+"""[m or rad] a servo family is kept only if it explains every trial this well."""
+ESCALATIONS = 2
+"""Failed escalations to the servo's families after which they are not tried again."""
+ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
+"""The richer families, tried in turn when the geometry alone does not explain the trials."""
+ACTUATOR_GRID = {
+    "steering_offset": np.linspace(-0.06, 0.06, 7),
+    "steering_lag": np.array([1 / 128, 0.02, 0.04, 0.07, 0.1, 0.15]),
+}
+"""[rad, s] the grids of the servo's parameters in the global identification."""
+ACTUATOR_STARTS = 3
+"""Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
 _NEWTON_ITERATIONS = 12
+_DAMPED_ITERATIONS = 100
 _HALVINGS = 8
 _FIT_ITERATIONS = 20
-
-
-@dataclass
-class _Trial:
-    c: Array
-    z: Array  # measured final chained coordinates (meaningless if it left the chart)
-    q: Array  # measured final configuration
-    ok: bool  # stayed in the chart
-    error: float  # norm of the measured configuration error (inf if it left the chart)
 
 
 class RobustILC:
@@ -117,7 +154,13 @@ class RobustILC:
 
     def __init__(self, model: NominalModel, start: Array, low: Array, high: Array) -> None:
         self.model = model
-        self.family = ModelFamily(model)
+        self._families = [ModelFamily(model)]
+        """The geometry's family, then (a car) with the steering offset, then with the offset and the lag."""
+        try:
+            self._families += [ModelFamily(model, actuators=names) for names in ACTUATOR_FAMILIES]
+        except ValueError:  # a robot without a steering servo
+            pass
+        self.family = self._families[0]
         self.start = np.array(start, dtype=np.float64)
         self.low = np.asarray(low, dtype=np.float64)
         self.high = np.asarray(high, dtype=np.float64)
@@ -129,13 +172,15 @@ class RobustILC:
         self.reset()
 
     def reset(self) -> None:
+        self.family = self._families[0]
         self.theta = np.zeros(self.family.size)
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
-        self._trials: list[_Trial] = []
-        self._best: _Trial | None = None
+        self._escalations = 0
+        self._trials: list[Trial] = []
+        self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
-        self._previous: _Trial | None = None
+        self._previous: Trial | None = None
         self._radius = np.inf  # the trust region's half-width around the best trial [action scales]
         self._stalled = 0  # updates since the best error last halved
         self._thorough = True
@@ -147,11 +192,8 @@ class RobustILC:
 
     def learn(self, info: Mapping[str, Any]) -> None:
         began = time.perf_counter()
-        c = np.asarray(info["action"], dtype=np.float64)
-        z = self.model.z_goal - np.asarray(info["error"], dtype=np.float64)
-        ok = not bool(info.get("left_chart", False)) and bool(np.all(np.isfinite(z)))
-        q = self.family.to_configuration(z) if ok else np.full(self._goal_q.shape, np.nan)
-        trial = _Trial(c, z, q, ok, float(np.linalg.norm(q - self._goal_q)) if ok else np.inf)
+        trial = measure(self.model, self.family, self._goal_q, info)
+        c, ok = trial.c, trial.ok
         self._trials.append(trial)
         if ok and trial.error < REACHED and (self._best is None or trial.error <= self._best.error):
             # At the goal to the integrator's accuracy: nothing left to learn; run it again.
@@ -163,12 +205,16 @@ class RobustILC:
         # A learner that has stopped improving searches globally only every STALLED-th update:
         # where the true plant cannot reach the goal, that is all the search can find.
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
-        theta = self._identify()
-        if np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
+        family, theta = self._identify()
+        if family is not self.family or np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
             # The secant was learned against another model: it would only distort the new one.
             self._D[:] = 0.0
             self._previous = None
-        self.theta = theta
+        self.family, self.theta = family, theta
+        # A model that explains every trial it is fitted to is trusted whole: the trust region guards
+        # against a model that does not, and one learned before the model changed would only hold back
+        # the new model's answer.
+        explains = self._misfit(self._residuals(theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
         best = self._best
         if best is None and not ok:
             # No trial has stayed in the chart yet: aim at a point nearer the start.
@@ -179,10 +225,12 @@ class RobustILC:
             # answer from the best trial is taken within it; the secant is forgotten.
             self._D[:] = 0.0
             self._previous = None
-            self._radius = 0.5 * self._length(c - best.c)
+            self._radius = np.inf if explains else 0.5 * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
-            if best is not None:
+            if explains:
+                self._radius = np.inf
+            elif best is not None:
                 self._radius = max(self._radius, 2.0 * self._length(c - best.c))
             self._best = trial
             self._update_secant(trial)
@@ -191,7 +239,7 @@ class RobustILC:
 
     # identification -----------------------------------------------------------------------------
 
-    def _fit_trials(self) -> list[_Trial]:
+    def _fit_trials(self) -> list[Trial]:
         trials = self._trials
         if len(trials) <= FIT_TRIALS:
             return trials
@@ -200,11 +248,13 @@ class RobustILC:
             keep = [self._best, *keep[1:]]
         return keep
 
-    def _residuals(self, thetas: Array, trials: list[_Trial]) -> Array:
-        """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` against ``trials``."""
+    def _residuals(self, thetas: Array, trials: list[Trial], family: ModelFamily | None = None) -> Array:
+        """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` of ``family`` (the current
+        one by default) against ``trials``."""
+        family = self.family if family is None else family
         m, k = thetas.shape[0], len(trials)
         c = np.tile(np.array([t.c for t in trials]), (m, 1))
-        q, ok = self.family.configurations_many(np.repeat(thetas, k, axis=0), c)
+        q, ok = family.configurations_many(np.repeat(thetas, k, axis=0), c)
         q, ok = q.reshape(m, k, -1), ok.reshape(m, k)
         measured_ok = np.array([t.ok for t in trials])
         y = np.array([t.q if t.ok else np.zeros_like(self._goal_q) for t in trials])
@@ -212,52 +262,74 @@ class RobustILC:
         r = np.where((ok != measured_ok)[..., None], CHART_PENALTY, r)
         return np.concatenate([r.reshape(m, -1), RIDGE * thetas], axis=1)
 
-    def _identify(self) -> Array:
+    def _identify(self) -> tuple[ModelFamily, Array]:
         """LM from the last estimate; when that does not explain the trials to :data:`FIT_TOLERANCE`,
-        also from the best points of the grid over the whole family."""
+        also from the best points of the grid over the whole family; when that does not either,
+        the families with the steering servo's parameters (the best fit of all is kept)."""
         trials = self._fit_trials()
+        family = self.family
         r = self._residuals(self.theta[None], trials)[0]
         if self._misfit(r) < FIT_TOLERANCE:  # the last estimate explains the new trial too
-            return self.theta
-        theta, r = self._levenberg_marquardt(self.theta, trials)
+            return family, self.theta
+        theta, r = self._levenberg_marquardt(family, self.theta, trials)
         if self._misfit(r) < FIT_TOLERANCE or not self._thorough:
-            return theta
-        values = self._residuals(self._grid, trials)
-        cost = np.einsum("ij,ij->i", values, values)
-        fits = [(theta, r)] + [
-            self._levenberg_marquardt(g, trials) for g in self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
-        ]
-        return min(fits, key=lambda fit: float(fit[1] @ fit[1]))[0]
+            return family, theta
+        fits = [(family, theta, r)]
+        if family is self._families[0]:
+            values = self._residuals(self._grid, trials)
+            cost = np.einsum("ij,ij->i", values, values)
+            starts = self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
+            fits += [(family, *self._levenberg_marquardt(family, g, trials)) for g in starts]
+            best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
+            if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
+                return best[0], best[1]
+            geometry = [best[1]]
+        else:
+            geometry = [theta[: self._families[0].size]]
+        for richer in self._families[1:]:
+            # The servo's parameters on their own grid, the geometry at its best fit and at the nominal.
+            n = richer.size - geometry[0].size
+            axes = [ACTUATOR_GRID[name] for name in richer.names[-n:]]
+            grid = np.array(
+                [
+                    np.concatenate([g, a])
+                    for g in [*geometry, np.zeros_like(geometry[0])]
+                    for a in itertools.product(*axes)
+                ]
+            )
+            values = self._residuals(grid, trials, richer)
+            cost = np.einsum("ij,ij->i", values, values)
+            starts = grid[np.argsort(cost, kind="stable")[:ACTUATOR_STARTS]]
+            if richer is family:
+                starts = np.vstack([theta, starts])
+            fits += [(richer, *self._levenberg_marquardt(richer, g, trials)) for g in starts]
+        best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
+        if best[0] is not self._families[0] and float(np.max(np.abs(best[2][: -best[0].size]))) > EXPLAINED:
+            # The servo does not explain the trials either (backlash, noise, another lag): its
+            # parameters would only caricature what it lacks; the geometry's fit is kept.
+            geometric = [fit for fit in fits if fit[0] is self._families[0]]
+            best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
+            self._escalations += 1
+        return best[0], best[1]
 
     def _misfit(self, r: Array) -> float:
         """The largest residual of the trials (the ridge left out) [m or rad]."""
         return float(np.max(np.abs(r[: -self.family.size]), initial=0.0))
 
-    def _levenberg_marquardt(self, theta: Array, trials: list[_Trial]) -> tuple[Array, Array]:
-        h, damping = 1e-6, 1e-3
-        eye = np.eye(theta.size)
-        r = self._residuals(theta[None], trials)[0]
-        for _ in range(_FIT_ITERATIONS):
-            probes = np.concatenate([theta + h * eye, theta - h * eye])
-            values = self._residuals(probes, trials)
-            J = (values[: theta.size] - values[theta.size :]).T / (2 * h)
-            gradient, normal = J.T @ r, J.T @ J
-            improved = False
-            for _ in range(_HALVINGS):
-                step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
-                candidate = np.clip(theta + step, -MAX_LOG_RATIO, MAX_LOG_RATIO)
-                r_new = self._residuals(candidate[None], trials)[0]
-                if r_new @ r_new < r @ r:
-                    theta, r, damping, improved = candidate, r_new, damping / 3, True
-                    break
-                damping *= 4
-            if not improved or np.max(np.abs(step)) < 1e-12 or self._misfit(r) < 1e-3 * FIT_TOLERANCE:
-                break
-        return theta, r
+    def _levenberg_marquardt(self, family: ModelFamily, theta: Array, trials: list[Trial]) -> tuple[Array, Array]:
+        return levenberg_marquardt(
+            lambda thetas: self._residuals(thetas, trials, family),
+            theta,
+            family.low,
+            family.high,
+            _FIT_ITERATIONS,
+            _HALVINGS,
+            lambda r: float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE,
+        )
 
     # the next trial -----------------------------------------------------------------------------
 
-    def _update_secant(self, trial: _Trial) -> None:
+    def _update_secant(self, trial: Trial) -> None:
         previous = self._previous
         self._previous = trial
         if previous is None:
@@ -265,10 +337,9 @@ class RobustILC:
         s = trial.c - previous.c
         z, ok = self._final_z(np.tile(self.theta, (2, 1)), np.stack([trial.c, previous.c]))
         if np.all(ok) and s @ s > 0:
-            r = (trial.z - z[0]) - (previous.z - z[1])
-            self._D += np.outer(r - self._D @ s, s) / (s @ s)
+            broyden_update(self._D, s, (trial.z - z[0]) - (previous.z - z[1]))
 
-    def _solve(self, trial: _Trial | None, reach: float) -> Array:
+    def _solve(self, trial: Trial | None, reach: float) -> Array:
         """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
         point ``reach`` of the way from the start to the goal."""
         model = self.model
@@ -292,15 +363,40 @@ class RobustILC:
         candidates.append((c, self._mismatch(c[None], self.theta, target - d, D, anchor)[0][0]))
         norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
         pick = int(np.argmin(norms))
+        if norms[pick] > SOLVED:
+            # Newton stalls where W is near-singular (a symmetric v1) or the branch folds: Gauss-Newton's
+            # minimum-norm steps on the configuration error, from the best candidate, then (a thorough
+            # update) along the homotopy from the nominal solution.
+            c_gn = self._damped(candidates[pick][0], self.theta, target - d, D, anchor)
+            candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            if self._thorough and np.linalg.norm(candidates[-1][1]) > SOLVED:
+                c_gn = self._damped(self._box(model.solve(z_goal=target)), self.theta, target - d, D, anchor)
+                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            if self._thorough and min(np.linalg.norm(g) for _, g in candidates[-2:]) > SOLVED:
+                c_gn = self._box(model.solve(z_goal=target))
+                for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
+                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, s * D, anchor)
+                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
+            pick = int(np.argmin(norms))
         if not np.isfinite(norms[pick]):
             return self._box(c) if trial is None else self._law(trial)
         return self._box(candidates[pick][0])
 
-    def _law(self, trial: _Trial) -> Array:
+    def _damped(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> Array:
+        """Gauss-Newton on the model's configuration error (metres and radians, better conditioned
+        than chained coordinates far from the goal) from ``c``, within the box."""
+
+        def residuals(cs: Array) -> Array:
+            g, ok = self._mismatch(cs, theta, target, D, anchor)
+            q = self.family.to_configuration(np.where(ok[:, None], g + self.model.z_goal, self.model.z_goal))
+            return np.where(ok[:, None], q - self._goal_q, CHART_PENALTY)
+
+        return gauss_newton(residuals, c, self.low, self.high, 1e-7 * self._scale, _DAMPED_ITERATIONS)[0]
+
+    def _law(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
-        law = ILCAgent(self.model, start=trial.c)
-        law.learn({"action": trial.c, "error": self.model.z_goal - trial.z})
-        return self._box(law.act())
+        return self._box(law_step(self.model, trial))
 
     def _mismatch(self, cs: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Mask]:
         z, ok = self._final_z(np.tile(theta, (cs.shape[0], 1)), cs)
@@ -309,34 +405,18 @@ class RobustILC:
     def _newton(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Array]:
         """Newton's method on ``F(c; theta) + D (c - anchor) = target`` from ``c``, staying in the
         model's chart; returns the last iterate and its mismatch."""
-        values, ok = self._mismatch(c[None], theta, target, D, anchor)
+
+        def mismatch(cs: Array) -> tuple[Array, Mask]:
+            return self._mismatch(cs, theta, target, D, anchor)
+
+        values, ok = mismatch(c[None])
         g = values[0] if ok[0] else np.full_like(target, np.inf)
-        steps = 1e-7 * self._scale
-        for _ in range(_NEWTON_ITERATIONS):
-            if not np.all(np.isfinite(g)) or np.linalg.norm(g) < 1e-2 * SOLVED:
-                break
-            probes = c + np.vstack([np.zeros_like(c), np.diag(steps)])
-            values, probe_ok = self._mismatch(probes, theta, target, D, anchor)
-            if not np.all(probe_ok):
-                break
-            J = (values[1:] - values[0]).T / steps
-            step = np.linalg.lstsq(J, -values[0], rcond=RCOND)[0]
-            for _ in range(_HALVINGS):  # backtracking, one trial at a time: most steps are taken whole
-                candidate = self._box(c + step)
-                g_new, ok_new = self._mismatch(candidate[None], theta, target, D, anchor)
-                if ok_new[0] and np.linalg.norm(g_new[0]) < np.linalg.norm(g):
-                    c, g = candidate, g_new[0]
-                    break
-                step = 0.5 * step
-            else:
-                break
-        return c, g
+        return newton_solve(
+            mismatch, c, g, self._box, 1e-7 * self._scale, _NEWTON_ITERATIONS, _HALVINGS, 1e-2 * SOLVED, RCOND
+        )
 
     def _final_z(self, thetas: Array, c: Array) -> tuple[Array, Mask]:
-        q, ok = self.family.configurations_many(thetas, c)
-        z = np.full_like(q, np.nan)
-        z[ok] = self.family.to_chained(q[ok])
-        return z, ok
+        return final_chained(self.family, thetas, c)
 
     def _length(self, step: Array) -> float:
         """The size of a step in action scales (the largest over the coefficients)."""
@@ -350,7 +430,7 @@ class RobustILC:
         return self._box(c)
 
     def _box(self, c: Array) -> Array:
-        return np.clip(c, self.low, self.high)
+        return box(c, self.low, self.high)
 
 
 def make_robust_ilc(context: LearnerContext) -> RobustILC:

@@ -38,10 +38,17 @@ MAPS: dict[str, tuple[str, tuple[tuple[str, float, float], ...], int | None]] = 
         (("steering_offset", -0.03, 0.03), ("true_wheel_radius", 0.01, 0.03)),
         9,
     ),
+    "parallel_parking_lag": (
+        "parallel_parking_lag",
+        (("steering_lag", 0.0125, 0.1), ("steering_offset", -0.03, 0.03)),
+        9,
+    ),
 }
 """Map name: config, axes (empty: wheelbase and wheel radius, or the robot's two factors, as
 ratios 0.5-1.5 to the nominal ones; else two plant keys with their ranges) and its own grid (None:
-``--grid``; the servo car's map is coarser, its kernel being the slowest)."""
+``--grid``; the servo car's maps are coarser, its kernel being the slowest). The lag map starts
+at a lag of 0.0125 s, not 0: the vector env measures every plant of a map as the config's plant
+does (the lagging wheel's angle), which a lag-free plant does not have."""
 
 
 @dataclass(frozen=True)

@@ -170,3 +170,28 @@ def test_sweep_refuses_bad_axes_in_one_line(tmp_path, capsys, axes, message):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_outside_the_geometry_family_it_identifies_the_servo_and_converges_where_eqs_33_34_do_not():
+    # parallel_parking_servo: a 0.02 rad steering offset and a 0.05 s servo lag, neither in the
+    # geometry's family; robust_ilc escalates to the family with the servo's parameters.
+    from ilc_steering.agents.ilc import make_ilc_paper
+
+    config = load_config("parallel_parking_servo")
+    plant = config.plant.plant()
+    robust, error, learners = learn(config, [plant], make_robust_ilc, 10)
+    assert 0 < robust[0] <= 10, robust
+    assert error[0] < 1e-6
+    ratios = ModelFamily(learners[0].model).parameters(learners[0].theta[:2])
+    assert ratios == pytest.approx({"wheelbase_ratio": 1.1, "wheel_radius_ratio": 1.1}, rel=1e-4)
+    assert learners[0].theta[2:] == pytest.approx([0.02, 0.05], rel=1e-4)  # the offset [rad] and the lag [s]
+    paper, _, _ = learn(config, [plant], make_ilc_paper, 10)
+    assert paper == [0]
+
+
+def test_inside_the_family_it_still_takes_two_trials():
+    config = load_config("parallel_parking")
+    trials, error, learners = learn(config, [car(config, 1.1, 1.1)], make_robust_ilc, 4)
+    assert trials == [2]
+    assert learners[0].family.names == ("wheelbase_ratio", "wheel_radius_ratio")  # no escalation

@@ -13,11 +13,20 @@ trial spent) to fit :math:`\theta` to the trials it has measured and to invert t
 - any other robot: the true parameters its plant's ``with_family`` scales (a unicycle's wheel
   radius and axle width; a car-trailer's wheelbase, wheel radius and hitch length).
 
+With ``actuators`` (names from the plant's ``actuator_names``: the car's ``steering_offset``
+and ``steering_lag``) the family also leaves free the steering servo's own parameters, as
+absolute values after the ratios: the wheel's offset [rad] in ``+-`` :data:`MAX_ACTUATOR_OFFSET`
+and the servo's first-order lag [s] in ``[max_step / 4,`` :data:`MAX_ACTUATOR_LAG` ``]`` (a lag
+much below the integrator's step is not resolved by it, so a lag-free servo is another family:
+the offset alone, the lag held at 0). Every hypothesis then runs on the servo kernel.
+
 At :math:`\theta = 0` the family is the nominal model itself, its final states those of eq. 23
 (to the integrator's 1e-9), except that it keeps the steering stop, which eq. 23 ignores.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -29,12 +38,17 @@ from ilc_steering.core.plants import Plant, PlantBatch
 from ilc_steering.core.robots import nominal_plant
 from ilc_steering.core.simulate import simulate
 
-__all__ = ["MAX_LOG_RATIO", "ModelFamily"]
+__all__ = ["MAX_ACTUATOR_LAG", "MAX_ACTUATOR_OFFSET", "MAX_LOG_RATIO", "ModelFamily"]
 
 Array = npt.NDArray[np.float64]
 
 MAX_LOG_RATIO = float(np.log(2.0))
 """The largest ``|theta_i|``: the family's parameters stay within a factor 2 of the nominal ones."""
+
+MAX_ACTUATOR_OFFSET = 0.15
+"""[rad] the largest steering offset of the family with actuators."""
+MAX_ACTUATOR_LAG = 0.2
+"""[s] the largest steering lag of the family with actuators."""
 
 _MAX_CACHED = 4096
 
@@ -48,13 +62,41 @@ class ModelFamily:
         The nominal model; its map (a car's geometry, or none for the chained form) sets the family.
     max_step
         The integrator's longest step [s].
+    actuators
+        The actuator parameters also left free (of the plant's ``actuator_names``; the others stay 0).
     """
 
-    def __init__(self, model: NominalModel, max_step: float = DEFAULT_MAX_STEP) -> None:
+    def __init__(
+        self, model: NominalModel, max_step: float = DEFAULT_MAX_STEP, actuators: tuple[str, ...] = ()
+    ) -> None:
         self.model = model
         self.max_step = max_step
-        self._nominal: Plant = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
-        self.names: tuple[str, ...] = self._nominal.family_names()
+        nominal: Any = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
+        self.names: tuple[str, ...] = nominal.family_names()
+        self._ratios = len(self.names)
+        self.low = np.full(self._ratios, -MAX_LOG_RATIO)
+        """The smallest value of each parameter (log-ratios, then rad and s)."""
+        self.high = np.full(self._ratios, MAX_LOG_RATIO)
+        """The largest value of each parameter."""
+        self.actuators = actuators
+        """The actuator parameters left free."""
+        self._actuator_index: list[int] = []
+        if actuators:
+            known = nominal.actuator_names() if hasattr(nominal, "actuator_names") else ()
+            unknown = [name for name in actuators if name not in known]
+            if unknown:
+                raise ValueError(f"ModelFamily: the robot has no actuator parameter {unknown} (it has {known})")
+            bounds = {
+                "steering_offset": (-MAX_ACTUATOR_OFFSET, MAX_ACTUATOR_OFFSET),
+                "steering_lag": (max_step / 4, MAX_ACTUATOR_LAG),
+            }
+            self._actuator_index = [known.index(name) for name in actuators]
+            self._actuator_zero = np.zeros(len(known))
+            self.names += actuators
+            self.low = np.append(self.low, [bounds[name][0] for name in actuators])
+            self.high = np.append(self.high, [bounds[name][1] for name in actuators])
+            nominal = self._with_actuators(nominal, np.zeros(len(actuators)).clip(self.low[self._ratios :]))
+        self._nominal: Plant = nominal
         self._q0 = self.to_configuration(model.z_start)
         self._x0 = self._nominal.initial_state(self._q0)
         self._field = self._nominal.kernel()[0]
@@ -65,14 +107,26 @@ class ModelFamily:
         """The number of free parameters."""
         return len(self.names)
 
+    @property
+    def origin(self) -> Array:
+        """The nominal model's parameters (the actuators' at their smallest offset and lag)."""
+        return np.zeros(self.size).clip(self.low, self.high)
+
     def parameters(self, theta: Array) -> dict[str, float]:
-        """The ratios (true over nominal) that ``theta`` stands for, by name."""
-        return {name: float(np.exp(t)) for name, t in zip(self.names, theta)}
+        """The ratios (true over nominal) that ``theta`` stands for, by name (the actuators' values)."""
+        k = self._ratios
+        return {name: float(np.exp(t)) if i < k else float(t) for i, (name, t) in enumerate(zip(self.names, theta))}
 
     def plant(self, theta: Array) -> Plant:
         """The hypothesised plant with parameters ``theta``."""
-        ratio = np.exp(np.clip(np.asarray(theta, dtype=np.float64), -MAX_LOG_RATIO, MAX_LOG_RATIO))
-        return self._nominal.with_family(ratio)
+        theta = np.clip(np.asarray(theta, dtype=np.float64), self.low, self.high)
+        plant = self._nominal.with_family(np.exp(theta[: self._ratios]))
+        return self._with_actuators(plant, theta[self._ratios :]) if self.actuators else plant
+
+    def _with_actuators(self, plant: Any, values: Array) -> Any:
+        full = self._actuator_zero.copy()
+        full[self._actuator_index] = values
+        return plant.with_actuators(full)
 
     def configurations(self, theta: Array, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
         """Final configurations ``(B, nq)`` (task frame; ``z`` for the chained form) of trials with

@@ -283,6 +283,9 @@ class CarPlant:
     speed_lag: float = 0.0
     steering_backlash: float = 0.0
     encoder_pulses: int = 0
+    servo_kernel: bool = False
+    """Run on the six-state servo kernel even with every servo perturbation off: a model family
+    whose hypotheses vary the actuator's parameters keeps one kernel for all of them."""
 
     @classmethod
     def nominal_plant(cls, chained_map: Any, dimension: int, steering_limit: float | None) -> CarPlant:
@@ -321,7 +324,7 @@ class CarPlant:
     @property
     def servo(self) -> bool:
         """Whether a servo perturbation is on (the six-state kernel, or the lab's)."""
-        return bool(self.steering_offset or self.steering_lag or self.speed_lag) and not self.lab
+        return bool(self.servo_kernel or self.steering_offset or self.steering_lag or self.speed_lag) and not self.lab
 
     @property
     def state_dim(self) -> int:
@@ -376,6 +379,16 @@ class CarPlant:
 
     def with_family(self, ratios: Array) -> CarPlant:
         return self.with_true_factors(ratios)
+
+    def actuator_names(self) -> tuple[str, ...]:
+        """The steering servo's parameters a model family may leave free beside :meth:`family_names`:
+        the wheel's offset [rad] and the servo's first-order time constant [s]."""
+        return ("steering_offset", "steering_lag")
+
+    def with_actuators(self, values: Array) -> CarPlant:
+        """The plant with the steering servo of :meth:`actuator_names` set to ``values`` (absolute,
+        in rad and s), always on the servo kernel."""
+        return replace(self, steering_offset=float(values[0]), steering_lag=float(values[1]), servo_kernel=True)
 
     def with_true_factors(self, factors: Array) -> CarPlant:
         f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product

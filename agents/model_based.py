@@ -1,0 +1,212 @@
+r"""The parts the model-based learners share: a trial record, Levenberg-Marquardt on the model
+family, Newton's method with backtracking, the Broyden update and the box projections.
+
+``newton_ilc`` and ``robust_ilc`` are compositions of these; each keeps its own policy (which
+trials to fit, where Newton starts, when to fall back). Everything here sees only the nominal
+model (through a :class:`~ilc_steering.core.family.ModelFamily`) and the measured trials.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.core.family import ModelFamily
+from ilc_steering.core.nominal import NominalModel
+
+__all__ = [
+    "Trial",
+    "box",
+    "broyden_update",
+    "final_chained",
+    "gauss_newton",
+    "law_step",
+    "levenberg_marquardt",
+    "measure",
+    "newton_solve",
+    "trust_box",
+]
+
+Array = npt.NDArray[np.float64]
+Mask = npt.NDArray[np.bool_]
+
+
+@dataclass
+class Trial:
+    """One measured trial."""
+
+    c: Array
+    """The coefficients it ran."""
+    z: Array
+    """Its measured final chained coordinates (meaningless if it left the chart)."""
+    q: Array
+    """Its measured final configuration (NaN if it left the chart)."""
+    error: float
+    """The norm of the measured configuration error [m and rad] (inf if it left the chart)."""
+    ok: bool = True
+    """Whether it stayed in the chart."""
+
+
+def measure(model: NominalModel, family: ModelFamily, goal_q: Array, info: Mapping[str, Any]) -> Trial:
+    """The :class:`Trial` of a trial's ``info`` (its ``action``, ``error`` and ``left_chart``)."""
+    c = np.asarray(info["action"], dtype=np.float64)
+    z = model.z_goal - np.asarray(info["error"], dtype=np.float64)
+    ok = not bool(info.get("left_chart", False)) and bool(np.all(np.isfinite(z)))
+    q = family.to_configuration(z) if ok else np.full(goal_q.shape, np.nan)
+    return Trial(c, z, q, float(np.linalg.norm(q - goal_q)) if ok else np.inf, ok)
+
+
+def final_chained(family: ModelFamily, thetas: Array, c: Array) -> tuple[Array, Mask]:
+    """Final chained coordinates of trials ``c`` ``(B, 1 + q)`` on hypotheses ``thetas`` ``(B, size)``
+    (NaN where a trial left the chart), and whether each stayed in it."""
+    q, ok = family.configurations_many(thetas, c)
+    z = np.full_like(q, np.nan)
+    z[ok] = family.to_chained(q[ok])
+    return z, ok
+
+
+def levenberg_marquardt(
+    residuals: Callable[[Array], Array],
+    theta: Array,
+    low: Array,
+    high: Array,
+    iterations: int,
+    halvings: int = 8,
+    done: Callable[[Array], bool] | None = None,
+) -> tuple[Array, Array]:
+    r"""Minimize :math:`\|r(\theta)\|^2` by Levenberg-Marquardt with central differences, ``theta``
+    kept in ``[low, high]``; returns the estimate and its residual.
+
+    ``residuals`` maps hypotheses ``(M, size)`` to residuals ``(M, R)`` (one batched call per
+    iteration for the derivative). The damping starts at 1e-3 of the normal matrix's diagonal,
+    is divided by 3 after a step that lowers the cost and multiplied by 4 after one that does not
+    (at most ``halvings`` tries per iteration). Stops when no try lowers the cost, the step is
+    below 1e-12, or ``done(r)``.
+    """
+    h, damping = 1e-6, 1e-3
+    eye = np.eye(theta.size)
+    r = residuals(theta[None])[0]
+    for _ in range(iterations):
+        values = residuals(np.concatenate([theta + h * eye, theta - h * eye]))
+        J = np.ascontiguousarray((values[: theta.size] - values[theta.size :]).T) / (2 * h)
+        gradient, normal = J.T @ r, J.T @ J
+        improved = False
+        for _ in range(halvings):
+            step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
+            candidate = np.clip(theta + step, low, high)
+            r_new = residuals(candidate[None])[0]
+            if r_new @ r_new < r @ r:
+                theta, r, damping, improved = candidate, r_new, damping / 3, True
+                break
+            damping *= 4
+        if not improved or np.max(np.abs(step)) < 1e-12 or (done is not None and done(r)):
+            break
+    return theta, r
+
+
+def newton_solve(
+    mismatch: Callable[[Array], tuple[Array, Mask]],
+    c: Array,
+    g: Array,
+    project: Callable[[Array], Array],
+    steps: Array,
+    iterations: int,
+    halvings: int,
+    tolerance: float,
+    rcond: float | None = None,
+) -> tuple[Array, Array]:
+    """Newton's method on ``mismatch(c) = 0`` from ``c`` (whose mismatch is ``g``) with
+    forward-difference derivatives (``steps`` per coefficient, one batched call) and a backtracking
+    line search: a step, projected by ``project``, is halved (at most ``halvings`` times) until it
+    lowers ``|g|`` and stays in the chart. Least-squares steps (``rcond`` as in ``numpy.linalg.lstsq``)
+    for spare coefficients. Returns the last iterate and its mismatch."""
+    for _ in range(iterations):
+        if not np.all(np.isfinite(g)) or np.linalg.norm(g) < tolerance:
+            break
+        probes = c + np.vstack([np.zeros_like(c), np.diag(steps)])
+        values, probe_ok = mismatch(probes)
+        if not np.all(probe_ok):
+            break
+        J = (values[1:] - values[0]).T / steps
+        step = np.linalg.lstsq(J, -values[0], rcond=rcond)[0]
+        for _ in range(halvings):
+            candidate = project(c + step)
+            g_new, ok_new = mismatch(candidate[None])
+            if ok_new[0] and np.linalg.norm(g_new[0]) < np.linalg.norm(g):
+                c, g = candidate, g_new[0]
+                break
+            step = 0.5 * step
+        else:
+            break
+    return c, g
+
+
+def broyden_update(D: Array, s: Array, r: Array) -> None:
+    """Broyden's rank-one update of the secant ``D`` in place: after a step ``s`` that changed the
+    residual by ``r``, ``D <- D + (r - D s) s^T / s^T s`` (the least change with ``D s = r``)."""
+    D += np.outer(r - D @ s, s) / (s @ s)
+
+
+def law_step(model: NominalModel, trial: Trial, nu_a: float = 1.0, nu_b: float = 1.0) -> Array:
+    """Eqs. 33-34 from ``trial`` (unprojected)."""
+    law = ILCAgent(model, nu_a, nu_b, start=trial.c)
+    law.learn({"action": trial.c, "error": model.z_goal - trial.z})
+    return law.act()
+
+
+def box(c: Array, low: Array, high: Array) -> Array:
+    """``c`` clipped to the action box."""
+    return np.clip(c, low, high)
+
+
+def trust_box(origin: Array, c: Array, radius: Array, low: Array, high: Array) -> Array:
+    """``c`` clipped to the box of half-widths ``radius`` around ``origin``, then to the action box."""
+    return np.clip(np.clip(c, origin - radius, origin + radius), low, high)
+
+
+def gauss_newton(
+    residuals: Callable[[Array], Array],
+    c: Array,
+    low: Array,
+    high: Array,
+    steps: Array,
+    iterations: int,
+    tolerance: float = 1e-10,
+) -> tuple[Array, Array]:
+    """Least squares on ``residuals`` (batched, ``(M, p) -> (M, R)``) from ``c`` in ``[low, high]``
+    by Gauss-Newton's minimum-norm step (a pseudo-inverse: where the Jacobian is near-singular, as
+    ``W`` is for a symmetric ``v1``, it moves the spare coefficients least), halved until it lowers
+    the cost, then Levenberg-Marquardt steps (the oracle's search, on a model instead of the plant).
+    Forward differences of ``steps``. Returns the last iterate and its residual."""
+    p = c.size
+    r = residuals(c[None])[0]
+    cost, damping = float(r @ r), 1e-3
+    for _ in range(iterations):
+        if not np.isfinite(cost) or cost <= tolerance**2:
+            break
+        values = residuals(c + np.vstack([np.zeros(p), np.diag(steps)]))
+        J = (values[1:] - values[0]).T / steps
+        if not np.all(np.isfinite(J)):
+            break
+        newton = -np.linalg.pinv(J) @ r
+        gradient, normal = J.T @ r, J.T @ J
+        improved = False
+        for attempt in range(12):
+            if attempt < 6:
+                step = newton * 0.5**attempt
+            else:
+                step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
+                damping *= 4
+            candidate = np.clip(c + step, low, high)
+            r_new = residuals(candidate[None])[0]
+            if float(r_new @ r_new) < cost:
+                c, r, cost, damping, improved = candidate, r_new, float(r_new @ r_new), 1e-3, True
+                break
+        if not improved:
+            break
+    return c, r
