@@ -56,12 +56,14 @@ import numpy as np
 
 from ilc_steering import __version__
 from ilc_steering.against import CommittedRun, check_out, describe, read_committed, resolve_settings
-from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, load_factory
+from ilc_steering.agents import registry
+from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, update_times
+from ilc_steering.agents.registry import Budgets, is_custom
 from ilc_steering.backends import BACKENDS, MAX_WORKERS, check_workers, run_calls
 from ilc_steering.compare_report import LADDER, write_report
 from ilc_steering.core.score import true_cost
 from ilc_steering.inputs import read_json
-from ilc_steering.loop import LearnerError, run_trials
+from ilc_steering.loop import run_trials
 from ilc_steering.output import (
     MAX_RESULT_BYTES,
     check_output_dir,
@@ -71,7 +73,7 @@ from ilc_steering.output import (
     injective_name,
     write_json,
 )
-from ilc_steering.runner import check_task, step_warning, working_directory_importable
+from ilc_steering.runner import check_task, step_warning
 
 __all__ = [
     "LADDER",
@@ -81,6 +83,7 @@ __all__ = [
     "main_with_failures",
     "make_learner",
     "measure",
+    "method_families",
     "parse",
     "run_all",
     "run_cell",
@@ -89,14 +92,12 @@ __all__ = [
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 MAX_SEED = 2**32 - 1
-MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc", "robust_ilc")
-BLACKBOX = ("least_squares", "noisy_least_squares", "gauss_newton", "nelder_mead", "cma_es", "bayes_opt")
-RL = ("ppo", "sac", "td3", "crossq", "tqc")
-METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
-NOT_BY_DEFAULT = ("crossq",)
-"""Methods run only when named: CrossQ, untuned here, diverges to NaN actions within the quick
-budget on unicycle_parking and trailer_bay (its batch-normalized critic on a one-step task)."""
-DEFAULT_METHODS = tuple(m for m in METHODS if m not in NOT_BY_DEFAULT)
+MODEL_METHODS = registry.ids("model-based")
+BLACKBOX = registry.ids("black-box")
+RL = registry.ids("RL")
+METHODS = registry.METHODS
+DEFAULT_METHODS = registry.DEFAULT_METHODS
+"""Views of the one table of method ids, :data:`ilc_steering.agents.registry.REGISTRY`."""
 SCENARIOS = (
     "forward_parking",
     "forward_parking_saturated",
@@ -198,95 +199,31 @@ def best_so_far(log: TrialLog) -> list[list[float]]:
     return [[int(i) + 1, float(best[i])] for i in changed]
 
 
-def is_custom(method: str) -> bool:
-    """A user's learner factory, ``module:attr``."""
-    return ":" in method
-
-
-def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
-    """The factory named ``module:attr`` (a module in the working directory included); ``ValueError``
-    if it cannot be imported or called."""
-    working_directory_importable()
-    return load_factory(method, "--methods")
-
-
 def method_families(methods: Iterable[str] = ()) -> dict[str, tuple[str, ...]]:
-    """The families the comparison's figures colour by (:mod:`~ilc_steering.figure_styles`), read
-    from the method tuples when called, so a method added to one joins its family: model-based,
-    black-box, RL, and yours, every ``module:attr`` among ``methods``."""
-    families = {"model-based": MODEL_METHODS, "black-box": BLACKBOX, "RL": RL}
-    return {**families, "yours": tuple(dict.fromkeys(m for m in methods if is_custom(m)))}
+    """The families the comparison's figures colour by (:mod:`~ilc_steering.figure_styles`):
+    :func:`ilc_steering.agents.registry.families`."""
+    return registry.families(methods)
+
+
+def budgets(args: Args) -> Budgets:
+    """The budgets of ``args``, one per family."""
+    return Budgets(args.model_trials, args.blackbox_trials, args.rl_trials, args.custom_trials)
 
 
 def budget(args: Args, prior: str, method: str, scenario: str) -> int:
-    if method in MODEL_METHODS:
-        return args.model_trials
-    if is_custom(method):
-        return args.custom_trials
-    if method in RL:
-        from ilc_steering.agents.rl import hyperparameters
-
-        if args.rl_trials is not None:
-            return args.rl_trials
-        return int(hyperparameters(method, scenario, prior)["n_timesteps"])
-    if method == "bayes_opt":  # a GP's trial costs about 0.25 s: BO's budget is its own (agents/bayes_opt.py)
-        from ilc_steering.agents.bayes_opt import MAX_TRIALS
-
-        return min(args.blackbox_trials, MAX_TRIALS)
-    return args.blackbox_trials
+    """The budget of ``method`` on the config named ``scenario`` [trials] (the registry's rule)."""
+    return registry.lookup(method).budget(budgets(args), scenario, prior)
 
 
 def implementation(method: str) -> str:
-    """What made a cell of ``method``: for RL the package and version of the backend in use (SBX or
-    SB3, :func:`ilc_steering.agents.rl.implementation`), for a black-box method its optimizer's, else
-    this library's (a user's learner: its ``module:attr``)."""
-    from importlib import metadata
-
-    if method in RL:
-        from ilc_steering.agents.rl import implementation as rl_implementation
-
-        return rl_implementation(method)
-    if is_custom(method):
-        return method
-    package = {"cma_es": "cma", "bayes_opt": "botorch"}.get(method, "scipy" if method in BLACKBOX else None)
-    return f"{package} {metadata.version(package)}" if package else f"ilc-steering {__version__}"
+    """What made a cell of ``method`` (:meth:`~ilc_steering.agents.registry.LearnerSpec.implementation`)."""
+    return registry.lookup(method).implementation()
 
 
 def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
-    """The learner of ``method`` for ``scenario`` (its config's name), built from ``context`` alone."""
-    from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
-    from ilc_steering.agents.newton import make_newton
-    from ilc_steering.agents.newton_ilc import make_newton_ilc
-    from ilc_steering.agents.robust_ilc import make_robust_ilc
-
-    builders: dict[str, Callable[[LearnerContext], Learner]] = {
-        "ilc": make_ilc,
-        "ilc_paper": make_ilc_paper,
-        "newton": make_newton,
-        "newton_ilc": make_newton_ilc,
-        "robust_ilc": make_robust_ilc,
-    }
-    if method in builders:
-        return builders[method](context)
-    if method in RL:
-        from ilc_steering.agents import rl
-
-        params = rl.hyperparameters(method, scenario, context.prior)
-        trials = budget(args, context.prior, method, scenario)
-        return rl.make_learner(method, params, trials, args.progress_bar, context)
-    if method in BLACKBOX:
-        from ilc_steering.agents import blackbox
-
-        return blackbox.make_learner(method, context)
-    if is_custom(method):
-        try:
-            learner = custom_factory(method)(context)
-        except Exception as error:
-            raise LearnerError(f"learner {method}: its factory raised {type(error).__name__}: {error}") from error
-        if not isinstance(learner, Learner):
-            raise ValueError(f"--methods {method}: made {type(learner).__name__}, which has no act, learn and reset")
-        return learner
-    raise ValueError(f"unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
+    """The learner of ``method`` for ``context`` with its budget under ``args``, through the registry."""
+    spec = registry.lookup(method)
+    return spec.make(context, spec.budget(budgets(args), context.task or scenario, context.prior))
 
 
 def measure(
@@ -301,9 +238,9 @@ def measure(
     run_trials(env, learner, trials, seed=seed, callbacks=[log], name=name)
     wall = time.perf_counter() - start
     curve = best_so_far(log)
-    # A learner that times its own updates (update_seconds: the model-based ones) reports the median.
-    updates = getattr(learner, "update_seconds", None)
-    update_s = float(np.median(updates)) if isinstance(updates, list) and updates else None
+    # A learner that times its own updates (TimedUpdates: the model-based ones) reports the median.
+    updates = update_times(learner)
+    update_s = float(np.median(updates)) if updates else None
     return {
         "update_s": update_s,
         "trials": len(log.cost),
@@ -324,28 +261,14 @@ def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> d
 
         torch.set_num_threads(1)  # as in the worker processes: serial and parallel runs agree
     env = gym.make(ENV_ID, config=scenario)
-    unwrapped: Any = env.unwrapped
-    config = unwrapped.config
-    context = LearnerContext(
-        unwrapped.nominal_model,
-        unwrapped.action_space,
-        unwrapped.observation_space,
-        seed,
-        config.learning.nu_a,
-        config.learning.nu_b,
-        prior=prior,
-        cost=config.learning.cost,
-    )
-    trials = budget(args, prior, method, config.name)
-    learner = make_learner(args, method, config.name, context)
-    if context.cost != "none":
-        from ilc_steering.agents.costs import with_cost
-
-        learner = with_cost(learner, context)
+    context = LearnerContext.from_env(env, seed=seed, prior=prior, progress_bar=args.progress_bar)
+    spec = registry.lookup(method)
+    trials = spec.budget(budgets(args), context.task, prior)
+    learner = spec.make(context, trials)
     result = measure(env, learner, trials, seed, method)
-    result["implementation"] = implementation(method)
+    result["implementation"] = spec.implementation()
     env.close()
-    return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
+    return {"prior": prior, "method": method, "scenario": context.task, "seed": seed, "budget": trials, **result}
 
 
 def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int, folder: str = "cells") -> Path:
@@ -377,10 +300,7 @@ def validate(args: Args) -> dict[str, str]:
     if unknown_priors:
         raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
     for method in args.methods:
-        if is_custom(method):
-            custom_factory(method)
-        elif method not in METHODS:
-            raise ValueError(f"--methods: unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
+        registry.lookup(method)
     bad = [s for s in args.seeds if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
     if bad:
         raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")

@@ -17,7 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from ilc_steering.agents.base import Learner
+from ilc_steering.agents.base import Closable, Learner
 from ilc_steering.core.score import TRUE_KEYS
 
 __all__ = ["LearnerError", "Rollout", "TrialCallback", "run_trials"]
@@ -72,8 +72,9 @@ def run_trials(
     The learner gets each trial's ``info`` without the true errors (``core.score.TRUE_KEYS``):
     it learns from measurements only. The rollout and the callbacks get the whole ``info``.
 
-    ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method (the
-    adapters of pull-style optimizers) is closed when the loop ends, however it ends.
+    ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method
+    (:class:`~ilc_steering.agents.base.Closable`: the adapters of pull-style optimizers) is
+    closed when the loop ends, however it ends.
 
     ``name`` names the learner in a :class:`LearnerError` (default: its class).
     """
@@ -106,10 +107,9 @@ def run_trials(
                 observation, _ = env.reset()
         failed = False
     finally:
-        close = getattr(learner, "close", None)
-        if callable(close):
+        if isinstance(learner, Closable):
             try:
-                close()
+                learner.close()
             except Exception as error:
                 if not failed:  # else the error that ended the loop is the one to report
                     raise _fault(who, "close() raised", len(rollout), error) from error

@@ -35,7 +35,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering import __version__
-from ilc_steering.agents.base import Learner, LearnerContext
+from ilc_steering.agents.base import Learner, LearnerContext, close_learner
+from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom, lookup
 from ilc_steering.backends import MAX_WORKERS, check_workers
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import Plant
@@ -173,31 +174,19 @@ def centre_row(args: SweepArgs, config: SteeringConfig) -> int:
 def run_row(args: SweepArgs, method: str, nu_b: float | None, row: int) -> dict[str, Any]:
     """Row ``row`` of the map of ``method`` (gain ``nu_b``, ``None`` for the config's): the first
     axis at its ``row``-th value, the second at every value."""
-    from ilc_steering.compare import Args as CompareArgs
-    from ilc_steering.compare import make_learner
     from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 
     config = load_config(args.config)
     envs = ChainedSteeringVectorEnv(args.grid, config, true_plants=row_plants(args, config, row))
-    learning = config.learning
-    context = LearnerContext(
-        envs.nominal_model,
-        envs.single_action_space,  # type: ignore[arg-type]
-        envs.single_observation_space,  # type: ignore[arg-type]
-        args.seed,
-        learning.nu_a,
-        learning.nu_b if nu_b is None else nu_b,
-        cost=learning.cost,
-    )
-    learners = [make_learner(CompareArgs(), method, config.name, context) for _ in range(args.grid)]
+    context = LearnerContext.from_env(envs, seed=args.seed, nu_b=nu_b)
+    spec = lookup(method)
+    learners = [spec.make(context, args.trials) for _ in range(args.grid)]
     start = time.perf_counter()
     try:
-        result = lockstep(envs, learners, args.trials, learning.tolerance, args.seed)
+        result = lockstep(envs, learners, args.trials, config.learning.tolerance, args.seed)
     finally:
         for learner in learners:
-            close = getattr(learner, "close", None)
-            if callable(close):
-                close()
+            close_learner(learner)
     return {
         "method": method,
         "nu_b": context.nu_b,
@@ -223,8 +212,6 @@ def run_oracle(args: SweepArgs) -> dict[str, Any]:
 
 
 def _validate(args: SweepArgs) -> tuple[str, list[str]]:
-    from ilc_steering.compare import BLACKBOX, MODEL_METHODS, RL, is_custom
-
     config = load_config(args.config)
     if config.is_cyclic:
         raise ValueError(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
@@ -256,13 +243,12 @@ def _validate(args: SweepArgs) -> tuple[str, list[str]]:
         raise ValueError(f"--backend must be local or ray, got {args.backend!r}")
     if not args.methods:
         raise ValueError("--methods: give at least one")
+    mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
     for method in args.methods:
-        if method in RL:
-            raise ValueError(
-                f"--methods {method}: RL trains a network per plant; sweep maps {MODEL_METHODS + BLACKBOX}"
-            )
-        if method not in MODEL_METHODS + BLACKBOX and not is_custom(method):
-            raise ValueError(f"--methods: unknown method {method!r}; choose from {list(MODEL_METHODS + BLACKBOX)}")
+        if method in REGISTRY and REGISTRY[method].family == "RL":
+            raise ValueError(f"--methods {method}: RL trains a network per plant; sweep maps {tuple(mappable)}")
+        if method not in REGISTRY and not is_custom(method):
+            raise ValueError(f"--methods: unknown method {method!r}; choose from {mappable}")
     if not args.axes:
         return config.name, list(config.plant.plant().factor_names)
     _check_axes(args, config)
@@ -309,14 +295,10 @@ def gain_text(gain: float) -> str:
 
 def map_name(method: str, gain: float) -> str:
     """The file-name part of the map of ``method`` at ``gain``: injective in both."""
-    from ilc_steering.compare import METHODS
-
     return f"{injective_name(method, METHODS)}_nu{gain_text(gain)}"
 
 
 def row_path(out: Path, method: str, nu_b: float, row: int, folder: str = "rows") -> Path:
-    from ilc_steering.compare import METHODS
-
     return out / folder / f"{injective_name(method, METHODS)}__nu{gain_text(nu_b)}__{row:03d}.json"
 
 
