@@ -6,7 +6,7 @@ import gymnasium as gym
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering import cli, compare, runner, sweep
+from ilc_steering import cli, compare, runner, sweep, sweep_rows
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import BaseLearner, Closable, LearnerContext, TimedUpdates, close_learner, update_times
 from ilc_steering.agents.costs import NullSpaceCost
@@ -74,13 +74,13 @@ def test_the_context_carries_the_cost_in_run_compare_and_sweep():
 def test_sweep_builds_its_learners_with_the_configs_cost(monkeypatch):
     """sweep used to drop learning.cost: its learners had none where compare's had a NullSpaceCost."""
     made = []
-    original = sweep.lockstep
+    original = sweep_rows.lockstep
 
-    def capture(envs, learners, trials, tolerance, seed=0):
+    def capture(envs, learners, trials, tolerance, seed=0, name=None):
         made.extend(learners)
-        return original(envs, learners, 1, tolerance, seed)
+        return original(envs, learners, 1, tolerance, seed, name)
 
-    monkeypatch.setattr(sweep, "lockstep", capture)
+    monkeypatch.setattr(sweep_rows, "lockstep", capture)
     sweep.run_row(sweep.SweepArgs(config=with_cost(), grid=2, trials=1), "ilc", None, 0)  # type: ignore[arg-type]
     assert len(made) == 2 and all(isinstance(learner.cost, NullSpaceCost) for learner in made)
 
