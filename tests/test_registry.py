@@ -100,3 +100,88 @@ def test_the_optional_parts_of_a_learner_are_declared():
     plain = ILCAgent(env.unwrapped.nominal_model)
     assert not isinstance(plain, Closable) and update_times(plain) == []
     close_learner(plain)  # nothing to close: no error
+
+
+OUTSIDE = '''
+"""A learner from outside the package: eqs. 33-34 at half gain, written against the Learner protocol."""
+import numpy as np
+
+from ilc_steering.agents.base import BaseLearner
+from ilc_steering.agents.ilc import ILCAgent
+
+
+class Halving(BaseLearner):
+    def __init__(self, context):
+        super().__init__()
+        self.inner = ILCAgent(context.model, context.nu_a, 0.5 * context.nu_b, start=context.first_action())
+
+    def act(self, observation=None):
+        return self.inner.act(observation)
+
+    def learn(self, info):
+        self.inner.learn(info)
+
+    def reset(self):
+        self.inner.reset()
+
+
+def make(context):
+    return Halving(context)
+'''
+
+
+def test_a_learner_from_outside_runs_through_run_compare_and_sweep(tmp_path, monkeypatch, capsys):
+    """module:attr from the working directory, no entry point installed: the same lookup everywhere."""
+    (tmp_path / "outside_learners.py").write_text(OUTSIDE)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    spec = "outside_learners:make"
+    assert cli.main(["run", "forward_parking", "--learner", spec, "--trials", "4"]) in (0, 1)
+    assert "forward_parking: 4 trials" in capsys.readouterr().out
+    cells = compare.run_cells(
+        compare.Args(
+            out=tmp_path / "c",
+            methods=(spec,),
+            priors=("nominal",),
+            scenarios=("forward_parking",),
+            seeds=(0,),
+            custom_trials=4,
+            workers=1,
+        )
+    )
+    assert [c["method"] for c in cells] == [spec] and cells[0]["trials"] == 4 and cells[0]["implementation"] == spec
+    maps = sweep.run_rows(sweep.SweepArgs(methods=(spec,), grid=2, trials=3, workers=1, out=tmp_path / "s"))
+    assert list(maps) == [(spec, 1.0)] and len(maps[spec, 1.0]) == 2
+
+
+def test_sweep_and_compare_run_the_same_trials_for_the_same_learner_cost_and_plant():
+    """The vector form of the trial loop (sweep's rows) and the one-env form (compare's cells) give
+    every trial the same action and the same true error, bit for bit, on a config with a cost."""
+    from ilc_steering.loop import run_trials, run_vector_trials
+
+    config = with_cost()
+    for method in ("ilc", "newton_ilc", "least_squares"):
+        env = gym.make("ilc_steering/ChainedSteering-v0", config=config)
+        spec = registry.lookup(method)
+        single = run_trials(env, spec.make(LearnerContext.from_env(env, seed=3), 6), 6, seed=3).infos
+        vector = ChainedSteeringVectorEnv(2, config)
+        learners = [spec.make(LearnerContext.from_env(vector, seed=3), 6) for _ in range(2)]
+        seen = []
+        run_vector_trials(vector, learners, 6, seed=3, callbacks=[lambda k, rows, seen=seen: seen.append(rows)])
+        assert len(seen) == len(single) == 6
+        for one, rows in zip(single, seen):
+            for row in rows:
+                assert (row["action"] == one["action"]).all(), method
+                assert row["true_error_norm"] == one["true_error_norm"], method
+
+
+def test_quick_is_resolved_in_one_place():
+    """compare.main(Args(quick=True)) used to run 10 seeds: the plan resolves quick once."""
+    resolved = compare.resolve(compare.Args(quick=True))
+    assert resolved.seeds == compare.QUICK_SEEDS and resolved.model_trials == compare.QUICK["model_trials"]
+    assert compare.resolve(compare.Args(quick=True, seeds=(5,), model_trials=9)).seeds == (5,)
+    assert compare.resolve(compare.Args(quick=True, model_trials=9)).model_trials == 9
+    assert compare.resolve(compare.Args()).seeds == compare.SEEDS
+    the_plan = compare.plan(compare.Args(quick=True, methods=("ilc", "ppo"), scenarios=("forward_parking",)))
+    assert {cell[3] for cell in the_plan.grid} == set(compare.QUICK_SEEDS)
+    assert the_plan.budgets["nominal", "ppo", "forward_parking"] == compare.QUICK["rl_trials"]
