@@ -14,8 +14,12 @@ resumes from what was written. The backend changes where the calls run, never wh
 
 With ``failed`` given, a call that raises (or outlives ``timeout`` seconds) is handed to
 ``failed(key, message)`` and the others go on: a failing cell never takes a finished one with
-it. The time limit is a ``SIGALRM`` in the process that runs the call, so it stops Python code
-(a loop, a ``sleep``), not a call stuck inside compiled code that never returns to Python.
+it. Local calls with ``failed`` run in worker processes that this process can kill
+(:func:`_killable_map`), whenever there are two workers or more or ``isolate`` is asked for: a
+call past its time limit is ended with its process (a learner that swallows the exception, an
+optimizer that never returns, a ``nogil`` compiled loop), and a worker that dies (``os._exit``,
+a crash) is that call's failure, the others going on in a fresh worker. In this process (one
+worker, not isolated; Ray tasks) the limit is a ``SIGALRM``, which stops Python code only.
 Local workers are capped at :data:`MAX_WORKERS`.
 """
 
@@ -24,12 +28,14 @@ from __future__ import annotations
 import copyreg
 import logging
 import multiprocessing
+import multiprocessing.connection
 import os
 import pickle
 import signal
 import socket
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -111,15 +117,21 @@ def run_calls(
     workers: int = 0,
     failed: Failed | None = None,
     timeout: float | None = None,
+    isolate: bool = False,
 ) -> None:
     """``finish(key, function(*calls[key]))`` for every key, on ``backend`` (``workers`` local
     processes, 0 for one per core). Without ``failed``, an error or an interrupt cancels what has
     not started and is raised; with it, a call that raises or outlives ``timeout`` [s] goes to
-    ``failed(key, message)`` and the rest run. An interrupt is always raised."""
+    ``failed(key, message)`` and the rest run, in killable worker processes when there are two or
+    more, or with ``isolate`` (see the module). An interrupt is always raised."""
     if backend not in BACKENDS:
         raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
     check_workers(workers)
     if not calls:
+        return
+    count = min(workers or os.cpu_count() or 1, len(calls))
+    if backend == "local" and failed is not None and (count > 1 or isolate):
+        _killable_map(function, calls, count, finish, failed, timeout)
         return
     if failed is not None or timeout is not None:
         guarded = {key: (function, timeout, args) for key, args in calls.items()}
@@ -138,7 +150,6 @@ def run_calls(
     if backend == "ray":
         _ray_map(function, calls, finish)
         return
-    count = min(workers or os.cpu_count() or 1, len(calls))
     if count <= 1:
         for key, args in calls.items():
             finish(key, function(*args))
@@ -164,6 +175,109 @@ def _process_map(
             for future in pending:
                 future.cancel()
             raise
+
+
+def _serve(connection: Any) -> None:
+    """A killable worker's loop: run each ``(function, args)`` it is sent and send back ``(True,
+    result)`` or ``(False, message)``, until it is sent None or its parent goes."""
+    while True:
+        try:
+            task = connection.recv()
+        except (EOFError, OSError):
+            return
+        if task is None:
+            return
+        function, args = task
+        try:
+            outcome: tuple[bool, Any] = (True, function(*args))
+        except Exception as error:
+            outcome = (False, f"{type(error).__name__}: {error}")
+        try:
+            connection.send(outcome)
+        except Exception as error:  # a result that cannot be pickled
+            connection.send((False, f"its result cannot be sent back: {type(error).__name__}: {error}"))
+
+
+class _Worker:
+    """A spawned worker process and its end of the pipe, with the call it runs and its deadline."""
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("spawn")
+        self.connection, theirs = context.Pipe()
+        self.process = context.Process(target=_serve, args=(theirs,), daemon=True)
+        self.process.start()
+        theirs.close()
+        self.key: Any = None
+        self.deadline: float | None = None
+
+    def stop(self, kill: bool = False) -> None:
+        if kill:
+            self.process.kill()
+        else:
+            try:
+                self.connection.send(None)
+            except OSError:
+                self.process.kill()
+        self.process.join(5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.connection.close()
+
+
+def _killable_map(
+    function: Callable[..., Any],
+    calls: Mapping[Any, tuple[Any, ...]],
+    count: int,
+    finish: Finish,
+    failed: Failed,
+    timeout: float | None,
+) -> None:
+    """Every call in ``count`` spawned worker processes, each call's process killed when it
+    outlives ``timeout`` [s] and replaced, as is one that dies; each is that call's failure."""
+    queue = list(calls)
+    idle: list[_Worker] = []
+    busy: dict[Any, _Worker] = {}
+    try:
+        while queue or busy:
+            while queue and len(busy) < count:
+                worker = idle.pop() if idle else _Worker()
+                worker.key = queue.pop(0)
+                worker.deadline = None if timeout is None else time.monotonic() + timeout
+                worker.connection.send((function, calls[worker.key]))
+                busy[worker.connection] = worker
+            deadlines = [w.deadline for w in busy.values() if w.deadline is not None]
+            wait_for = None if not deadlines else max(0.0, min(deadlines) - time.monotonic())
+            waitables = [*busy, *(w.process.sentinel for w in busy.values())]
+            multiprocessing.connection.wait(waitables, timeout=wait_for)
+            for connection, worker in list(busy.items()):
+                if connection.poll():
+                    try:
+                        ok, value = connection.recv()
+                    except (EOFError, OSError):
+                        ok, value = None, None
+                    if ok is not None:
+                        del busy[connection]
+                        idle.append(worker)
+                        (finish if ok else failed)(worker.key, value)
+                        continue
+                if not worker.process.is_alive():
+                    del busy[connection]
+                    worker.process.join()
+                    code = worker.process.exitcode
+                    worker.stop(kill=True)
+                    failed(worker.key, f"WorkerDied: its worker process ended (exit code {code}) before returning")
+                elif worker.deadline is not None and time.monotonic() >= worker.deadline:
+                    del busy[connection]
+                    worker.stop(kill=True)
+                    failed(
+                        worker.key,
+                        f"CallTimeout: took longer than the time limit of {timeout:g} s (--cell-timeout); its worker "
+                        "process was stopped",
+                    )
+    finally:
+        for worker in [*idle, *busy.values()]:
+            worker.stop(kill=worker in busy.values())
 
 
 def _check_ray_address(address: str) -> None:

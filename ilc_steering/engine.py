@@ -31,11 +31,14 @@ from typing import Any, Generic, TypeVar
 from ilc_steering.backends import run_calls
 from ilc_steering.output import check_output_dir, check_run_settings, write_json
 
-__all__ = ["MAX_CELL_TIMEOUT", "Grid", "Outcome", "RunFolder", "check_timeout", "run_grid"]
+__all__ = ["DEFAULT_CELL_TIMEOUT", "MAX_CELL_TIMEOUT", "Grid", "Outcome", "RunFolder", "check_timeout", "run_grid"]
 
 K = TypeVar("K", bound=Hashable)
 MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
 """The longest ``--cell-timeout`` [s]: a week. A longer one is no bound a timer can hold."""
+DEFAULT_CELL_TIMEOUT = 6 * 3600.0
+"""[s] the bound on a cell when ``--cell-timeout`` is not given: six hours, far above any cell of the
+packaged comparison, so that a learner that never returns fails its cell instead of hanging the run."""
 
 
 def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
@@ -135,6 +138,9 @@ def run_grid(
     """Every cell of ``grid`` in ``folder`` (prepared), under its lock: the finished ones read back
     through ``grid.read``, the others computed by ``function(*grid.call(key))`` on ``backend``
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
+    ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`); when it is given, the
+    cells run in worker processes that are killed at it, even with one worker
+    (:func:`~ilc_steering.backends.run_calls`).
     ``before(todo)`` is called once the cells to compute are known (a message)."""
     outcome: Outcome[K] = Outcome()
     with folder.locked():
@@ -169,5 +175,6 @@ def run_grid(
                 finish(key, function(*grid.call(key)))
         else:
             calls = {key: grid.call(key) for key in todo}
-            run_calls(function, calls, finish, backend, workers, fail, timeout)
+            bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
+            run_calls(function, calls, finish, backend, workers, fail, bound, isolate=timeout is not None)
     return outcome

@@ -1,0 +1,94 @@
+"""The engine for grids of cells: killable workers, a bound on every cell, a lock on every run
+folder, every failure named on stderr (issue 34, classes 1, 7 and 8)."""
+
+import math
+import os
+import time
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ilc_steering.backends import run_calls
+from ilc_steering.engine import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
+
+# Calls a worker can run, as (function, args) importable in a spawned process, and what each must give.
+KINDS = {
+    "returns": ((math.sqrt, (4.0,)), ("done", 2.0)),
+    "raises": ((math.sqrt, (-1.0,)), ("failed", "ValueError")),
+    "exits": ((os._exit, (7,)), ("failed", "WorkerDied")),
+    "hangs": ((time.sleep, (3600.0,)), ("failed", "CallTimeout")),
+}
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True), st.integers(-5, 10**20), st.booleans()))
+def test_a_cell_timeout_is_a_time_up_to_a_week_or_refused_in_one_line(value):
+    try:
+        bound = check_timeout(value)
+    except ValueError as error:
+        assert "\n" not in str(error) and "--cell-timeout" in str(error)
+        assert value is not None and (
+            isinstance(value, bool) or not (math.isfinite(value) and 0 < value <= MAX_CELL_TIMEOUT)
+        )
+        return
+    assert bound is None or 0 < bound <= MAX_CELL_TIMEOUT
+    assert DEFAULT_CELL_TIMEOUT <= MAX_CELL_TIMEOUT
+
+
+def test_1e19_is_refused_by_compare_and_sweep_before_any_cell(tmp_path, capsys):
+    from ilc_steering.cli import main
+
+    assert main(["compare", "--cell-timeout", "1e19", "--out", str(tmp_path / "c")]) == 2
+    assert main(["sweep", "forward_parking", "--cell-timeout", "1e308", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all("--cell-timeout" in line for line in err)
+    assert not (tmp_path / "c").exists() and not (tmp_path / "s").exists()
+
+
+@pytest.mark.slow
+@settings(max_examples=4, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.lists(st.sampled_from(sorted(KINDS)), min_size=1, max_size=4), st.integers(1, 2))
+def test_a_killable_worker_ends_each_cell_as_returned_failed_died_or_timed_out(kinds, workers):
+    """Whatever a call does, it ends as its own outcome and takes no other call with it: a worker
+    that dies or outlives the time limit is killed and replaced."""
+    calls = {index: KINDS[kind][0] for index, kind in enumerate(kinds)}
+    outcomes = {}
+
+    def finish(key, value):
+        outcomes[key] = ("done", value)
+
+    def failed(key, message):
+        outcomes[key] = ("failed", message.split(":")[0])
+
+    for function in {f for f, _ in calls.values()}:  # run_calls maps one function over its calls
+        mine = {k: args for k, (f, args) in calls.items() if f is function}
+        run_calls(function, mine, finish, workers=workers, failed=failed, timeout=4.0, isolate=True)
+    assert outcomes == {index: KINDS[kind][1] for index, kind in enumerate(kinds)}
+
+
+def test_a_run_folder_is_locked_for_sweep_too(tmp_path):
+    folder = RunFolder(tmp_path, "rows", "sweep")
+    folder.prepare({"x": 1}, {})
+    with folder.locked(), pytest.raises(ValueError, match="another sweep is running on this folder"):
+        with RunFolder(tmp_path, "rows", "sweep").locked():
+            pass
+    with folder.locked():  # released: a later run takes it
+        pass
+
+
+def test_every_failed_cell_is_named_on_stderr(tmp_path, capsys):
+    from ilc_steering.cli import main
+
+    (tmp_path / "raising_learners.py").write_text("def make(context):\n    raise RuntimeError('no learner here')\n")
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        argv = ["compare", "--methods", "ilc", "raising_learners:make", "--priors", "nominal", "--seeds", "0"]
+        argv += ["--scenarios", "forward_parking", "--model-trials", "3", "--custom-trials", "3", "--workers", "1"]
+        assert main([*argv, "--out", str(tmp_path / "run")]) == 4
+    finally:
+        os.chdir(cwd)
+    err = capsys.readouterr().err
+    assert "raising_learners:make seed 0: FAILED" in err and "no learner here" in err
+    assert "1 of 2 cells failed" in err
