@@ -280,21 +280,45 @@ def _killable_map(
             worker.stop(kill=worker in busy.values())
 
 
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+"""What an HTTP/2 client sends first (the connection preface and an empty SETTINGS frame): a Ray
+cluster's gRPC server answers it with a SETTINGS frame of its own (type 4)."""
+
+
 def _check_ray_address(address: str) -> None:
     """``ValueError`` unless the cluster at ``address`` (``host:port`` or ``ray://host:port``;
-    empty, ``auto`` or ``local``: nothing to reach) accepts a connection within :data:`RAY_CONNECT_TIMEOUT`."""
+    empty, ``auto`` or ``local``: nothing to reach) accepts a connection and answers as a gRPC
+    server (an HTTP/2 SETTINGS frame) within :data:`RAY_CONNECT_TIMEOUT` in all: a port that
+    accepts and never answers, or answers something else, is refused, not waited on."""
     if address in ("", "auto", "local"):
         return
     host, _, port = address.removeprefix("ray://").rpartition(":")
     if not host or not port.isdigit():
         raise ValueError(f"RAY_ADDRESS {address!r}: give host:port (or ray://host:port), or unset it for a local Ray")
+    deadline = time.monotonic() + RAY_CONNECT_TIMEOUT
+    problem = None
     try:
-        socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT).close()
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT) as connection:
+            connection.settimeout(max(0.01, deadline - time.monotonic()))
+            connection.sendall(HTTP2_PREFACE)
+            reply = b""
+            while len(reply) < 9:
+                connection.settimeout(max(0.01, deadline - time.monotonic()))
+                chunk = connection.recv(9 - len(reply))
+                if not chunk:
+                    break
+                reply += chunk
+            if len(reply) < 9 or reply[3] != 4:
+                problem = "it accepted the connection but did not answer as a Ray cluster (a gRPC server)"
+    except TimeoutError:
+        problem = f"it accepted the connection but sent nothing within {RAY_CONNECT_TIMEOUT:g} s"
     except OSError as error:
         raise ValueError(
             f"RAY_ADDRESS {address}: no Ray cluster answers there within {RAY_CONNECT_TIMEOUT:g} s "
             f"({error.strerror or error}); start it, or unset RAY_ADDRESS for a local Ray"
         ) from None
+    if problem is not None:
+        raise ValueError(f"RAY_ADDRESS {address}: {problem}; give a Ray cluster's address, or unset RAY_ADDRESS")
 
 
 def _init_ray(ray: Any, address: str) -> None:

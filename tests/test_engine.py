@@ -92,3 +92,51 @@ def test_every_failed_cell_is_named_on_stderr(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "raising_learners:make seed 0: FAILED" in err and "no learner here" in err
     assert "1 of 2 cells failed" in err
+
+
+def _server(behaviour):
+    """A local TCP server on a free port that ``behaviour``s each connection: ``silent`` (accepts,
+    never answers), ``garbage`` (answers bytes that are no HTTP/2 frame), ``close`` (hangs up)."""
+    import socket
+    import threading
+
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen()
+    held = []
+
+    def serve():
+        while True:
+            try:
+                connection, _ = listener.accept()
+            except OSError:
+                return
+            held.append(connection)
+            if behaviour == "garbage":
+                connection.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n")
+            elif behaviour == "close":
+                connection.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    return listener, held
+
+
+@settings(max_examples=6, deadline=None)
+@given(st.sampled_from(["silent", "garbage", "close"]), st.sampled_from(["", "ray://"]))
+def test_a_port_that_is_no_ray_cluster_is_refused_within_the_promised_time(behaviour, scheme):
+    from ilc_steering import backends
+
+    listener, held = _server(behaviour)
+    address = f"{scheme}127.0.0.1:{listener.getsockname()[1]}"
+    start = time.monotonic()
+    try:
+        original = backends.RAY_CONNECT_TIMEOUT
+        backends.RAY_CONNECT_TIMEOUT = 0.5
+        with pytest.raises(ValueError, match="RAY_ADDRESS") as refused:
+            backends._check_ray_address(address)
+    finally:
+        backends.RAY_CONNECT_TIMEOUT = original
+        listener.close()
+        for connection in held:
+            connection.close()
+    assert time.monotonic() - start < 0.5 + 1.0 and "\n" not in str(refused.value)
