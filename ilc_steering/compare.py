@@ -212,8 +212,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     if folder.prepare(the_plan.settings, the_plan.configs):
         _restore_cells(args.out)
     inline = runner is not run_cell
-    parallel = args.backend == "ray" or min(workers(args), len(the_plan.grid)) > 1
-    progress_bar = args.progress_bar and not parallel
+    progress_bar = args.progress_bar  # SB3's bar only where one process runs every cell (see before)
 
     def call(cell: Cell) -> tuple[Any, ...]:
         prior, method, name, seed = cell
@@ -243,6 +242,8 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     committed = the_plan.committed
 
     def before(todo: Mapping[Cell, Path]) -> None:
+        nonlocal progress_bar
+        progress_bar = args.progress_bar and args.backend != "ray" and min(workers(args), len(todo)) <= 1
         if committed is not None:
             print(
                 f"--against {committed.folder}: {len(the_plan.held)} committed cells taken as they are (copied into "
