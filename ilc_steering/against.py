@@ -103,7 +103,12 @@ def read_committed(folder: Path) -> CommittedRun:
         if not isinstance(listed, list):
             raise _refuse(folder, f"{report} holds no list of cells")
         for index, cell in enumerate(listed):
-            cells[_identity(cell, f"{report}: cells[{index}]")] = (f"{report}: cells[{index}]", cell)
+            identity = _identity(cell, f"{report}: cells[{index}]")
+            if identity in cells:
+                raise _refuse(
+                    folder, f"{report} holds the cell {identity} twice ({cells[identity][0]} and cells[{index}])"
+                )
+            cells[identity] = (f"{report}: cells[{index}]", cell)
     for path in sorted((folder / "cells").glob("*.json")):
         try:
             cell = read_json(path, MAX_RUN_BYTES)

@@ -44,7 +44,15 @@ from typing import Any
 
 from ilc_steering.core.checks import ParameterError
 
-__all__ = ["BACKENDS", "MAX_WORKERS", "RAY_CONNECT_TIMEOUT", "CallTimeout", "check_workers", "run_calls"]
+__all__ = [
+    "BACKENDS",
+    "MAX_WORKERS",
+    "RAY_CONNECT_TIMEOUT",
+    "CallTimeout",
+    "check_backend",
+    "check_workers",
+    "run_calls",
+]
 
 BACKENDS = ("local", "ray")
 MAX_WORKERS = 2 * (os.cpu_count() or 1)
@@ -321,12 +329,32 @@ def _check_ray_address(address: str) -> None:
         raise ValueError(f"RAY_ADDRESS {address}: {problem}; give a Ray cluster's address, or unset RAY_ADDRESS")
 
 
+def check_backend(backend: str) -> str:
+    """``backend`` if cells can run there, checked before the first cell: ``local``, or ``ray`` with
+    Ray installed and ``RAY_ADDRESS`` (if set) answering as a cluster; ``ValueError`` otherwise."""
+    if backend not in BACKENDS:
+        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
+        _check_ray_address(os.environ.get("RAY_ADDRESS", ""))
+    return backend
+
+
 def _init_ray(ray: Any, address: str) -> None:
     """``ray.init()`` (``RAY_ADDRESS``, if set, names the cluster), within :data:`RAY_CONNECT_TIMEOUT`
     for a cluster: Ray itself retries an address that answers but is no Ray for minutes, logging a
     line a second from C++, so its log is held back until it has connected (and dropped if not)."""
     if address in ("", "auto", "local"):
-        ray.init(logging_level=logging.WARNING, log_to_driver=False)
+        try:
+            ray.init(logging_level=logging.WARNING, log_to_driver=False)
+        except ConnectionError as error:  # RAY_ADDRESS=auto and no cluster running
+            raise ValueError(
+                f"RAY_ADDRESS {address}: no running Ray cluster found ({' '.join(str(error).split())[:200]}); "
+                "start one (ray start --head) or unset RAY_ADDRESS for a local Ray"
+            ) from None
         return
     _check_ray_address(address)
     saved = os.dup(2)

@@ -17,6 +17,7 @@ one line; ``--debug`` adds the traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import traceback
@@ -342,6 +343,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ilc-steering: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # stdout closed early (ilc-steering list | head -1): nothing left to say
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush does not fail again
+        return 0
     except LearnerError as error:  # the learner's fault, named: neither bad input nor a bug
         if args.debug:
             traceback.print_exc()

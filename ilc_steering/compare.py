@@ -159,11 +159,15 @@ def _restore_cells(folder: Path) -> None:
     except ValueError as error:
         raise ValueError(f"{error}; use another --out folder") from None
     restored = 0
+    seen: set[Path] = set()
     for cell in cells if isinstance(cells, list) else []:
         try:
             path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
         except (KeyError, TypeError, ValueError):
             raise ValueError(f"{report}: holds a cell without its key; use another --out folder") from None
+        if path in seen:
+            raise ValueError(f"{report}: holds the cell {path.stem} twice; use another --out folder")
+        seen.add(path)
         if not path.exists():
             write_json(path, cell)
             restored += 1
@@ -209,7 +213,9 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     for warning in the_plan.warnings:
         print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
     folder = RunFolder(args.out, "cells", "compare")
-    if folder.prepare(the_plan.settings, the_plan.configs):
+    reports = [f"compare.{suffix}" for suffix in ("csv", "json", "md")]
+    reports += [f"compare_{name}.png" for name in dict.fromkeys(cell[2] for cell in the_plan.grid)]
+    if folder.prepare(the_plan.settings, the_plan.configs, reports):
         _restore_cells(args.out)
     inline = runner is not run_cell
     progress_bar = args.progress_bar  # SB3's bar only where one process runs every cell (see before)

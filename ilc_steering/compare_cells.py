@@ -231,8 +231,27 @@ def _check_values(cell: dict[str, Any], path: Path | str, hint: str) -> None:
         problems.append(f"clipped_fraction {clipped!r} is not a fraction in [0, 1]")
     if not set(cell["fragile"]) <= set(LADDER):
         problems.append(f"fragile holds a level outside {sorted(LADDER)}")
+    if not problems:
+        problems += _contradictions(cell)
     if problems:
         raise ValueError(f"{path}: {problems[0]}; {hint}")
+
+
+def _contradictions(cell: dict[str, Any]) -> list[str]:
+    """What a cell's ``trials_to`` says against itself or its curve: a tighter level met before a
+    looser one, or a level met at a trial whose best cost so far exceeds what meeting it allows
+    (both errors within the level: a cost of at most twice it)."""
+    reached = [cell["trials_to"][level] for level in LADDER]
+    met = [k for k in reached if k is not None]
+    if met != reached[: len(met)] or met != sorted(met):
+        return [f"trials_to {cell['trials_to']} meets a tighter level before a looser one"]
+    for level, k in zip(LADDER, reached):
+        if k is None:
+            continue
+        best = min((cost for trial, cost in cell["curve"] if trial <= k), default=None)
+        if best is None or best > 2 * LADDER[level] * (1 + 1e-9):
+            return [f"trials_to meets {level} at trial {k}, where its curve's best cost is {best!r}"]
+    return []
 
 
 def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:

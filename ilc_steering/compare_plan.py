@@ -20,7 +20,7 @@ from ilc_steering import __version__
 from ilc_steering.against import Cell, CommittedRun
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
-from ilc_steering.backends import BACKENDS, check_workers
+from ilc_steering.backends import check_backend, check_workers
 from ilc_steering.compare_cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
 from ilc_steering.engine import check_timeout
@@ -154,8 +154,7 @@ def check_options(args: Args) -> None:
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
     MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s."""
-    if args.backend not in BACKENDS:
-        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {args.backend!r}")
+    check_backend(args.backend)
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:

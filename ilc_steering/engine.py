@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ilc_steering.backends import run_calls
-from ilc_steering.output import check_output_dir, check_run_settings, write_json
+from ilc_steering.output import check_output_dir, check_output_file, check_run_settings, write_json
 
 __all__ = ["DEFAULT_CELL_TIMEOUT", "MAX_CELL_TIMEOUT", "Grid", "Outcome", "RunFolder", "check_timeout", "run_grid"]
 
@@ -62,10 +62,14 @@ class RunFolder:
     command: str
     """The command that owns it, for messages: ``compare`` or ``sweep``."""
 
-    def prepare(self, settings: dict[str, Any], configs: dict[str, str]) -> bool:
-        """Check the folder (``--out``) and its ``run.json`` against ``settings`` and the configs'
-        content hashes, record them, and make the results folder; True if it resumes a run."""
+    def prepare(self, settings: dict[str, Any], configs: dict[str, str], reports: Sequence[str] = ()) -> bool:
+        """Check the folder (``--out``), the files the report will write there (``reports``: each
+        absent or a regular file, checked now, not after every cell has run) and its ``run.json``
+        against ``settings`` and the configs' content hashes, record them, and make the results
+        folder; True if it resumes a run."""
         check_output_dir(self.out, "--out")
+        for name in reports:
+            check_output_file(self.out / name, "--out")
         results = self.out / self.results
         if results.exists() and not results.is_dir():
             raise ValueError(f"{results}: exists and is not a folder; this is not a {self.command} run folder")

@@ -35,7 +35,7 @@ import numpy as np
 
 from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
-from ilc_steering.backends import MAX_WORKERS, check_workers
+from ilc_steering.backends import MAX_WORKERS, check_backend, check_workers
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.engine import Grid, RunFolder, check_timeout, run_grid
 from ilc_steering.envs.scenario import Scenario
@@ -48,6 +48,7 @@ from ilc_steering.sweep_rows import (
     SweepArgs,
     gain_text,
     lockstep,
+    map_name,
     read_oracle,
     read_row,
     row_name,
@@ -146,8 +147,7 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
             raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
     check_workers(args.workers)
     check_timeout(args.cell_timeout)
-    if args.backend not in ("local", "ray"):
-        raise ValueError(f"--backend must be local or ray, got {args.backend!r}")
+    check_backend(args.backend)
     if not args.methods:
         raise ValueError("--methods: give at least one")
     mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
@@ -210,7 +210,10 @@ def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]
     if the_plan.warning is not None:
         print(f"ilc-steering: {the_plan.warning}", file=sys.stderr, flush=True)
     folder = RunFolder(args.out, "rows", "sweep")
-    folder.prepare(the_plan.settings, {the_plan.config.name: the_plan.digest})
+    reports = [f"sweep.{suffix}" for suffix in ("csv", "json", "md")]
+    reports += [f"sweep_{map_name(m, g)}.png" for m, g in dict.fromkeys((m, g) for m, g, _ in the_plan.rows)]
+    reports += ["oracle.json"] if args.oracle else []
+    folder.prepare(the_plan.settings, {the_plan.config.name: the_plan.digest}, reports)
 
     def oracle(todo: Any) -> None:
         if not args.oracle:

@@ -140,3 +140,46 @@ def test_a_port_that_is_no_ray_cluster_is_refused_within_the_promised_time(behav
         for connection in held:
             connection.close()
     assert time.monotonic() - start < 0.5 + 1.0 and "\n" not in str(refused.value)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.one_of(st.none(), st.integers(1, 30)), min_size=4, max_size=4),
+    st.lists(st.floats(0.0, 1.0), min_size=1, max_size=30),
+)
+def test_a_cell_whose_trials_to_contradicts_itself_or_its_curve_is_refused(reached, costs):
+    """A resumed or committed cell is checked by value: its levels in order, each met where its
+    best-so-far curve allows it (both errors within a level: a cost of at most twice it)."""
+    from ilc_steering.compare_cells import _contradictions
+    from ilc_steering.compare_report import LADDER
+
+    best = [min(costs[: i + 1]) for i in range(len(costs))]
+    curve = [[i + 1, c] for i, c in enumerate(best) if i == 0 or c < best[i - 1]]
+    cell = {"trials_to": dict(zip(LADDER, reached)), "curve": curve}
+    problems = _contradictions(cell)
+    met = [k for k in reached if k is not None]
+    ordered = met == reached[: len(met)] and met == sorted(met)
+    allowed = all(k is None or best[min(k, len(best)) - 1] <= 2 * t for k, t in zip(reached, LADDER.values()))
+    assert (not problems) == (ordered and allowed), (reached, best, problems)
+
+
+def test_a_report_path_that_is_a_folder_is_refused_before_any_cell(tmp_path, capsys):
+    from ilc_steering.cli import main
+
+    (tmp_path / "run" / "compare.json").mkdir(parents=True)
+    argv = ["compare", "--methods", "ilc", "--priors", "nominal", "--seeds", "0", "--scenarios", "forward_parking"]
+    assert main([*argv, "--model-trials", "2", "--workers", "1", "--out", str(tmp_path / "run")]) == 2
+    assert "compare.json: is a folder" in capsys.readouterr().err
+    assert not (tmp_path / "run" / "cells").exists()
+
+
+def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
+    import json
+
+    from ilc_steering.against import read_committed
+
+    (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
+    cell = {"prior": "nominal", "method": "ilc", "scenario": "forward_parking", "seed": 0}
+    (tmp_path / "compare.json").write_text(json.dumps({"cells": [cell, {**cell, "best_error": 1.0}]}))
+    with pytest.raises(ValueError, match="holds the cell .* twice"):
+        read_committed(tmp_path)
