@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
@@ -46,6 +46,7 @@ from ilc_steering.sweep_rows import (
     MAX_GRID,
     ORACLE,
     SweepArgs,
+    axis_values,
     gain_text,
     lockstep,
     map_name,
@@ -177,7 +178,32 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
             raise ValueError(f"--axis {key}: not a key of this plant; choose from {sorted(fields)}")
         if not (np.isfinite(low) and np.isfinite(high) and low < high):
             raise ValueError(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
+    if (args.low, args.high) != (SweepArgs.low, SweepArgs.high):
+        raise ValueError("--range: the ratio axes' range; with --axis give each axis its own range (KEY LOW HIGH)")
     from ilc_steering.config import ConfigError
+
+    nominal = Scenario.from_config(config).nominal.solve()
+    for key, low, high in args.axes:  # a map varies the true plant; the learner's model stays the nominal one
+        for value in (low, high):
+            try:
+                moved = Scenario.from_config(replace(config, plant=replace(plant_config, **{key: value}))).nominal
+            except (ConfigError, ValueError, TypeError):
+                continue  # an invalid plant: named below, with the grid's
+            if not np.array_equal(moved.solve(), nominal):
+                raise ValueError(
+                    f"--axis {key}: a nominal parameter (the model the learner sees), not the true plant's; a map "
+                    "varies the true plant: give a true_* key or an unmodeled one"
+                )
+    first, second = axis_values(args)
+    (k0, _, _), (k1, _, _) = args.axes
+    for x in first:  # every plant of the grid as the loader would check it (a lag below max_step, say)
+        for y in second:
+            try:
+                replace(config, plant=replace(plant_config, **{k0: float(x), k1: float(y)}))
+            except (ConfigError, ValueError, TypeError) as error:
+                raise ValueError(
+                    f"--axis: the grid holds an invalid plant at {k0} = {x:g}, {k1} = {y:g}: {error}"
+                ) from None
 
     own = config.plant.plant()
     kind = (id(own.kernel()[0]), own.state_dim)
