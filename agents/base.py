@@ -29,7 +29,20 @@ from gymnasium import spaces
 
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["PRIORS", "RESIDUAL_SCALE", "START_SPREAD", "Learner", "LearnerContext", "LearnerFactory", "load_factory"]
+__all__ = [
+    "PRIORS",
+    "RESIDUAL_SCALE",
+    "START_SPREAD",
+    "BaseLearner",
+    "Closable",
+    "Learner",
+    "LearnerContext",
+    "LearnerFactory",
+    "TimedUpdates",
+    "close_learner",
+    "load_factory",
+    "update_times",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -48,6 +61,59 @@ class Learner(Protocol):
     def learn(self, info: Mapping[str, Any]) -> None: ...
 
     def reset(self) -> None: ...
+
+
+@runtime_checkable
+class Closable(Protocol):
+    """A learner's optional part: ``close()``, called once when the trial loop ends, however it
+    ends (the adapters of pull-style optimizers stop their optimizer's thread there)."""
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class TimedUpdates(Protocol):
+    """A learner's optional part: ``update_seconds``, the wall time [s] of each of its updates
+    (the model-based learners keep it; ``compare`` reports the median)."""
+
+    update_seconds: list[float]
+
+
+class BaseLearner:
+    """A base class that declares a learner's optional parts with their defaults (SB3's
+    ``BaseAlgorithm`` in small): subclass it and override :meth:`close`, or append to
+    :attr:`update_seconds`. A learner need not subclass it: the protocols :class:`Learner`,
+    :class:`Closable` and :class:`TimedUpdates` are what the loop and the engine ask for."""
+
+    update_seconds: list[float]
+
+    def __init__(self) -> None:
+        self.update_seconds = []
+
+    def act(self, observation: Any) -> npt.NDArray[np.float64]:
+        raise NotImplementedError
+
+    def learn(self, info: Mapping[str, Any]) -> None:
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release what the learner holds (nothing by default)."""
+
+
+def close_learner(learner: Learner) -> None:
+    """Call the learner's ``close()`` if it declares one (:class:`Closable`)."""
+    if isinstance(learner, Closable):
+        learner.close()
+
+
+def update_times(learner: Learner) -> list[float]:
+    """The learner's update times [s] (:class:`TimedUpdates`), empty if it keeps none."""
+    if isinstance(learner, TimedUpdates) and isinstance(learner.update_seconds, list):
+        return learner.update_seconds
+    return []
 
 
 PRIORS = ("nominal", "none")
@@ -94,6 +160,45 @@ class LearnerContext:
     """``"nominal"`` or ``"none"``: what the first trial and the search box are built from."""
     cost: str = "none"
     """The config's ``learning.cost`` (section 7), for learners that use it."""
+    task: str = ""
+    """The config's name, for learners with per-task settings (RL's hyperparameter files)."""
+    progress_bar: bool = False
+    """Show a training's progress bar, for learners that have one (RL, in one process)."""
+
+    @classmethod
+    def from_env(
+        cls,
+        env: Any,
+        *,
+        seed: int = 0,
+        prior: str = "nominal",
+        nu_b: float | None = None,
+        progress_bar: bool = False,
+    ) -> LearnerContext:
+        """The context of a learner on ``env`` (a one-trial env, or a vector env whose every env
+        gets the same), with its config's gains, ``learning.cost`` and name: the one place a
+        context is built from a config, so no command drops a key of it. ``nu_b`` overrides the
+        config's gain of eq. 34 (a sweep's map)."""
+        from gymnasium.vector import VectorEnv
+
+        owner: Any = env if isinstance(env, VectorEnv) else env.unwrapped
+        if isinstance(env, VectorEnv):
+            action_space, observation_space = owner.single_action_space, owner.single_observation_space
+        else:
+            action_space, observation_space = owner.action_space, owner.observation_space
+        learning = owner.config.learning
+        return cls(
+            owner.nominal_model,
+            action_space,
+            observation_space,
+            seed,
+            learning.nu_a,
+            learning.nu_b if nu_b is None else nu_b,
+            prior=prior,
+            cost=learning.cost,
+            task=owner.config.name,
+            progress_bar=progress_bar,
+        )
 
     def __post_init__(self) -> None:
         if self.prior not in PRIORS:

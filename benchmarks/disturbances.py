@@ -23,9 +23,8 @@ from typing import Any
 import gymnasium as gym
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents.base import LearnerContext, LearnerFactory
-from ilc_steering.agents.ilc import make_ilc_paper
-from ilc_steering.agents.newton_ilc import make_newton_ilc
+from ilc_steering.agents.base import LearnerContext
+from ilc_steering.agents.registry import lookup
 from ilc_steering.config import load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.loop import run_trials
@@ -36,7 +35,8 @@ __all__ = ["LEVELS", "Args", "main"]
 
 LEVELS = {"start_error": (1e-5, 1e-4, 1e-3), "parameter_jitter": (1e-3, 1e-2, 5e-2)}
 """The sigmas tried: of the start configuration [m, rad per coordinate], and relative of the geometry."""
-LEARNERS: dict[str, LearnerFactory] = {"ilc_paper": make_ilc_paper, "newton_ilc": make_newton_ilc}
+LEARNERS = ("ilc_paper", "newton_ilc")
+"""Ids of the learner registry (:mod:`ilc_steering.agents.registry`)."""
 
 
 @dataclass(frozen=True)
@@ -68,10 +68,9 @@ def run(task: str, learner: str, kind: str, sigma: float, seed: int, trials: int
     config = load_config(task)
     disturbance: dict[str, Any] = {kind: sigma}
     env = gym.make("ilc_steering/ChainedSteering-v0", config=config, **disturbance)
-    u: Any = env.unwrapped
     learning = config.learning
-    context = LearnerContext(u.nominal_model, u.action_space, u.observation_space, seed, learning.nu_a, learning.nu_b)
-    rollout = run_trials(env, LEARNERS[learner](context), trials, seed=seed)
+    context = LearnerContext.from_env(env, seed=seed)
+    rollout = run_trials(env, lookup(learner).make(context, trials), trials, seed=seed)
     late = median(float(info["true_cartesian_error"]) for info in rollout.infos[-5:])
     return settled(rollout.infos, learning.tolerance), late
 

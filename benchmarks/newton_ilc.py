@@ -33,10 +33,9 @@ import gymnasium as gym
 import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents import blackbox
-from ilc_steering.agents.base import Learner, LearnerContext
-from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
-from ilc_steering.agents.newton_ilc import NewtonILC, make_newton_ilc
+from ilc_steering.agents.base import Learner, LearnerContext, update_times
+from ilc_steering.agents.newton_ilc import NewtonILC
+from ilc_steering.agents.registry import lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.loop import run_trials
@@ -59,17 +58,22 @@ def _variant(identify: bool, secant: bool) -> Callable[[LearnerContext], Learner
     return make
 
 
-LEARNERS: dict[str, Callable[[LearnerContext], Learner]] = {
-    "ilc_paper": make_ilc_paper,
-    "ilc": make_ilc,
-    "least_squares": lambda context: blackbox.make_learner("least_squares", context),
-    "newton_ilc": make_newton_ilc,
+VARIANTS: dict[str, Callable[[LearnerContext], Learner]] = {
     "identify_only": _variant(True, False),
     "secant_only": _variant(False, True),
     "offset_only": _variant(False, False),
 }
-"""``ilc_paper``: eqs. 33-34 from the fictitious zero iteration (``run``'s ``ilc``); ``ilc``: from the
-nominal solution; the last three are ``newton_ilc`` without identification, secant or both."""
+"""``newton_ilc`` without identification, secant or both: ablations of this benchmark only."""
+LEARNERS = ("ilc_paper", "ilc", "least_squares", "newton_ilc", *VARIANTS)
+"""``ilc_paper``: eqs. 33-34 from the fictitious zero iteration (``run``'s default); ``ilc``: from the
+nominal solution; the library's ids are built by the registry (:mod:`ilc_steering.agents.registry`)."""
+
+
+def build(learner: str, context: LearnerContext, trials: int) -> Learner:
+    """The learner ``learner`` (a registry id or one of :data:`VARIANTS`) for a budget of ``trials``."""
+    if learner in VARIANTS:
+        return VARIANTS[learner](context)
+    return lookup(learner).make(context, trials)
 
 
 @dataclass(frozen=True)
@@ -96,14 +100,12 @@ def perturbed(name: str, **plant: float) -> SteeringConfig:
 def run(config: SteeringConfig, learner: str, trials: int, seed: int = 0, noise: float | None = None) -> dict[str, Any]:
     """One run: trials to tolerance, the true error after each trial and the update times."""
     env = gym.make("ilc_steering/ChainedSteering-v0", config=config, measurement_noise=noise)
-    u: Any = env.unwrapped
     learning = config.learning
-    context = LearnerContext(u.nominal_model, u.action_space, u.observation_space, seed, learning.nu_a, learning.nu_b)
-    agent = LEARNERS[learner](context)
+    agent = build(learner, LearnerContext.from_env(env, seed=seed), trials)
     rollout = run_trials(env, agent, trials, seed=seed)
     hits = [k for k, info in enumerate(rollout.infos, 1) if within_tolerance(learning.tolerance, info)]
     key = "true_cartesian_error" if "true_cartesian_error" in rollout.infos[0] else "true_error_norm"
-    seconds = getattr(agent, "update_seconds", [])
+    seconds = update_times(agent)
     return {
         "trials_to_tolerance": hits[0] if hits else None,
         "errors": [float(info[key]) for info in rollout.infos],

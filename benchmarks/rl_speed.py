@@ -76,7 +76,7 @@ def _cell_seconds(algorithm: str, mode: str, scenario: str, trials: int, seed: i
     rl.TORCH_THREADS = 1 if mode == "sb3, 1 thread" else DEFAULT_THREADS
     env = gym.make(ENV_ID, config=scenario)
     unwrapped: Any = env.unwrapped
-    context = LearnerContext(unwrapped.nominal_model, unwrapped.action_space, unwrapped.observation_space, seed)
+    context = LearnerContext.from_env(env, seed=seed)
     params = rl.hyperparameters(algorithm, unwrapped.config.name, "nominal")
     start = time.perf_counter()
     learner = rl.make_learner(algorithm, params, trials, False, context, backend)

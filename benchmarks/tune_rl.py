@@ -92,7 +92,7 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
     torch.set_num_threads(1)
     env = gym.make(ENV_ID, config=scenario)
     unwrapped: Any = env.unwrapped
-    context = LearnerContext(unwrapped.nominal_model, unwrapped.action_space, unwrapped.observation_space, seed)
+    context = LearnerContext.from_env(env, seed=seed)
     params = with_overrides(rl.hyperparameters(algorithm, unwrapped.config.name, "nominal"), overrides)
     result = measure(env, rl.make_learner(algorithm, params, trials, False, context), trials, seed)
     return {k: v for k, v in result.items() if k != "curve"}

@@ -14,13 +14,32 @@ report in ``--out`` is the joint one and the folder resumes like any other.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ilc_steering.inputs import read_json
 
-__all__ = ["CommittedRun", "check_out", "describe", "read_committed", "resolve_settings"]
+if TYPE_CHECKING:
+    from ilc_steering.compare import Args
+
+__all__ = [
+    "CommittedRun",
+    "against_args",
+    "check_out",
+    "committed_cells",
+    "copy_committed",
+    "describe",
+    "joint_grid",
+    "read_committed",
+    "resolve_settings",
+]
+
+Cell = tuple[str, str, str, int]
+"""A cell's (prior, method, scenario name, seed)."""
+Budget = Callable[[str, str, str], int]
+"""The budget of (prior, method, scenario name) [trials]."""
 
 MAX_RUN_BYTES = 16 << 20
 """The largest ``run.json`` or cell file read from a committed run [bytes]."""
@@ -84,7 +103,12 @@ def read_committed(folder: Path) -> CommittedRun:
         if not isinstance(listed, list):
             raise _refuse(folder, f"{report} holds no list of cells")
         for index, cell in enumerate(listed):
-            cells[_identity(cell, f"{report}: cells[{index}]")] = (f"{report}: cells[{index}]", cell)
+            identity = _identity(cell, f"{report}: cells[{index}]")
+            if identity in cells:
+                raise _refuse(
+                    folder, f"{report} holds the cell {identity} twice ({cells[identity][0]} and cells[{index}])"
+                )
+            cells[identity] = (f"{report}: cells[{index}]", cell)
     for path in sorted((folder / "cells").glob("*.json")):
         try:
             cell = read_json(path, MAX_RUN_BYTES)
@@ -170,3 +194,133 @@ def check_out(out: Path, folder: Path) -> None:
         raise ValueError(
             f"--out {out}: inside the committed run --against {folder}, which is only read; give another folder"
         )
+
+
+def against_args(args: Args) -> tuple[Args, CommittedRun]:
+    """``args`` for ``--against`` and the committed run as read: its settings (budgets, seeds,
+    ``quick``) where ``args`` holds the defaults, its scenarios and priors unless a subset of them
+    is given. ``ValueError`` (one line, naming the option) for a run of another version or other
+    settings, an ``--out`` inside it, a method list left at the default, a scenario or prior it
+    has no cells of, or a scenario of its that is not packaged and not given as a YAML file."""
+    from ilc_steering import __version__
+    from ilc_steering.agents.base import PRIORS
+    from ilc_steering.compare import Args, run_settings
+    from ilc_steering.config import load_config, packaged_configs
+    from ilc_steering.output import differences
+
+    folder = args.against
+    if folder is None:
+        raise ValueError("--against: give a committed run folder")
+    committed = read_committed(folder)
+    check_out(args.out, folder)
+    if args.methods == Args.methods:
+        raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
+    defaults = {f.name: f.default for f in fields(Args)}
+    args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
+    cells = [cell for _, cell in committed.cells]
+    scenarios = [name for name in committed.configs if any(c["scenario"] == name for c in cells)]
+    if args.scenarios == Args.scenarios:
+        unknown = [name for name in scenarios if name not in packaged_configs()]
+        if unknown:
+            raise ValueError(
+                f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
+                f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
+            )
+        args = replace(args, scenarios=tuple(scenarios))
+    for scenario in args.scenarios:
+        if load_config(scenario).name not in scenarios:
+            raise ValueError(
+                f"--scenarios {scenario}: the committed run --against {folder} has no cells of it; its scenarios: "
+                f"{' '.join(scenarios)}"
+            )
+    priors = [prior for prior in PRIORS if any(c["prior"] == prior for c in cells)]
+    if args.priors == Args.priors:
+        args = replace(args, priors=tuple(priors))
+    elif not set(args.priors) <= set(priors):
+        raise ValueError(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
+    settings = run_settings(args)
+    if settings != committed.settings:
+        raise ValueError(
+            f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
+        )
+    return args, committed
+
+
+def committed_cells(
+    args: Args, committed: CommittedRun, configs: dict[str, str], budget: Budget
+) -> tuple[dict[Cell, dict[str, Any]], dict[str, str]]:
+    """The committed run's cells, each checked against its key and value by value, and the
+    content hash of every scenario's config; ``ValueError`` if a scenario to run has another
+    config than the committed run's cells of that name, or a committed cell is not one of its run."""
+    from ilc_steering import __version__
+    from ilc_steering.agents.base import PRIORS
+    from ilc_steering.agents.registry import METHODS, is_custom
+    from ilc_steering.compare_cells import check_cell
+
+    folder = committed.folder
+    for name, digest in configs.items():
+        theirs = committed.configs.get(name)
+        if theirs != digest:
+            raise ValueError(
+                f"--against {folder}: its {name!r} cells were computed with another config (content hash {theirs}, "
+                f"this one's {digest}): the same name, another content"
+            )
+    hint = f"the committed run --against {folder} is not consistent; recompute it"
+    held: dict[Cell, dict[str, Any]] = {}
+    for where, cell in committed.cells:
+        prior, method, scenario, seed = (cell[name] for name in ("prior", "method", "scenario", "seed"))
+        known = isinstance(method, str) and (method in METHODS or is_custom(method))
+        ours = isinstance(scenario, str) and scenario in committed.configs
+        if prior not in PRIORS or not known or not ours or seed not in (args.seeds or ()):
+            raise ValueError(
+                f"{where}: not a cell of its run (prior {prior!r}, method {method!r}, scenario {scenario!r}, "
+                f"seed {seed!r}); {hint}"
+            )
+        key = {
+            "prior": prior,
+            "method": method,
+            "scenario": scenario,
+            "seed": seed,
+            "budget": budget(prior, method, scenario),
+            "config_sha": committed.configs[scenario],
+            "version": __version__,
+        }
+        held[(prior, method, scenario, seed)] = check_cell(cell, key, where, hint)
+    scenarios = dict.fromkeys(cell[2] for cell in held)
+    return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
+
+
+def joint_grid(args: Args, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
+    """The cells of an ``--against`` run, in the report's order: every committed one, and those of
+    ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
+    from ilc_steering.agents.base import PRIORS
+
+    priors = [prior for prior in PRIORS if prior in args.priors or any(cell[0] == prior for cell in held)]
+    scenarios = list(dict.fromkeys([*(cell[2] for cell in held), *names]))
+    methods = list(dict.fromkeys([*(cell[1] for cell in held), *args.methods]))
+    return [
+        (prior, method, name, seed)
+        for prior in priors
+        for name in scenarios
+        for method in methods
+        for seed in args.seeds or ()
+        if (prior, method, name, seed) in held or (method in args.methods and prior in args.priors and name in names)
+    ]
+
+
+def copy_committed(
+    held: dict[Cell, dict[str, Any]], paths: dict[Cell, Path], read: Callable[[Path, Cell], Any]
+) -> None:
+    """Write each committed cell into the run folder (its file ``paths[cell]``) as it is, where it
+    lacks it; ``ValueError`` if the folder holds another result for one of them (``read``: the
+    resume checker; it is never overwritten)."""
+    from ilc_steering.output import write_json
+
+    for cell, path in paths.items():
+        found = held.get(cell)
+        if found is None:
+            continue
+        if not path.exists():
+            write_json(path, found)
+        elif read(path, cell) != found:
+            raise ValueError(f"{path}: holds another result than the committed run's; use another --out folder")

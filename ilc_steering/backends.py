@@ -14,8 +14,12 @@ resumes from what was written. The backend changes where the calls run, never wh
 
 With ``failed`` given, a call that raises (or outlives ``timeout`` seconds) is handed to
 ``failed(key, message)`` and the others go on: a failing cell never takes a finished one with
-it. The time limit is a ``SIGALRM`` in the process that runs the call, so it stops Python code
-(a loop, a ``sleep``), not a call stuck inside compiled code that never returns to Python.
+it. Local calls with ``failed`` run in worker processes that this process can kill
+(:func:`_killable_map`), whenever there are two workers or more or ``isolate`` is asked for: a
+call past its time limit is ended with its process (a learner that swallows the exception, an
+optimizer that never returns, a ``nogil`` compiled loop), and a worker that dies (``os._exit``,
+a crash) is that call's failure, the others going on in a fresh worker. In this process (one
+worker, not isolated; Ray tasks) the limit is a ``SIGALRM``, which stops Python code only.
 Local workers are capped at :data:`MAX_WORKERS`.
 """
 
@@ -24,12 +28,14 @@ from __future__ import annotations
 import copyreg
 import logging
 import multiprocessing
+import multiprocessing.connection
 import os
 import pickle
 import signal
 import socket
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -38,7 +44,15 @@ from typing import Any
 
 from ilc_steering.core.checks import ParameterError
 
-__all__ = ["BACKENDS", "MAX_WORKERS", "RAY_CONNECT_TIMEOUT", "CallTimeout", "check_workers", "run_calls"]
+__all__ = [
+    "BACKENDS",
+    "MAX_WORKERS",
+    "RAY_CONNECT_TIMEOUT",
+    "CallTimeout",
+    "check_backend",
+    "check_workers",
+    "run_calls",
+]
 
 BACKENDS = ("local", "ray")
 MAX_WORKERS = 2 * (os.cpu_count() or 1)
@@ -111,15 +125,21 @@ def run_calls(
     workers: int = 0,
     failed: Failed | None = None,
     timeout: float | None = None,
+    isolate: bool = False,
 ) -> None:
     """``finish(key, function(*calls[key]))`` for every key, on ``backend`` (``workers`` local
     processes, 0 for one per core). Without ``failed``, an error or an interrupt cancels what has
     not started and is raised; with it, a call that raises or outlives ``timeout`` [s] goes to
-    ``failed(key, message)`` and the rest run. An interrupt is always raised."""
+    ``failed(key, message)`` and the rest run, in killable worker processes when there are two or
+    more, or with ``isolate`` (see the module). An interrupt is always raised."""
     if backend not in BACKENDS:
         raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
     check_workers(workers)
     if not calls:
+        return
+    count = min(workers or os.cpu_count() or 1, len(calls))
+    if backend == "local" and failed is not None and (count > 1 or isolate):
+        _killable_map(function, calls, count, finish, failed, timeout)
         return
     if failed is not None or timeout is not None:
         guarded = {key: (function, timeout, args) for key, args in calls.items()}
@@ -138,7 +158,6 @@ def run_calls(
     if backend == "ray":
         _ray_map(function, calls, finish)
         return
-    count = min(workers or os.cpu_count() or 1, len(calls))
     if count <= 1:
         for key, args in calls.items():
             finish(key, function(*args))
@@ -166,21 +185,162 @@ def _process_map(
             raise
 
 
+def _serve(connection: Any) -> None:
+    """A killable worker's loop: run each ``(function, args)`` it is sent and send back ``(True,
+    result)`` or ``(False, message)``, until it is sent None or its parent goes."""
+    while True:
+        try:
+            task = connection.recv()
+        except (EOFError, OSError):
+            return
+        if task is None:
+            return
+        function, args = task
+        try:
+            outcome: tuple[bool, Any] = (True, function(*args))
+        except Exception as error:
+            outcome = (False, f"{type(error).__name__}: {error}")
+        try:
+            connection.send(outcome)
+        except Exception as error:  # a result that cannot be pickled
+            connection.send((False, f"its result cannot be sent back: {type(error).__name__}: {error}"))
+
+
+class _Worker:
+    """A spawned worker process and its end of the pipe, with the call it runs and its deadline."""
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("spawn")
+        self.connection, theirs = context.Pipe()
+        self.process = context.Process(target=_serve, args=(theirs,), daemon=True)
+        self.process.start()
+        theirs.close()
+        self.key: Any = None
+        self.deadline: float | None = None
+
+    def stop(self, kill: bool = False) -> None:
+        if kill:
+            self.process.kill()
+        else:
+            try:
+                self.connection.send(None)
+            except OSError:
+                self.process.kill()
+        self.process.join(5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.connection.close()
+
+
+def _killable_map(
+    function: Callable[..., Any],
+    calls: Mapping[Any, tuple[Any, ...]],
+    count: int,
+    finish: Finish,
+    failed: Failed,
+    timeout: float | None,
+) -> None:
+    """Every call in ``count`` spawned worker processes, each call's process killed when it
+    outlives ``timeout`` [s] and replaced, as is one that dies; each is that call's failure."""
+    queue = list(calls)
+    idle: list[_Worker] = []
+    busy: dict[Any, _Worker] = {}
+    try:
+        while queue or busy:
+            while queue and len(busy) < count:
+                worker = idle.pop() if idle else _Worker()
+                worker.key = queue.pop(0)
+                worker.deadline = None if timeout is None else time.monotonic() + timeout
+                worker.connection.send((function, calls[worker.key]))
+                busy[worker.connection] = worker
+            deadlines = [w.deadline for w in busy.values() if w.deadline is not None]
+            wait_for = None if not deadlines else max(0.0, min(deadlines) - time.monotonic())
+            waitables = [*busy, *(w.process.sentinel for w in busy.values())]
+            multiprocessing.connection.wait(waitables, timeout=wait_for)
+            for connection, worker in list(busy.items()):
+                if connection.poll():
+                    try:
+                        ok, value = connection.recv()
+                    except (EOFError, OSError):
+                        ok, value = None, None
+                    if ok is not None:
+                        del busy[connection]
+                        idle.append(worker)
+                        (finish if ok else failed)(worker.key, value)
+                        continue
+                if not worker.process.is_alive():
+                    del busy[connection]
+                    worker.process.join()
+                    code = worker.process.exitcode
+                    worker.stop(kill=True)
+                    failed(worker.key, f"WorkerDied: its worker process ended (exit code {code}) before returning")
+                elif worker.deadline is not None and time.monotonic() >= worker.deadline:
+                    del busy[connection]
+                    worker.stop(kill=True)
+                    failed(
+                        worker.key,
+                        f"CallTimeout: took longer than the time limit of {timeout:g} s (--cell-timeout); its worker "
+                        "process was stopped",
+                    )
+    finally:
+        for worker in [*idle, *busy.values()]:
+            worker.stop(kill=worker in busy.values())
+
+
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+"""What an HTTP/2 client sends first (the connection preface and an empty SETTINGS frame): a Ray
+cluster's gRPC server answers it with a SETTINGS frame of its own (type 4)."""
+
+
 def _check_ray_address(address: str) -> None:
     """``ValueError`` unless the cluster at ``address`` (``host:port`` or ``ray://host:port``;
-    empty, ``auto`` or ``local``: nothing to reach) accepts a connection within :data:`RAY_CONNECT_TIMEOUT`."""
+    empty, ``auto`` or ``local``: nothing to reach) accepts a connection and answers as a gRPC
+    server (an HTTP/2 SETTINGS frame) within :data:`RAY_CONNECT_TIMEOUT` in all: a port that
+    accepts and never answers, or answers something else, is refused, not waited on."""
     if address in ("", "auto", "local"):
         return
     host, _, port = address.removeprefix("ray://").rpartition(":")
     if not host or not port.isdigit():
         raise ValueError(f"RAY_ADDRESS {address!r}: give host:port (or ray://host:port), or unset it for a local Ray")
+    deadline = time.monotonic() + RAY_CONNECT_TIMEOUT
+    problem = None
     try:
-        socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT).close()
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT) as connection:
+            connection.settimeout(max(0.01, deadline - time.monotonic()))
+            connection.sendall(HTTP2_PREFACE)
+            reply = b""
+            while len(reply) < 9:
+                connection.settimeout(max(0.01, deadline - time.monotonic()))
+                chunk = connection.recv(9 - len(reply))
+                if not chunk:
+                    break
+                reply += chunk
+            if len(reply) < 9 or reply[3] != 4:
+                problem = "it accepted the connection but did not answer as a Ray cluster (a gRPC server)"
+    except TimeoutError:
+        problem = f"it accepted the connection but sent nothing within {RAY_CONNECT_TIMEOUT:g} s"
     except OSError as error:
         raise ValueError(
             f"RAY_ADDRESS {address}: no Ray cluster answers there within {RAY_CONNECT_TIMEOUT:g} s "
             f"({error.strerror or error}); start it, or unset RAY_ADDRESS for a local Ray"
         ) from None
+    if problem is not None:
+        raise ValueError(f"RAY_ADDRESS {address}: {problem}; give a Ray cluster's address, or unset RAY_ADDRESS")
+
+
+def check_backend(backend: str) -> str:
+    """``backend`` if cells can run there, checked before the first cell: ``local``, or ``ray`` with
+    Ray installed and ``RAY_ADDRESS`` (if set) answering as a cluster; ``ValueError`` otherwise."""
+    if backend not in BACKENDS:
+        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
+        _check_ray_address(os.environ.get("RAY_ADDRESS", ""))
+    return backend
 
 
 def _init_ray(ray: Any, address: str) -> None:
@@ -188,7 +348,13 @@ def _init_ray(ray: Any, address: str) -> None:
     for a cluster: Ray itself retries an address that answers but is no Ray for minutes, logging a
     line a second from C++, so its log is held back until it has connected (and dropped if not)."""
     if address in ("", "auto", "local"):
-        ray.init(logging_level=logging.WARNING, log_to_driver=False)
+        try:
+            ray.init(logging_level=logging.WARNING, log_to_driver=False)
+        except ConnectionError as error:  # RAY_ADDRESS=auto and no cluster running
+            raise ValueError(
+                f"RAY_ADDRESS {address}: no running Ray cluster found ({' '.join(str(error).split())[:200]}); "
+                "start one (ray start --head) or unset RAY_ADDRESS for a local Ray"
+            ) from None
         return
     _check_ray_address(address)
     saved = os.dup(2)

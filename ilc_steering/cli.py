@@ -17,22 +17,25 @@ one line; ``--debug`` adds the traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
+from ilc_steering.agents.registry import REGISTRY
 from ilc_steering.compare import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, ConfigError, SteeringConfig, load_config, packaged_configs
 from ilc_steering.loop import LearnerError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
+    DEFAULT_LEARNER,
     CycleRecord,
     CyclicRunResult,
     RunResult,
     TrialRecord,
-    learner_factory,
+    learner_spec,
     run_cyclic_ilc,
     run_ilc,
     step_warning,
@@ -116,13 +119,16 @@ def _print_row(record: TrialRecord | CycleRecord) -> None:
 
 
 def _learn(
-    config: SteeringConfig, count: int | None, trajectories: bool, learner: str = "ilc"
+    config: SteeringConfig, count: int | None, trajectories: bool, learner: str = DEFAULT_LEARNER
 ) -> RunResult | CyclicRunResult:
     """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
-    if config.is_cyclic and learner != "ilc":
-        raise ValueError(f"--learner {learner}: a cyclic config runs the cyclic law of eqs. 39-40 (--learner ilc)")
+    if config.is_cyclic and learner != DEFAULT_LEARNER:
+        raise ValueError(
+            f"--learner {learner}: a cyclic config runs the paper's cyclic law of eqs. 39-40 "
+            f"(the default, --learner {DEFAULT_LEARNER})"
+        )
     if not config.is_cyclic:
-        learner_factory(learner)  # an unknown or unimportable learner is refused before the header
+        learner_spec(learner)  # an unknown or unimportable learner is refused before the header
     _print_header(config, config.learning.trials if count is None else count)
     if config.is_cyclic:
         result: RunResult | CyclicRunResult = run_cyclic_ilc(
@@ -222,7 +228,8 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 SEEDS = range(10)
 """Seeds of the measurement noise over which ``reproduce`` reports the lab experiments."""
-SEEDED_LEARNERS = ("ilc", "newton_ilc", "robust_ilc")
+SEEDED_LEARNERS = tuple(i for i, spec in REGISTRY.items() if spec.reproduce)
+"""The learners of that table: a view of the registry (``LearnerSpec.reproduce``)."""
 
 
 def _seeds_table(names: list[str]) -> None:
@@ -266,10 +273,10 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--learner",
-        default="ilc",
+        default=DEFAULT_LEARNER,
         metavar="NAME",
-        help="ilc (the paper's eqs. 33-34, the default), newton_ilc (re-identify, then Newton on the refit model), "
-        "robust_ilc (global identification, continuation, a trust region), "
+        help="ilc_paper (the paper's eqs. 33-34), newton_ilc (re-identify, then Newton on the refit model), "
+        "robust_ilc (global identification, continuation, a trust region), any other id of compare --methods, "
         "or module:attr, a factory make(LearnerContext) -> Learner",
     )
     run.set_defaults(handler=_run)
@@ -336,6 +343,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ilc-steering: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # stdout closed early (ilc-steering list | head -1): nothing left to say
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush does not fail again
+        return 0
     except LearnerError as error:  # the learner's fault, named: neither bad input nor a bug
         if args.debug:
             traceback.print_exc()

@@ -41,494 +41,105 @@ marked in the report.
 from __future__ import annotations
 
 import argparse
-import fcntl
 import os
 import sys
-import time
-from collections.abc import Callable, Iterable, Iterator
-from contextlib import contextmanager
-from dataclasses import asdict, dataclass, fields, replace
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-import numpy as np
-
-from ilc_steering import __version__
-from ilc_steering.against import CommittedRun, check_out, describe, read_committed, resolve_settings
-from ilc_steering.agents.base import PRIORS, Learner, LearnerContext, load_factory
-from ilc_steering.backends import BACKENDS, MAX_WORKERS, check_workers, run_calls
-from ilc_steering.compare_report import LADDER, write_report
-from ilc_steering.core.score import true_cost
-from ilc_steering.inputs import read_json
-from ilc_steering.loop import LearnerError, run_trials
-from ilc_steering.output import (
-    MAX_RESULT_BYTES,
-    check_output_dir,
-    check_run_settings,
-    content_hash,
-    differences,
-    injective_name,
-    write_json,
+from ilc_steering.against import Cell, copy_committed, describe
+from ilc_steering.agents import registry
+from ilc_steering.agents.base import PRIORS
+from ilc_steering.backends import MAX_WORKERS
+from ilc_steering.compare_cells import (
+    ENV_ID,
+    FRAGILE,
+    TrialLog,
+    best_so_far,
+    budget,
+    cell_name,
+    cell_path,
+    check_cell,
+    first_within,
+    fragile_levels,
+    implementation,
+    make_learner,
+    measure,
+    read_cell,
+    run_cell,
 )
-from ilc_steering.runner import check_task, step_warning, working_directory_importable
+from ilc_steering.compare_plan import (
+    MAX_BUDGET,
+    MAX_SEED,
+    QUICK,
+    QUICK_SEEDS,
+    SCENARIOS,
+    SEEDS,
+    Args,
+    Plan,
+    plan,
+    resolve,
+    run_settings,
+)
+from ilc_steering.compare_report import LADDER, write_report
+from ilc_steering.engine import Grid, RunFolder, run_grid
+from ilc_steering.inputs import read_json
+from ilc_steering.output import write_json
 
 __all__ = [
+    "ENV_ID",
+    "FRAGILE",
     "LADDER",
+    "MAX_BUDGET",
+    "QUICK",
+    "QUICK_SEEDS",
+    "SCENARIOS",
+    "SEEDS",
     "Args",
+    "Plan",
     "TrialLog",
+    "best_so_far",
+    "budget",
+    "cell_path",
+    "check_cell",
+    "first_within",
+    "fragile_levels",
+    "implementation",
     "main",
     "main_with_failures",
     "make_learner",
     "measure",
+    "method_families",
     "parse",
+    "plan",
+    "read_cell",
+    "resolve",
     "run_all",
     "run_cell",
     "run_cells",
+    "run_settings",
+    "validate",
 ]
 
-ENV_ID = "ilc_steering/ChainedSteering-v0"
-MAX_SEED = 2**32 - 1
-MODEL_METHODS = ("ilc", "ilc_paper", "newton", "newton_ilc", "robust_ilc")
-BLACKBOX = ("least_squares", "noisy_least_squares", "gauss_newton", "nelder_mead", "cma_es", "bayes_opt")
-RL = ("ppo", "sac", "td3", "crossq", "tqc")
-METHODS = (*MODEL_METHODS, *BLACKBOX, *RL)
-NOT_BY_DEFAULT = ("crossq",)
-"""Methods run only when named: CrossQ, untuned here, diverges to NaN actions within the quick
-budget on unicycle_parking and trailer_bay (its batch-normalized critic on a one-step task)."""
-DEFAULT_METHODS = tuple(m for m in METHODS if m not in NOT_BY_DEFAULT)
-SCENARIOS = (
-    "forward_parking",
-    "forward_parking_saturated",
-    "parallel_parking",
-    "forward_parking_noisy",
-    "unicycle_parking",
-    "trailer_bay",
-)
-
-
-@dataclass(frozen=True)
-class Args:
-    quick: bool = False
-    """Tiny budgets and two seeds: checks that everything runs and writes well-formed output (CI)."""
-    out: Path = Path("runs/compare")
-    """Run folder; an existing one is resumed."""
-    against: Path | None = None
-    """A committed run folder, only read: run the cells of ``methods`` it lacks, with its settings,
-    and report both (:mod:`~ilc_steering.against`)."""
-    priors: tuple[str, ...] = PRIORS
-    """Conditions: ``nominal`` (start from the nominal solution) and ``none`` (no prior)."""
-    methods: tuple[str, ...] = DEFAULT_METHODS
-    """Methods: the library's ids, or ``module:attr`` for a user's learner factory."""
-    scenarios: tuple[str, ...] = SCENARIOS
-    """Packaged config names or YAML paths of one-trial tasks."""
-    seeds: tuple[int, ...] = tuple(range(10))
-    """Seeds; each (prior, method, scenario, seed) is one cell."""
-    model_trials: int = 30
-    """Budget of the model-based learners (``ilc``, ``ilc_paper``, ``newton``) [trials]."""
-    blackbox_trials: int = 3000
-    """Budget of each black-box optimizer [trials]."""
-    rl_trials: int | None = None
-    """Budget of each RL algorithm [trials]; None: ``n_timesteps`` of its hyperparameter file."""
-    custom_trials: int = 300
-    """Budget of a user's learner (``module:attr``) [trials]."""
-    workers: int = 0
-    """Worker processes; 0: one per core."""
-    progress_bar: bool = False
-    """SB3's progress bar on RL cells (with one worker only)."""
-    backend: str = "local"
-    """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.backends`)."""
-    cell_timeout: float | None = None
-    """[s] a cell still running after this is stopped and recorded as failed; None: no limit."""
-
-
-FRAGILE = 1e-6
-"""A count is fragile when scaling every error by ``1 - FRAGILE`` or ``1 + FRAGILE`` would move it."""
-MAX_BUDGET = 1_000_000
-"""The largest budget of any method [trials]: the trial log is kept in memory."""
-
-QUICK = {"model_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "custom_trials": 20}
-QUICK_SEEDS = (0, 1)
-
-
-class TrialLog:
-    """A trial-loop callback that keeps every trial's *true* errors: Cartesian [m] and orientation
-    [rad] for a robot with a pose, the chained error norm for a chained plant (``cartesian`` holds
-    it then, ``orientation`` zeros), the true cost (:func:`~ilc_steering.core.score.true_cost`,
-    the off-chart penalty included), whether it left the chart and whether the env clipped its action."""
-
-    def __init__(self) -> None:
-        self.cartesian: list[float] = []
-        self.orientation: list[float] = []
-        self.cost: list[float] = []
-        self.left_chart: list[bool] = []
-        self.clipped: list[bool] = []
-
-    def __call__(self, k: int, info: dict[str, Any]) -> None:
-        self.cartesian.append(float(info.get("true_cartesian_error", info["true_error_norm"])))
-        self.orientation.append(float(info.get("true_orientation_error", 0.0)))
-        self.cost.append(float(true_cost(info)))
-        self.left_chart.append(bool(info["left_chart"]))
-        self.clipped.append(bool(info.get("clipped", False)))
-
-
-def first_within(log: TrialLog, tolerance: float, scale: float = 1.0) -> int | None:
-    """The 1-based index of the first trial that stayed in the chart with both errors (each times
-    ``scale``) at most ``tolerance`` (a chained plant: its error norm), or None."""
-    ok = (scale * np.asarray(log.cartesian) <= tolerance) & (scale * np.asarray(log.orientation) <= tolerance)
-    hits = np.flatnonzero(ok & ~np.asarray(log.left_chart, dtype=bool))
-    return int(hits[0]) + 1 if hits.size else None
-
-
-def fragile_levels(log: TrialLog) -> list[str]:
-    """The levels of :data:`LADDER` whose count a relative change of :data:`FRAGILE` in every
-    error would move: the paper's law cuts the error exactly tenfold a trial, so an error can
-    land *on* 1 cm, where the integrator's last digits, not the learner, decide the count."""
-    return [
-        level
-        for level, tolerance in LADDER.items()
-        if len({first_within(log, tolerance, 1.0 + sign * FRAGILE) for sign in (-1.0, 0.0, 1.0)}) > 1
-    ]
-
-
-def best_so_far(log: TrialLog) -> list[list[float]]:
-    """``[trial, best true cost]`` at every trial that improved it."""
-    best = np.minimum.accumulate(np.asarray(log.cost))
-    changed = np.flatnonzero(np.concatenate([[True], best[1:] < best[:-1]]))
-    return [[int(i) + 1, float(best[i])] for i in changed]
-
-
-def is_custom(method: str) -> bool:
-    """A user's learner factory, ``module:attr``."""
-    return ":" in method
-
-
-def custom_factory(method: str) -> Callable[[LearnerContext], Learner]:
-    """The factory named ``module:attr`` (a module in the working directory included); ``ValueError``
-    if it cannot be imported or called."""
-    working_directory_importable()
-    return load_factory(method, "--methods")
+MODEL_METHODS = registry.ids("model-based")
+BLACKBOX = registry.ids("black-box")
+RL = registry.ids("RL")
+METHODS = registry.METHODS
+DEFAULT_METHODS = registry.DEFAULT_METHODS
+"""Views of the one table of method ids, :data:`ilc_steering.agents.registry.REGISTRY`."""
 
 
 def method_families(methods: Iterable[str] = ()) -> dict[str, tuple[str, ...]]:
-    """The families the comparison's figures colour by (:mod:`~ilc_steering.figure_styles`), read
-    from the method tuples when called, so a method added to one joins its family: model-based,
-    black-box, RL, and yours, every ``module:attr`` among ``methods``."""
-    families = {"model-based": MODEL_METHODS, "black-box": BLACKBOX, "RL": RL}
-    return {**families, "yours": tuple(dict.fromkeys(m for m in methods if is_custom(m)))}
-
-
-def budget(args: Args, prior: str, method: str, scenario: str) -> int:
-    if method in MODEL_METHODS:
-        return args.model_trials
-    if is_custom(method):
-        return args.custom_trials
-    if method in RL:
-        from ilc_steering.agents.rl import hyperparameters
-
-        if args.rl_trials is not None:
-            return args.rl_trials
-        return int(hyperparameters(method, scenario, prior)["n_timesteps"])
-    if method == "bayes_opt":  # a GP's trial costs about 0.25 s: BO's budget is its own (agents/bayes_opt.py)
-        from ilc_steering.agents.bayes_opt import MAX_TRIALS
-
-        return min(args.blackbox_trials, MAX_TRIALS)
-    return args.blackbox_trials
-
-
-def implementation(method: str) -> str:
-    """What made a cell of ``method``: for RL the package and version of the backend in use (SBX or
-    SB3, :func:`ilc_steering.agents.rl.implementation`), for a black-box method its optimizer's, else
-    this library's (a user's learner: its ``module:attr``)."""
-    from importlib import metadata
-
-    if method in RL:
-        from ilc_steering.agents.rl import implementation as rl_implementation
-
-        return rl_implementation(method)
-    if is_custom(method):
-        return method
-    package = {"cma_es": "cma", "bayes_opt": "botorch"}.get(method, "scipy" if method in BLACKBOX else None)
-    return f"{package} {metadata.version(package)}" if package else f"ilc-steering {__version__}"
-
-
-def make_learner(args: Args, method: str, scenario: str, context: LearnerContext) -> Learner:
-    """The learner of ``method`` for ``scenario`` (its config's name), built from ``context`` alone."""
-    from ilc_steering.agents.ilc import make_ilc, make_ilc_paper
-    from ilc_steering.agents.newton import make_newton
-    from ilc_steering.agents.newton_ilc import make_newton_ilc
-    from ilc_steering.agents.robust_ilc import make_robust_ilc
-
-    builders: dict[str, Callable[[LearnerContext], Learner]] = {
-        "ilc": make_ilc,
-        "ilc_paper": make_ilc_paper,
-        "newton": make_newton,
-        "newton_ilc": make_newton_ilc,
-        "robust_ilc": make_robust_ilc,
-    }
-    if method in builders:
-        return builders[method](context)
-    if method in RL:
-        from ilc_steering.agents import rl
-
-        params = rl.hyperparameters(method, scenario, context.prior)
-        trials = budget(args, context.prior, method, scenario)
-        return rl.make_learner(method, params, trials, args.progress_bar, context)
-    if method in BLACKBOX:
-        from ilc_steering.agents import blackbox
-
-        return blackbox.make_learner(method, context)
-    if is_custom(method):
-        try:
-            learner = custom_factory(method)(context)
-        except Exception as error:
-            raise LearnerError(f"learner {method}: its factory raised {type(error).__name__}: {error}") from error
-        if not isinstance(learner, Learner):
-            raise ValueError(f"--methods {method}: made {type(learner).__name__}, which has no act, learn and reset")
-        return learner
-    raise ValueError(f"unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
-
-
-def measure(
-    env: gym.Env[Any, Any], learner: Learner, trials: int, seed: int, name: str | None = None
-) -> dict[str, Any]:
-    """Run ``learner`` (``name`` for errors) on ``env`` for ``trials`` trials and return what it
-    reached: the trials to each tolerance of :data:`LADDER` and which of them are fragile
-    (:func:`fragile_levels`), the best true cost, the off-chart fraction, the wall time [s] and
-    the best-so-far curve."""
-    log = TrialLog()
-    start = time.perf_counter()
-    run_trials(env, learner, trials, seed=seed, callbacks=[log], name=name)
-    wall = time.perf_counter() - start
-    curve = best_so_far(log)
-    # A learner that times its own updates (update_seconds: the model-based ones) reports the median.
-    updates = getattr(learner, "update_seconds", None)
-    update_s = float(np.median(updates)) if isinstance(updates, list) and updates else None
-    return {
-        "update_s": update_s,
-        "trials": len(log.cost),
-        "off_chart_fraction": float(np.mean(log.left_chart)),
-        "clipped_fraction": float(np.mean(log.clipped)),
-        "trials_to": {level: first_within(log, tolerance) for level, tolerance in LADDER.items()},
-        "fragile": fragile_levels(log),
-        "best_error": curve[-1][1],
-        "wall_s": wall,
-        "curve": curve,
-    }
-
-
-def run_cell(args: Args, prior: str, method: str, scenario: str, seed: int) -> dict[str, Any]:
-    """One (prior, method, scenario, seed) cell: the method's run within its budget, and what it reached."""
-    if method in RL:
-        import torch
-
-        torch.set_num_threads(1)  # as in the worker processes: serial and parallel runs agree
-    env = gym.make(ENV_ID, config=scenario)
-    unwrapped: Any = env.unwrapped
-    config = unwrapped.config
-    context = LearnerContext(
-        unwrapped.nominal_model,
-        unwrapped.action_space,
-        unwrapped.observation_space,
-        seed,
-        config.learning.nu_a,
-        config.learning.nu_b,
-        prior=prior,
-        cost=config.learning.cost,
-    )
-    trials = budget(args, prior, method, config.name)
-    learner = make_learner(args, method, config.name, context)
-    if context.cost != "none":
-        from ilc_steering.agents.costs import with_cost
-
-        learner = with_cost(learner, context)
-    result = measure(env, learner, trials, seed, method)
-    result["implementation"] = implementation(method)
-    env.close()
-    return {"prior": prior, "method": method, "scenario": config.name, "seed": seed, "budget": trials, **result}
-
-
-def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int, folder: str = "cells") -> Path:
-    """The file of a cell, under ``out/folder``: one file per (prior, method, scenario, seed), never shared."""
-    return out / folder / f"{prior}__{injective_name(method, METHODS)}__{scenario}__{seed}.json"
+    """The families the comparison's figures colour by (:mod:`~ilc_steering.figure_styles`):
+    :func:`ilc_steering.agents.registry.families`."""
+    return registry.families(methods)
 
 
 def validate(args: Args) -> dict[str, str]:
-    """Check every argument and scenario before the first cell; returns scenario -> config name.
-
-    ``ValueError`` names the argument: unknown or repeated priors, methods, scenarios or seeds, a
-    user's learner that cannot be imported, a seed outside ``[0, 2**32)``, a cyclic config
-    (``compare`` runs one-trial tasks), two scenarios of one name, a budget outside ``[1,
-    MAX_BUDGET]``, a worker count outside ``[0, MAX_WORKERS]``, a ``cell_timeout`` that is not a
-    time > 0 s.
-    """
-    from ilc_steering.config import load_config
-
-    if args.backend not in BACKENDS:
-        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {args.backend!r}")
-    options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
-    for option, values in (*options, ("--seeds", args.seeds)):
-        if not values:
-            raise ValueError(f"{option}: give at least one")
-        repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
-        if repeated:
-            raise ValueError(f"{option}: {repeated[0]} is given twice; each cell is counted once")
-    unknown_priors = [p for p in args.priors if p not in PRIORS]
-    if unknown_priors:
-        raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
-    for method in args.methods:
-        if is_custom(method):
-            custom_factory(method)
-        elif method not in METHODS:
-            raise ValueError(f"--methods: unknown method {method!r}; choose from {list(METHODS)} or give module:attr")
-    bad = [s for s in args.seeds if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
-    if bad:
-        raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
-    for option in ("model_trials", "blackbox_trials", "rl_trials", "custom_trials"):
-        value = getattr(args, option)
-        if value is not None and (
-            isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_BUDGET
-        ):
-            raise ValueError(
-                f"--{option.replace('_', '-')}: the budget must be a whole number in [1, {MAX_BUDGET}], got {value!r}"
-            )
-    check_workers(args.workers)
-    timeout = args.cell_timeout
-    if timeout is not None and not (isinstance(timeout, (int, float)) and np.isfinite(timeout) and timeout > 0):
-        raise ValueError(f"--cell-timeout: a time limit > 0 s, got {timeout!r}")
-    names: dict[str, str] = {}
-    for scenario in args.scenarios:
-        config = load_config(scenario)
-        if config.is_cyclic:
-            raise ValueError(
-                f"--scenarios {scenario}: a cyclic config; compare runs one-trial tasks "
-                "(use ilc-steering run for cycles)"
-            )
-        if config.name in names.values():
-            raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
-        env = gym.make(ENV_ID, config=config)
-        check_task(env, f"--scenarios {scenario}")
-        env.close()
-        names[scenario] = config.name
-    for prior in args.priors:
-        for method in args.methods:
-            for name in names.values():
-                budget(args, prior, method, name)  # RL: its hyperparameters exist
-    return names
-
-
-CELL_KEYS = {
-    "prior": str,
-    "method": str,
-    "scenario": str,
-    "seed": int,
-    "budget": int,
-    "trials": int,
-    "off_chart_fraction": float,
-    "trials_to": dict,
-    "fragile": list,
-    "best_error": float,
-    "wall_s": float,
-    "curve": list,
-    "config_sha": str,
-    "version": str,
-}
-
-
-def _finite(value: float) -> bool:
-    return bool(np.isfinite(value))
-
-
-def _check_values(cell: dict[str, Any], path: Path | str, hint: str) -> None:
-    """Every value a summary uses, in its range: ``ValueError`` naming the file and the value."""
-    problems = []
-    if not (_finite(cell["best_error"]) and cell["best_error"] >= 0):
-        problems.append(f"best_error {cell['best_error']!r} is not a finite error >= 0")
-    if not (_finite(cell["wall_s"]) and cell["wall_s"] >= 0):
-        problems.append(f"wall_s {cell['wall_s']!r} is not a time >= 0 s")
-    if not (_finite(cell["off_chart_fraction"]) and 0 <= cell["off_chart_fraction"] <= 1):
-        problems.append(f"off_chart_fraction {cell['off_chart_fraction']!r} is not a fraction in [0, 1]")
-    curve = cell["curve"]
-    points = [p for p in curve if isinstance(p, list) and len(p) == 2]
-    if not curve or len(points) != len(curve):
-        problems.append("curve is not a non-empty list of [trial, best error] pairs")
-    else:
-        trials = [p[0] for p in points]
-        errors = [p[1] for p in points]
-        if not all(isinstance(t, int) and not isinstance(t, bool) and 1 <= t <= cell["trials"] for t in trials):
-            problems.append(f"curve holds a trial outside [1, {cell['trials']}]")
-        elif trials != sorted(set(trials)) or not all(
-            isinstance(e, (int, float)) and _finite(e) and e >= 0 for e in errors
-        ):
-            problems.append("curve is not increasing in trials with finite errors >= 0")
-    clipped = cell.get("clipped_fraction", 0.0)
-    if not (isinstance(clipped, (int, float)) and _finite(clipped) and 0 <= clipped <= 1):
-        problems.append(f"clipped_fraction {clipped!r} is not a fraction in [0, 1]")
-    if not set(cell["fragile"]) <= set(LADDER):
-        problems.append(f"fragile holds a level outside {sorted(LADDER)}")
-    if problems:
-        raise ValueError(f"{path}: {problems[0]}; {hint}")
-
-
-def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
-    """A finished cell, checked against its ``key`` (prior, method, scenario, seed, budget, the
-    config's content hash and the package version) and value by value (finite, in range, within
-    the budget); ``ValueError`` names the file."""
-    hint = "delete it to have the cell computed again"
-    try:
-        cell = read_json(path, MAX_RESULT_BYTES)
-    except ValueError as error:
-        raise ValueError(f"not a readable cell: {error}; {hint}") from None
-    return check_cell(cell, key, path, hint)
-
-
-def check_cell(cell: Any, key: dict[str, Any], path: Path | str, hint: str) -> dict[str, Any]:
-    """``cell`` checked as :func:`read_cell` checks it; ``ValueError`` names ``path`` and ends with ``hint``."""
-    if not isinstance(cell, dict):
-        raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
-    for name, kind in CELL_KEYS.items():
-        value = cell.get(name)
-        ok = isinstance(value, (int, float)) if kind is float else isinstance(value, kind)
-        if not ok or isinstance(value, bool):
-            raise ValueError(f"{path}: {name!r} is missing or not a {kind.__name__}; {hint}")
-    for name, value in key.items():
-        if cell[name] != value:
-            what = {"config_sha": "the content hash of its config", "version": "the ilc-steering version"}
-            raise ValueError(f"{path}: holds {what.get(name, name)} {cell[name]!r}, not {value!r}; {hint}")
-    if not 1 <= cell["trials"] <= cell["budget"]:
-        raise ValueError(f"{path}: {cell['trials']} trials for a budget of {cell['budget']}; {hint}")
-    reached = cell["trials_to"]
-    if sorted(reached) != sorted(LADDER) or not all(
-        v is None or (isinstance(v, int) and 1 <= v <= cell["trials"]) for v in reached.values()
-    ):
-        raise ValueError(f"{path}: 'trials_to' needs {sorted(LADDER)}, each a trial or null; {hint}")
-    _check_values(cell, path, hint)
-    return cell
-
-
-def run_settings(args: Args) -> dict[str, Any]:
-    """What ``run.json`` records and a resume (or ``--against``) must match: the budgets, the seeds,
-    ``quick`` and the package version; not the grid's axes (a resume may add cells), nor how or
-    where cells run."""
-    skip = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
-    settings = {k: v for k, v in asdict(args).items() if k not in skip}
-    settings["seeds"] = list(settings["seeds"])
-    settings["version"] = __version__
-    return settings
-
-
-def _check_run_folder(args: Args, configs: dict[str, str]) -> None:
-    """Record the settings, the version and the configs' content hashes; refuse to resume a folder
-    written with other budgets, seeds or version, or another config of one of these names."""
-    settings = run_settings(args)
-    cells = args.out / "cells"
-    check_output_dir(args.out, "--out")
-    if cells.exists() and not cells.is_dir():
-        raise ValueError(f"{cells}: exists and is not a folder; this is not a compare run folder")
-    resumed = check_run_settings(args.out, settings, cells, configs)
-    cells.mkdir(exist_ok=True)
-    if resumed:
-        _restore_cells(args.out)
+    """Check every argument and scenario before the first cell (:func:`~ilc_steering.compare_plan.plan`);
+    returns scenario -> config name."""
+    return plan(args).names
 
 
 MAX_REPORT_BYTES = 256 << 20
@@ -548,30 +159,20 @@ def _restore_cells(folder: Path) -> None:
     except ValueError as error:
         raise ValueError(f"{error}; use another --out folder") from None
     restored = 0
+    seen: set[Path] = set()
     for cell in cells if isinstance(cells, list) else []:
         try:
             path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
         except (KeyError, TypeError, ValueError):
             raise ValueError(f"{report}: holds a cell without its key; use another --out folder") from None
+        if path in seen:
+            raise ValueError(f"{report}: holds the cell {path.stem} twice; use another --out folder")
+        seen.add(path)
         if not path.exists():
             write_json(path, cell)
             restored += 1
     if restored:
         print(f"restored {restored} cells from {report}", flush=True)
-
-
-@contextmanager
-def _locked(folder: Path) -> Iterator[None]:
-    """Hold an exclusive lock on the run folder: two ``compare`` processes never share one."""
-    with open(folder / ".lock", "a") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise ValueError(f"{folder}: another compare is running on this folder") from None
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _progress(cell: dict[str, Any]) -> None:
@@ -589,7 +190,7 @@ def workers(args: Args) -> int:
     return args.workers or os.cpu_count() or 1
 
 
-Runner = Callable[[Args, str, str, str, int], dict[str, Any]]
+Runner = Callable[..., dict[str, Any]]
 
 
 def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
@@ -597,233 +198,80 @@ def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
     return run_all(args, runner)[0]
 
 
-def _failure(key: dict[str, Any], message: str) -> dict[str, Any]:
-    cell = {name: key[name] for name in ("prior", "method", "scenario", "seed", "budget")}
-    return {**cell, "error": message}
-
-
-Cell = tuple[str, str, str, int]
-"""A cell's (prior, method, scenario name, seed)."""
-
-
-def against_args(args: Args) -> tuple[Args, CommittedRun]:
-    """``args`` for ``--against`` and the committed run as read: its settings (budgets, seeds,
-    ``quick``) where ``args`` holds the defaults, its scenarios and priors unless a subset of them
-    is given. ``ValueError`` (one line, naming the option) for a run of another version or other
-    settings, an ``--out`` inside it, a method list left at the default, a scenario or prior it
-    has no cells of, or a scenario of its that is not packaged and not given as a YAML file."""
-    from ilc_steering.config import load_config, packaged_configs
-
-    folder = args.against
-    if folder is None:
-        raise ValueError("--against: give a committed run folder")
-    committed = read_committed(folder)
-    check_out(args.out, folder)
-    if args.methods == Args.methods:
-        raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
-    defaults = {f.name: f.default for f in fields(Args)}
-    args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
-    cells = [cell for _, cell in committed.cells]
-    scenarios = [name for name in committed.configs if any(c["scenario"] == name for c in cells)]
-    if args.scenarios == Args.scenarios:
-        unknown = [name for name in scenarios if name not in packaged_configs()]
-        if unknown:
-            raise ValueError(
-                f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
-                f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
-            )
-        args = replace(args, scenarios=tuple(scenarios))
-    for scenario in args.scenarios:
-        if load_config(scenario).name not in scenarios:
-            raise ValueError(
-                f"--scenarios {scenario}: the committed run --against {folder} has no cells of it; its scenarios: "
-                f"{' '.join(scenarios)}"
-            )
-    priors = [prior for prior in PRIORS if any(c["prior"] == prior for c in cells)]
-    if args.priors == Args.priors:
-        args = replace(args, priors=tuple(priors))
-    elif not set(args.priors) <= set(priors):
-        raise ValueError(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
-    settings = run_settings(args)
-    if settings != committed.settings:
-        raise ValueError(
-            f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
-        )
-    return args, committed
-
-
-def _committed_cells(
-    args: Args, committed: CommittedRun, configs: dict[str, str]
-) -> tuple[dict[Cell, dict[str, Any]], dict[str, str]]:
-    """The committed run's cells, each checked against its key and value by value, and the
-    content hash of every scenario's config; ``ValueError`` if a scenario to run has another
-    config than the committed run's cells of that name, or a committed cell is not one of its run."""
-    folder = committed.folder
-    for name, digest in configs.items():
-        theirs = committed.configs.get(name)
-        if theirs != digest:
-            raise ValueError(
-                f"--against {folder}: its {name!r} cells were computed with another config (content hash {theirs}, "
-                f"this one's {digest}): the same name, another content"
-            )
-    hint = f"the committed run --against {folder} is not consistent; recompute it"
-    held: dict[Cell, dict[str, Any]] = {}
-    for where, cell in committed.cells:
-        prior, method, scenario, seed = (cell[name] for name in ("prior", "method", "scenario", "seed"))
-        known = isinstance(method, str) and (method in METHODS or is_custom(method))
-        ours = isinstance(scenario, str) and scenario in committed.configs
-        if prior not in PRIORS or not known or not ours or seed not in args.seeds:
-            raise ValueError(
-                f"{where}: not a cell of its run (prior {prior!r}, method {method!r}, scenario {scenario!r}, "
-                f"seed {seed!r}); {hint}"
-            )
-        key = {
-            "prior": prior,
-            "method": method,
-            "scenario": scenario,
-            "seed": seed,
-            "budget": budget(args, prior, method, scenario),
-            "config_sha": committed.configs[scenario],
-            "version": __version__,
-        }
-        held[(prior, method, scenario, seed)] = check_cell(cell, key, where, hint)
-    scenarios = dict.fromkeys(cell[2] for cell in held)
-    return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
-
-
-def _grid(args: Args, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
-    """The cells of an ``--against`` run, in the report's order: every committed one, and those of
-    ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
-    priors = [prior for prior in PRIORS if prior in args.priors or any(cell[0] == prior for cell in held)]
-    scenarios = list(dict.fromkeys([*(cell[2] for cell in held), *names]))
-    methods = list(dict.fromkeys([*(cell[1] for cell in held), *args.methods]))
-    return [
-        (prior, method, name, seed)
-        for prior in priors
-        for name in scenarios
-        for method in methods
-        for seed in args.seeds
-        if (prior, method, name, seed) in held or (method in args.methods and prior in args.priors and name in names)
-    ]
-
-
-def _copy_committed(held: dict[Cell, dict[str, Any]], keys: list[dict[str, Any]], path: Callable[[int], Path]) -> None:
-    """Write each committed cell into the run folder as it is, where it lacks it; ``ValueError``
-    if the folder holds another result for one of them (it is never overwritten)."""
-    for index, key in enumerate(keys):
-        cell = held.get((key["prior"], key["method"], key["scenario"], key["seed"]))
-        if cell is None:
-            continue
-        if not path(index).exists():
-            write_json(path(index), cell)
-        elif read_cell(path(index), key) != cell:
-            raise ValueError(f"{path(index)}: holds another result than the committed run's; use another --out folder")
-
-
 def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Every cell of the run, computing only those not yet in the run folder, in :func:`workers`
-    processes (one with a custom ``runner``, called as it is: a test's hook); returns the
-    finished cells and the failed ones, each in the run's order.
+    """Every cell of the run, computing only those not yet in the run folder, on the engine
+    (:func:`~ilc_steering.engine.run_grid`; with a custom ``runner``, in this process, called as
+    it is: a test's hook); returns the finished cells and the failed ones, each in the run's order."""
+    return execute(plan(args), runner)
 
-    Everything is validated before the first cell; each finished cell is written the moment it
-    finishes, whatever happens to the others. A cell that raises or outlives ``cell_timeout`` is
-    written to ``failed/`` with its error (prior, method, scenario and seed named) and the run
-    goes on; a resume computes it again.
-    """
-    from ilc_steering.config import load_config
 
-    committed = None
-    if args.against is not None:
-        args, committed = against_args(args)
-    names = validate(args)
-    configs = {name: content_hash(asdict(load_config(scenario))) for scenario, name in names.items()}
-    for scenario in names:
-        warning = step_warning(load_config(scenario))
-        if warning is not None:
-            print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
-    held: dict[Cell, dict[str, Any]] = {}
-    if committed is not None:
-        held, configs = _committed_cells(args, committed, configs)
-    _check_run_folder(args, configs)
+def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Run the cells of ``the_plan``: everything was checked when it was made; each finished cell
+    is written the moment it finishes; a cell that raises or outlives ``cell_timeout`` is written
+    to ``failed/`` with its error and the run goes on (a resume computes it again)."""
+    args = the_plan.args
+    for warning in the_plan.warnings:
+        print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
+    folder = RunFolder(args.out, "cells", "compare")
+    reports = [f"compare.{suffix}" for suffix in ("csv", "json", "md")]
+    reports += [f"compare_{name}.png" for name in dict.fromkeys(cell[2] for cell in the_plan.grid)]
+    if folder.prepare(the_plan.settings, the_plan.configs, reports):
+        _restore_cells(args.out)
+    inline = runner is not run_cell
+    progress_bar = args.progress_bar  # SB3's bar only where one process runs every cell (see before)
 
-    def key_of(prior: str, method: str, name: str, seed: int) -> dict[str, Any]:
-        return {
-            "prior": prior,
-            "method": method,
-            "scenario": name,
-            "seed": seed,
-            "budget": budget(args, prior, method, name),
-            "config_sha": configs[name],
-            "version": __version__,
-        }
+    def call(cell: Cell) -> tuple[Any, ...]:
+        prior, method, name, seed = cell
+        if inline:
+            return args, prior, method, the_plan.scenario_of(name), seed
+        budget = the_plan.budgets[prior, method, name]
+        return replace(args, progress_bar=progress_bar), prior, method, the_plan.scenario_of(name), seed, budget
 
-    if committed is None:
-        grid = [
-            (prior, method, name, seed)
-            for prior in args.priors
-            for name in names.values()
-            for method in args.methods
-            for seed in args.seeds
-        ]
-    else:
-        grid = _grid(args, list(names.values()), held)
-    keys = [key_of(*cell) for cell in grid]
-    scenario_of = {name: scenario for scenario, name in names.items()}
-    done: dict[int, dict[str, Any]] = {}
-    failed: dict[int, dict[str, Any]] = {}
+    def failure(cell: Cell, message: str) -> dict[str, Any]:
+        key = the_plan.key(cell)
+        return {**{name: key[name] for name in ("prior", "method", "scenario", "seed", "budget")}, "error": message}
 
-    def path(index: int, folder: str = "cells") -> Path:
-        key = keys[index]
-        return cell_path(args.out, key["prior"], key["method"], key["scenario"], key["seed"], folder)
+    def describe_cell(cell: Cell) -> str:
+        prior, method, name, seed = cell
+        return f"{prior:7s} {name:26s} {method:13s} seed {seed}"
 
-    with _locked(args.out):
-        if held:
-            _copy_committed(held, keys, path)
-        todo = []
-        for index, key in enumerate(keys):
-            if path(index).exists():
-                done[index] = read_cell(path(index), key)
-            else:
-                todo.append(index)
+    grid = Grid(
+        keys=the_plan.grid,
+        name=lambda cell: cell_name(*cell),
+        read=lambda path, cell: read_cell(path, the_plan.key(cell)),
+        call=call,
+        stamp=lambda cell: {"config_sha": the_plan.configs[cell[2]], "version": the_plan.key(cell)["version"]},
+        failure=failure,
+        describe=describe_cell,
+        progress=_progress,
+    )
+    committed = the_plan.committed
+
+    def before(todo: Mapping[Cell, Path]) -> None:
+        nonlocal progress_bar
+        progress_bar = args.progress_bar and args.backend != "ray" and min(workers(args), len(todo)) <= 1
         if committed is not None:
             print(
-                f"--against {committed.folder}: {len(held)} committed cells taken as they are (copied into "
+                f"--against {committed.folder}: {len(the_plan.held)} committed cells taken as they are (copied into "
                 f"{args.out}/cells), {len(todo)} cells to compute, with its settings: {describe(committed.settings)}",
                 flush=True,
             )
 
-        def finish(index: int, cell: dict[str, Any]) -> None:
-            cell = {**cell, "config_sha": keys[index]["config_sha"], "version": __version__}
-            write_json(path(index), cell)
-            path(index, "failed").unlink(missing_ok=True)
-            done[index] = cell
-            _progress(cell)
-
-        def fail(index: int, message: str) -> None:
-            key = keys[index]
-            failed[index] = _failure(key, message)
-            path(index, "failed").parent.mkdir(exist_ok=True)
-            write_json(path(index, "failed"), failed[index])
-            print(
-                f"{key['prior']:7s} {key['scenario']:26s} {key['method']:13s} seed {key['seed']}: FAILED, "
-                f"recorded in {path(index, 'failed')}: {message}",
-                flush=True,
-            )
-
-        def call(index: int) -> tuple[Args, str, str, str, int]:
-            key = keys[index]
-            return args, key["prior"], key["method"], scenario_of[key["scenario"]], key["seed"]
-
-        if runner is not run_cell:
-            for index in todo:
-                finish(index, runner(*call(index)))
-        else:
-            parallel = args.backend == "ray" or min(workers(args), len(todo)) > 1
-            quiet = replace(args, progress_bar=False) if parallel else args
-            calls = {index: (quiet, *call(index)[1:]) for index in todo}
-            run_calls(run_cell, calls, finish, args.backend, args.workers, fail, args.cell_timeout)
-    order = range(len(keys))
-    return [done[i] for i in order if i in done], [failed[i] for i in order if i in failed]
+    if the_plan.held:
+        paths = {cell: folder.path(cell_name(*cell)) for cell in the_plan.grid}
+        with folder.locked():
+            copy_committed(the_plan.held, paths, lambda path, cell: read_cell(path, the_plan.key(cell)))
+    outcome = run_grid(
+        folder,
+        grid,
+        runner,
+        backend=args.backend,
+        workers=args.workers,
+        timeout=args.cell_timeout,
+        inline=inline,
+        before=before,
+    )
+    return outcome.in_order(the_plan.grid)
 
 
 def main(args: Args) -> list[dict[str, Any]]:
@@ -833,14 +281,10 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 def main_with_failures(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """:func:`main`, returning the failed cells too; the last line printed says how many failed."""
-    committed = None
-    if args.against is not None:  # the committed run's settings, quick budgets included
-        args, committed = against_args(args)
-    elif args.quick:  # the quick budgets, where no budget was given
-        quick: dict[str, Any] = {k: v for k, v in QUICK.items() if getattr(args, k) == getattr(Args, k)}
-        args = replace(args, **quick)
-    cells, failed = run_all(args)
-    names = list(validate(args).values())
+    the_plan = plan(args)
+    args, committed = the_plan.args, the_plan.committed
+    cells, failed = execute(the_plan)
+    names = list(the_plan.names.values())
     if committed is not None:
         names = list(dict.fromkeys([*(c["scenario"] for c in cells), *names]))
     if cells:
@@ -858,11 +302,9 @@ def main_with_failures(args: Args) -> tuple[list[dict[str, Any]], list[dict[str,
         )
     total = len(cells) + len(failed)
     if failed:
-        print(
-            f"{len(failed)} of {total} cells failed, each recorded with its error in {args.out}/failed "
-            "(a resume computes them again)",
-            flush=True,
-        )
+        line = f"{len(failed)} of {total} cells failed, each recorded with its error in {args.out}/failed"
+        print(f"{line} (a resume computes them again)", flush=True)
+        print(f"ilc-steering: {line}", file=sys.stderr, flush=True)
     else:
         print(f"all {total} cells finished", flush=True)
     return cells, failed
@@ -903,7 +345,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--seeds",
         type=int,
         nargs="+",
-        default=argparse.SUPPRESS,
+        default=None,
         help=f"whole numbers in [0, {MAX_SEED}] (default: 0 to 9; with --quick: 0 1)",
     )
     for option, what in (
@@ -939,8 +381,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def from_namespace(ns: argparse.Namespace) -> Args:
-    given = getattr(ns, "seeds", None)
-    seeds = given if given is not None else (QUICK_SEEDS if ns.quick else Args.seeds)
     budgets = {k: getattr(ns, k) for k in QUICK if hasattr(ns, k)}
     args = Args(
         quick=ns.quick,
@@ -949,7 +389,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         priors=tuple(ns.priors),
         methods=tuple(ns.methods),
         scenarios=tuple(ns.scenarios),
-        seeds=tuple(seeds),
+        seeds=None if ns.seeds is None else tuple(ns.seeds),
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,

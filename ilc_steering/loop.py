@@ -1,4 +1,6 @@
-"""The trial loop: a learner on an env for a budget of trials. The only copy in the library.
+"""The trial loop: a learner on an env for a budget of trials. The only copy in the library,
+in two forms: :func:`run_trials` (one env) and :func:`run_vector_trials` (a learner per env of a
+vector env, all stepped together: a sweep's row).
 
 The runner, the comparison, the benchmarks and the tests all call :func:`run_trials`. Each step
 of the env is one trial (for the cyclic env, one segment); every trial the learner asks for is
@@ -16,11 +18,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
-from ilc_steering.agents.base import Learner
+from ilc_steering.agents.base import Closable, Learner
 from ilc_steering.core.score import TRUE_KEYS
 
-__all__ = ["LearnerError", "Rollout", "TrialCallback", "run_trials"]
+__all__ = ["LearnerError", "Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
 
 
 class LearnerError(Exception):
@@ -72,8 +75,9 @@ def run_trials(
     The learner gets each trial's ``info`` without the true errors (``core.score.TRUE_KEYS``):
     it learns from measurements only. The rollout and the callbacks get the whole ``info``.
 
-    ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method (the
-    adapters of pull-style optimizers) is closed when the loop ends, however it ends.
+    ``seed`` and ``options`` go to the first ``reset``. A learner with a ``close()`` method
+    (:class:`~ilc_steering.agents.base.Closable`: the adapters of pull-style optimizers) is
+    closed when the loop ends, however it ends.
 
     ``name`` names the learner in a :class:`LearnerError` (default: its class).
     """
@@ -106,11 +110,64 @@ def run_trials(
                 observation, _ = env.reset()
         failed = False
     finally:
-        close = getattr(learner, "close", None)
-        if callable(close):
+        if isinstance(learner, Closable):
             try:
-                close()
+                learner.close()
             except Exception as error:
                 if not failed:  # else the error that ended the loop is the one to report
                     raise _fault(who, "close() raised", len(rollout), error) from error
     return rollout
+
+
+VectorCallback = Callable[[int, list[dict[str, Any]]], bool | None]
+"""Called after trial ``k`` (from 1) with each env's ``info``; returning ``True`` stops the loop."""
+
+
+def run_vector_trials(
+    envs: Any,
+    learners: Sequence[Learner],
+    trials: int,
+    *,
+    seed: int | None = None,
+    callbacks: Sequence[VectorCallback] = (),
+    name: str | None = None,
+) -> int:
+    """:func:`run_trials` on a vector env of one-trial envs: ``learners[i]`` drives env ``i``,
+    every learner one trial per step, for at most ``trials`` steps; returns the steps run.
+
+    Each learner gets its own env's ``info`` without the true errors, as from :func:`run_trials`;
+    the callbacks get every env's whole ``info``. What a learner raises is a :class:`LearnerError`
+    naming it (``name``) and the trial; every learner is closed when the loop ends."""
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
+        raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
+    if len(learners) != envs.num_envs:
+        raise ValueError(f"one learner per env is needed ({envs.num_envs}), got {len(learners)}")
+    who = name or (type(learners[0]).__name__ if learners else "learner")
+    observations, _ = envs.reset(seed=seed)
+    run = 0
+    try:
+        for k in range(1, trials + 1):
+            run = k
+            try:
+                actions = np.array([learner.act(obs) for learner, obs in zip(learners, observations)])
+            except Exception as error:
+                raise _fault(who, "act() raised", k, error) from error
+            try:
+                observations, _, _, _, info = envs.step(actions)
+            except ValueError as error:
+                raise _fault(who, "the env refused its action", k, error) from error
+            final = info["final_info"]
+            keys = [key for key in final if not key.startswith("_")]
+            rows = [{key: final[key][i] for key in keys} for i in range(len(learners))]
+            for learner, row in zip(learners, rows):
+                try:
+                    learner.learn({key: value for key, value in row.items() if key not in TRUE_KEYS})
+                except Exception as error:
+                    raise _fault(who, "learn() raised", k, error) from error
+            if any([bool(callback(k, rows)) for callback in callbacks]):
+                break
+    finally:
+        for learner in learners:
+            if isinstance(learner, Closable):
+                learner.close()
+    return run

@@ -15,21 +15,22 @@ from typing import Any
 
 import gymnasium as gym
 
-from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
+from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
+from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.loop import LearnerError, run_trials
 
 __all__ = [
-    "LEARNERS",
+    "DEFAULT_LEARNER",
     "CycleRecord",
     "CyclicRunResult",
     "RunResult",
     "TrialRecord",
     "check_task",
-    "learner_factory",
+    "learner_spec",
     "run_cyclic_ilc",
     "run_ilc",
     "step_warning",
@@ -37,10 +38,10 @@ __all__ = [
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
-LEARNERS = ("ilc", "newton_ilc", "robust_ilc")
-"""``run --learner``: the paper's eqs. 33-34 (its fictitious zero iteration first, as ``compare``'s
-``ilc_paper``), the re-identifying learner of :mod:`ilc_steering.agents.newton_ilc`, or its
-globalized successor :mod:`ilc_steering.agents.robust_ilc`."""
+DEFAULT_LEARNER = "ilc_paper"
+"""``run``'s learner: the paper's eqs. 33-34, its fictitious zero iteration first. Every id of
+:data:`ilc_steering.agents.registry.REGISTRY` means the same in ``run``, ``compare`` and ``sweep``
+(``ilc`` starts from the nominal solution in all three)."""
 
 
 MAX_NOMINAL_MISS = 1e-6
@@ -122,25 +123,11 @@ def working_directory_importable() -> None:
         sys.path.append(cwd)
 
 
-def learner_factory(name: str) -> LearnerFactory:
-    """The factory of ``run --learner name``: one of :data:`LEARNERS`, or ``module:attr`` (a
-    module in the working directory included)."""
-    if name == "ilc":
-        from ilc_steering.agents.ilc import make_ilc_paper
-
-        return make_ilc_paper
-    if name == "newton_ilc":
-        from ilc_steering.agents.newton_ilc import make_newton_ilc
-
-        return make_newton_ilc
-    if name == "robust_ilc":
-        from ilc_steering.agents.robust_ilc import make_robust_ilc
-
-        return make_robust_ilc
-    if ":" in name:
-        working_directory_importable()
-        return load_factory(name, "--learner")
-    raise ValueError(f"--learner: unknown learner {name!r}; choose from {list(LEARNERS)} or give module:attr")
+def learner_spec(name: str) -> LearnerSpec:
+    """The registry's spec of ``run --learner name``: any id of
+    :data:`~ilc_steering.agents.registry.REGISTRY`, or ``module:attr`` (a module in the working
+    directory included); ``ValueError`` for anything else."""
+    return lookup(name, "--learner")
 
 
 @dataclass(frozen=True)
@@ -217,11 +204,12 @@ def run_ilc(
     trials: int | None = None,
     on_trial: Callable[[TrialRecord], None] | None = None,
     trajectories: bool = False,
-    learner: str = "ilc",
+    learner: str = DEFAULT_LEARNER,
     seed: int = 1,
 ) -> RunResult:
-    """Run a learner (default: the paper's eqs. 33-34; see :func:`learner_factory`) for ``trials``
-    trials (default: the config's), with ``seed`` for the env's noise and the learner.
+    """Run a learner (default: the paper's eqs. 33-34; any id of the registry or ``module:attr``,
+    :func:`learner_spec`) for ``trials`` trials (default: the config's), with ``seed`` for the
+    env's noise and the learner.
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
@@ -230,29 +218,11 @@ def run_ilc(
     its ``partial`` the :class:`RunResult` of the trials run before.
     """
     config = load_config(config)
-    make = learner_factory(learner)
+    spec = learner_spec(learner)
     count = config.learning.trials if trials is None else trials
     env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
     check_task(env, config.name)
-    context = LearnerContext(
-        env.unwrapped.nominal_model,  # type: ignore[attr-defined]
-        env.action_space,  # type: ignore[arg-type]
-        env.observation_space,  # type: ignore[arg-type]
-        seed=seed,
-        nu_a=config.learning.nu_a,
-        nu_b=config.learning.nu_b,
-        cost=config.learning.cost,
-    )
-    try:
-        agent = make(context)
-    except Exception as error:
-        raise LearnerError(f"learner {learner}: its factory raised {type(error).__name__}: {error}") from error
-    if config.learning.cost != "none":
-        from ilc_steering.agents.costs import with_cost
-
-        agent = with_cost(agent, context)
-    if not isinstance(agent, Learner):
-        raise ValueError(f"--learner {learner}: made {type(agent).__name__}, which has no act, learn and reset")
+    agent = spec.make(LearnerContext.from_env(env, seed=seed), count)
     records: list[TrialRecord] = []
     converged: list[int] = []
 

@@ -7,6 +7,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_hex
 
 from ilc_steering import compare
+from ilc_steering.agents import registry
 from ilc_steering.compare_report import scenario_figure
 from ilc_steering.figure_styles import FAMILY_COLOURS, MARKERS, method_styles
 
@@ -41,12 +42,12 @@ def drawn(figure):
 
 @pytest.fixture
 def grown(monkeypatch):
-    """The method tuples as others will grow them: crossq, tqc, droq into RL, bayes_opt and a noise-aware least
-    squares into black-box, robust_ilc into the model-based family."""
-    for family, added in (("RL", ("crossq", "tqc", "droq")), ("BLACKBOX", ("bayes_opt", "noisy_least_squares"))):
-        monkeypatch.setattr(compare, family, tuple(dict.fromkeys([*getattr(compare, family), *added])))
-    monkeypatch.setattr(compare, "MODEL_METHODS", tuple(dict.fromkeys([*compare.MODEL_METHODS, "robust_ilc"])))
-    return [*compare.MODEL_METHODS, *compare.BLACKBOX, *compare.RL, "my_learners:make", "mypkg.mod:make"]
+    """The registry as others will grow it: a method added to each family joins it."""
+    table = dict(registry.REGISTRY)
+    for method, family in (("droq", "RL"), ("extra_blackbox", "black-box"), ("extra_model", "model-based")):
+        table[method] = registry.LearnerSpec(method, family, "pkg.mod:make", "model_trials")
+    monkeypatch.setattr(registry, "REGISTRY", table)
+    return [*registry.ids(), "my_learners:make", "mypkg.mod:make"]
 
 
 def test_every_method_of_a_figure_has_its_own_colour_and_marker_and_its_familys_colour(grown):
@@ -58,9 +59,9 @@ def test_every_method_of_a_figure_has_its_own_colour_and_marker_and_its_familys_
         pairs = [(colour, marker) for colour, marker, _ in styles.values()]
         assert len(set(pairs)) == len(pairs)
         families = {
-            "model-based": compare.MODEL_METHODS,
-            "black-box": compare.BLACKBOX,
-            "RL": compare.RL,
+            "model-based": registry.ids("model-based"),
+            "black-box": registry.ids("black-box"),
+            "RL": registry.ids("RL"),
             "yours": ("my_learners:make", "mypkg.mod:make"),
         }
         colours = {family: {styles[m][0] for m in methods} for family, methods in families.items()}
@@ -82,7 +83,8 @@ def test_the_legend_lies_outside_every_panel_and_inside_the_figure(grown):
     assert canvas.x0 <= box.x0 and box.x1 <= canvas.x1 and canvas.y0 <= box.y0 and box.y1 <= canvas.y1
     assert figure.get_suptitle() and not box.overlaps(figure._suptitle.get_window_extent())
     labels = [text.get_text() for text in legend.get_texts()]
-    assert labels[: 1 + len(compare.MODEL_METHODS)] == ["model-based:", *compare.MODEL_METHODS]  # grouped by family
+    model_based = registry.ids("model-based")
+    assert labels[: 1 + len(model_based)] == ["model-based:", *model_based]  # grouped by family
     assert labels.count("yours:") == 1 and set(grown) <= set(labels)
 
 

@@ -217,9 +217,9 @@ def test_compare_refuses_bad_arguments_before_any_cell(tmp_path, capsys):
 
 
 def test_quick_keeps_explicit_seeds_and_budgets():
-    assert compare.parse(["--quick", "--seeds", "3"]).seeds == (3,)
-    assert compare.parse(["--quick"]).seeds == (0, 1)
-    assert compare.parse(["--quick", "--model-trials", "9"]).model_trials == 9
+    assert compare.resolve(compare.parse(["--quick", "--seeds", "3"])).seeds == (3,)
+    assert compare.resolve(compare.parse(["--quick"])).seeds == (0, 1)
+    assert compare.resolve(compare.parse(["--quick", "--model-trials", "9"])).model_trials == 9
 
 
 @pytest.mark.slow  # a comparison

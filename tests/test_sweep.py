@@ -108,3 +108,25 @@ def test_a_folder_with_rows_but_no_settings_is_refused(tmp_path, capsys):
     (tmp_path / "s" / "rows" / "ilc_paper__nu1__000.json").write_text("{}")
     assert main(["sweep", "forward_parking", "--grid", "3", "--out", str(tmp_path / "s")]) == 2
     assert "no run.json" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("method", "row"), [("ilc_paper", 0), ("newton_ilc", 7)])
+def test_committed_robustness_rows_are_recomputed_bit_for_bit(method, row):
+    """The engine and the vector trial loop reproduce the committed rows of docs/robustness exactly."""
+    from pathlib import Path
+
+    folder = Path(__file__).parents[1] / "docs" / "robustness" / "forward_parking"
+    settings = json.loads((folder / "run.json").read_text())
+    args = SweepArgs(
+        config=settings["config"],
+        grid=settings["grid"],
+        low=settings["low"],
+        high=settings["high"],
+        trials=settings["trials"],
+        seed=settings["seed"],
+    )
+    committed = json.loads((folder / "rows" / f"{method}__nu1__{row:03d}.json").read_text())
+    mine = run_row(args, method, None, row)
+    for key in ("trials_to", "error", "left_chart", "nu_b", "row"):
+        assert mine[key] == committed[key], key

@@ -182,7 +182,7 @@ def test_a_resume_by_another_version_is_refused_saying_so(tmp_path, monkeypatch)
 
     args = compare.Args(out=tmp_path, methods=("ilc",), **TINY)
     compare.run_cells(args)
-    monkeypatch.setattr(compare, "__version__", "9.9.9")
+    monkeypatch.setattr("ilc_steering.compare_plan.__version__", "9.9.9")
     with pytest.raises(ValueError, match=r"version '0\.1\.0', not '9\.9\.9'"):
         compare.run_cells(args)
 
@@ -528,19 +528,20 @@ gains = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_fro
 )
 def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_b, grid, trials, workers, timeout):
     from ilc_steering.backends import MAX_WORKERS
-    from ilc_steering.sweep import SweepArgs, _validate
+    from ilc_steering.engine import MAX_CELL_TIMEOUT
+    from ilc_steering.sweep import SweepArgs, plan
 
     args = SweepArgs(
         methods=tuple(methods), nu_b=tuple(nu_b), grid=grid, trials=trials, workers=workers, cell_timeout=timeout
     )
     try:
-        _validate(args)
+        plan(args)
     except ValueError as error:
         assert str(error) and "\n" not in str(error)
         return
     assert len(set(methods)) == len(methods) > 0 and len(set(nu_b)) == len(nu_b)
     assert all(0 < g <= 2 for g in nu_b) and 2 <= grid <= 201 and 0 <= workers <= MAX_WORKERS
-    assert timeout is None or 0 < timeout < float("inf")
+    assert timeout is None or 0 < timeout <= MAX_CELL_TIMEOUT
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -553,6 +554,7 @@ def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_
 )
 def test_compare_arguments_are_accepted_or_refused_with_a_value_error(methods, seeds, budget, workers, timeout):
     from ilc_steering.compare import MAX_BUDGET, Args, validate
+    from ilc_steering.engine import MAX_CELL_TIMEOUT
 
     args = Args(
         methods=tuple(methods),
@@ -569,6 +571,7 @@ def test_compare_arguments_are_accepted_or_refused_with_a_value_error(methods, s
         return
     assert len(set(methods)) == len(methods) > 0 and len(set(seeds)) == len(seeds) > 0
     assert 1 <= budget <= MAX_BUDGET and all(0 <= s < 2**32 for s in seeds)
+    assert timeout is None or 0 < timeout <= MAX_CELL_TIMEOUT  # 1e19 is refused, not an OverflowError later
 
 
 # Ill-posed tasks found before any trial

@@ -1,0 +1,247 @@
+"""The plan of a comparison: its arguments resolved once, checked once, frozen.
+
+:func:`plan` turns the :class:`Args` a user gave into a :class:`Plan` that every later stage
+reads and none recomputes: ``quick``'s budgets and seeds applied (here only), ``--against``'s
+committed settings taken (:mod:`~ilc_steering.against`), every option checked, every scenario's
+config loaded, hashed and checked as a task once (an env each), each (prior, method, scenario)'s
+budget read once (for RL from its hyperparameter file) and the grid of cells laid out in the
+report's order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from ilc_steering import __version__
+from ilc_steering.against import Cell, CommittedRun
+from ilc_steering.agents import registry
+from ilc_steering.agents.base import PRIORS
+from ilc_steering.backends import check_backend, check_workers
+from ilc_steering.compare_cells import ENV_ID, budgets
+from ilc_steering.config import SteeringConfig
+from ilc_steering.engine import check_timeout
+from ilc_steering.output import content_hash
+
+__all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
+
+MAX_SEED = 2**32 - 1
+SCENARIOS = (
+    "forward_parking",
+    "forward_parking_saturated",
+    "parallel_parking",
+    "forward_parking_noisy",
+    "unicycle_parking",
+    "trailer_bay",
+)
+SEEDS = tuple(range(10))
+"""The seeds of a comparison when none are given."""
+MAX_BUDGET = 1_000_000
+"""The largest budget of any method [trials]: the trial log is kept in memory."""
+QUICK = {"model_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "custom_trials": 20}
+"""``--quick``'s budgets, where no budget was given."""
+QUICK_SEEDS = (0, 1)
+"""``--quick``'s seeds, where none were given."""
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """Tiny budgets and two seeds: checks that everything runs and writes well-formed output (CI)."""
+    out: Path = Path("runs/compare")
+    """Run folder; an existing one is resumed."""
+    against: Path | None = None
+    """A committed run folder, only read: run the cells of ``methods`` it lacks, with its settings,
+    and report both (:mod:`~ilc_steering.against`)."""
+    priors: tuple[str, ...] = PRIORS
+    """Conditions: ``nominal`` (start from the nominal solution) and ``none`` (no prior)."""
+    methods: tuple[str, ...] = registry.DEFAULT_METHODS
+    """Methods: the library's ids, or ``module:attr`` for a user's learner factory."""
+    scenarios: tuple[str, ...] = SCENARIOS
+    """Packaged config names or YAML paths of one-trial tasks."""
+    seeds: tuple[int, ...] | None = None
+    """Seeds; each (prior, method, scenario, seed) is one cell. None: :data:`SEEDS`, or
+    :data:`QUICK_SEEDS` with ``quick``."""
+    model_trials: int = 30
+    """Budget of the model-based learners (``ilc``, ``ilc_paper``, ``newton``) [trials]."""
+    blackbox_trials: int = 3000
+    """Budget of each black-box optimizer [trials]."""
+    rl_trials: int | None = None
+    """Budget of each RL algorithm [trials]; None: ``n_timesteps`` of its hyperparameter file."""
+    custom_trials: int = 300
+    """Budget of a user's learner (``module:attr``) [trials]."""
+    workers: int = 0
+    """Worker processes; 0: one per core."""
+    progress_bar: bool = False
+    """SB3's progress bar on RL cells (with one worker only)."""
+    backend: str = "local"
+    """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.backends`)."""
+    cell_timeout: float | None = None
+    """[s] a cell still running after this is stopped and recorded as failed; None: no limit."""
+
+
+def resolve(args: Args) -> Args:
+    """``args`` with ``quick`` applied (its budgets where none was given, its seeds where none
+    were) and the seeds filled in: the one place ``quick`` is read. Under ``--against`` the
+    committed run's settings are taken instead (:func:`~ilc_steering.against.against_args`)."""
+    if args.against is None and args.quick:
+        quick: dict[str, Any] = {k: v for k, v in QUICK.items() if getattr(args, k) == getattr(Args, k)}
+        args = replace(args, **quick)
+    if args.seeds is None:
+        args = replace(args, seeds=QUICK_SEEDS if args.quick else SEEDS)
+    return args
+
+
+def run_settings(args: Args) -> dict[str, Any]:
+    """What ``run.json`` records and a resume (or ``--against``) must match: the budgets, the seeds,
+    ``quick`` and the package version; not the grid's axes (a resume may add cells), nor how or
+    where cells run."""
+    skip = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
+    settings = {k: v for k, v in asdict(args).items() if k not in skip}
+    settings["seeds"] = list(settings["seeds"])
+    settings["version"] = __version__
+    return settings
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A comparison as it will run: read by every stage, recomputed by none."""
+
+    args: Args
+    """The arguments resolved (:func:`resolve`): budgets and seeds concrete."""
+    names: dict[str, str]
+    """Each scenario as given -> its config's name."""
+    configs: dict[str, str]
+    """Each config name (the committed run's too) -> the content hash of its config."""
+    grid: tuple[Cell, ...]
+    """Every cell, in the report's order."""
+    budgets: dict[tuple[str, str, str], int]
+    """(prior, method, config name) -> budget [trials]."""
+    warnings: tuple[str, ...] = ()
+    """Warnings on the configs (a coarse step), printed once."""
+    committed: CommittedRun | None = None
+    """The committed run of ``--against``."""
+    held: dict[Cell, dict[str, Any]] = field(default_factory=dict)
+    """The committed run's cells, each checked."""
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        return run_settings(self.args)
+
+    def key(self, cell: Cell) -> dict[str, Any]:
+        """What a finished cell must hold: its identity, budget, config hash and the version."""
+        prior, method, name, seed = cell
+        return {
+            "prior": prior,
+            "method": method,
+            "scenario": name,
+            "seed": seed,
+            "budget": self.budgets[prior, method, name],
+            "config_sha": self.configs[name],
+            "version": __version__,
+        }
+
+    def scenario_of(self, name: str) -> str:
+        """The scenario as given (a name or a YAML path) of a config name."""
+        return next(scenario for scenario, n in self.names.items() if n == name)
+
+
+def check_options(args: Args) -> None:
+    """Every option that needs no config: ``ValueError`` naming it: unknown or repeated priors,
+    methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
+    ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
+    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s."""
+    check_backend(args.backend)
+    options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
+    for option, values in (*options, ("--seeds", args.seeds or ())):
+        if not values:
+            raise ValueError(f"{option}: give at least one")
+        repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
+        if repeated:
+            raise ValueError(f"{option}: {repeated[0]} is given twice; each cell is counted once")
+    unknown_priors = [p for p in args.priors if p not in PRIORS]
+    if unknown_priors:
+        raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
+    for method in args.methods:
+        registry.lookup(method)
+    bad = [s for s in args.seeds or () if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
+    if bad:
+        raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
+    for option in ("model_trials", "blackbox_trials", "rl_trials", "custom_trials"):
+        value = getattr(args, option)
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_BUDGET
+        ):
+            raise ValueError(
+                f"--{option.replace('_', '-')}: the budget must be a whole number in [1, {MAX_BUDGET}], got {value!r}"
+            )
+    check_workers(args.workers)
+    check_timeout(args.cell_timeout)
+
+
+def _configs(args: Args) -> tuple[dict[str, str], dict[str, SteeringConfig]]:
+    """Each scenario loaded once and checked as a task (a cyclic config, two scenarios of one name,
+    an ill-posed task are refused): scenario -> config name, and config name -> config."""
+    from ilc_steering.config import load_config
+    from ilc_steering.runner import check_task
+
+    loaded: dict[str, SteeringConfig] = {}
+    names: dict[str, str] = {}
+    for scenario in args.scenarios:
+        config = load_config(scenario)
+        if config.is_cyclic:
+            raise ValueError(
+                f"--scenarios {scenario}: a cyclic config; compare runs one-trial tasks "
+                "(use ilc-steering run for cycles)"
+            )
+        if config.name in names.values():
+            raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
+        env = gym.make(ENV_ID, config=config)
+        check_task(env, f"--scenarios {scenario}")
+        env.close()
+        names[scenario] = config.name
+        loaded[config.name] = config
+    return names, loaded
+
+
+def plan(args: Args) -> Plan:
+    """The frozen plan of ``args``: resolved, checked, every config loaded once (see the module)."""
+    from ilc_steering.runner import step_warning
+
+    committed = None
+    if args.against is not None:
+        from ilc_steering.against import against_args
+
+        args, committed = against_args(args)
+    args = resolve(args)
+    check_options(args)
+    names, loaded = _configs(args)
+    configs = {name: content_hash(asdict(config)) for name, config in loaded.items()}
+    warnings = tuple(w for w in (step_warning(config) for config in loaded.values()) if w is not None)
+    table: dict[tuple[str, str, str], int] = {}
+    given = budgets(args)
+
+    def budget(prior: str, method: str, name: str) -> int:
+        if (prior, method, name) not in table:  # RL: its hyperparameters exist
+            table[prior, method, name] = registry.lookup(method).budget(given, name, prior)
+        return table[prior, method, name]
+
+    for prior in args.priors:
+        for method in args.methods:
+            for name in names.values():
+                budget(prior, method, name)
+    held: dict[Cell, dict[str, Any]] = {}
+    if committed is None:
+        seeds = args.seeds or ()
+        grid = [(p, m, n, s) for p in args.priors for n in names.values() for m in args.methods for s in seeds]
+    else:
+        from ilc_steering.against import committed_cells, joint_grid
+
+        held, configs = committed_cells(args, committed, configs, budget)
+        grid = joint_grid(args, list(names.values()), held)
+        for cell in grid:
+            budget(*cell[:3])
+    return Plan(args, names, configs, tuple(grid), table, warnings, committed, held)

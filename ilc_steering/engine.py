@@ -1,0 +1,184 @@
+"""One engine for grids of cells: the run folder, its lock and resume, and every cell run once.
+
+``compare`` (a cell: one learner on one scenario, seed and prior) and ``sweep`` (a row of a
+robustness map) are thin layers on it. A command resolves its arguments once into a frozen plan
+(:class:`~ilc_steering.compare.Plan`, :class:`~ilc_steering.sweep.Plan`): every option checked,
+every config loaded and hashed, every cell's key and budget known. The engine then
+
+1. prepares the run folder (:meth:`RunFolder.prepare`): ``run.json`` records the settings, the
+   package version and the content hash of each config; a resume with other settings, another
+   version or another config under a name is refused, saying which
+   (:func:`~ilc_steering.output.check_run_settings`);
+2. holds an exclusive lock on it (:meth:`RunFolder.locked`): two runs never share a folder;
+3. reads every finished result back through the command's checker (a resume never trusts a file
+   it did not check) and runs only the others (:func:`run_grid`), in worker processes or Ray
+   tasks (:mod:`~ilc_steering.backends`);
+4. writes each result the moment it arrives (finish), or its error under ``failed/`` (fail,
+   named on stderr too); a resume computes the failed ones again.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import math
+import sys
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+from ilc_steering.backends import run_calls
+from ilc_steering.output import check_output_dir, check_output_file, check_run_settings, write_json
+
+__all__ = ["DEFAULT_CELL_TIMEOUT", "MAX_CELL_TIMEOUT", "Grid", "Outcome", "RunFolder", "check_timeout", "run_grid"]
+
+K = TypeVar("K", bound=Hashable)
+MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
+"""The longest ``--cell-timeout`` [s]: a week. A longer one is no bound a timer can hold."""
+DEFAULT_CELL_TIMEOUT = 6 * 3600.0
+"""[s] the bound on a cell when ``--cell-timeout`` is not given: six hours, far above any cell of the
+packaged comparison, so that a learner that never returns fails its cell instead of hanging the run."""
+
+
+def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
+    """``timeout`` if it is None or a time in ``(0, MAX_CELL_TIMEOUT]`` seconds; ``ValueError`` otherwise."""
+    if timeout is None:
+        return None
+    number = isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
+    if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
+        raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
+    return float(timeout)
+
+
+@dataclass(frozen=True)
+class RunFolder:
+    """A run folder: ``run.json``, one file per finished result under ``results``, ``failed/``."""
+
+    out: Path
+    """The folder (``--out``)."""
+    results: str
+    """The sub-folder of finished results: ``cells`` or ``rows``."""
+    command: str
+    """The command that owns it, for messages: ``compare`` or ``sweep``."""
+
+    def prepare(self, settings: dict[str, Any], configs: dict[str, str], reports: Sequence[str] = ()) -> bool:
+        """Check the folder (``--out``), the files the report will write there (``reports``: each
+        absent or a regular file, checked now, not after every cell has run) and its ``run.json``
+        against ``settings`` and the configs' content hashes, record them, and make the results
+        folder; True if it resumes a run."""
+        check_output_dir(self.out, "--out")
+        for name in reports:
+            check_output_file(self.out / name, "--out")
+        results = self.out / self.results
+        if results.exists() and not results.is_dir():
+            raise ValueError(f"{results}: exists and is not a folder; this is not a {self.command} run folder")
+        resumed = check_run_settings(self.out, settings, results, configs)
+        results.mkdir(exist_ok=True)
+        return resumed
+
+    @contextmanager
+    def locked(self) -> Iterator[None]:
+        """Hold an exclusive lock on the folder: a second run on it is refused at once."""
+        with open(self.out / ".lock", "a") as handle:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise ValueError(f"{self.out}: another {self.command} is running on this folder") from None
+            try:
+                yield
+            finally:
+                fcntl.flock(handle, fcntl.LOCK_UN)
+
+    def path(self, name: str, failed: bool = False) -> Path:
+        """The file of the result named ``name`` (or of its failure)."""
+        return self.out / ("failed" if failed else self.results) / f"{name}.json"
+
+
+@dataclass(frozen=True)
+class Grid(Generic[K]):
+    """What the engine needs of a command's grid: its keys, in the report's order, and per key."""
+
+    keys: Sequence[K]
+    """Every cell, in order."""
+    name: Callable[[K], str]
+    """The file name of a cell (injective)."""
+    read: Callable[[Path, K], dict[str, Any]]
+    """The resume checker: a finished cell read back and checked against its key (``ValueError``)."""
+    call: Callable[[K], tuple[Any, ...]]
+    """The arguments of ``function`` for a cell."""
+    stamp: Callable[[K], dict[str, Any]]
+    """What every finished cell records besides its result (its config's hash, the version)."""
+    failure: Callable[[K, str], dict[str, Any]]
+    """The record of a failed cell."""
+    describe: Callable[[K], str]
+    """A cell in a line of text (for its failure)."""
+    progress: Callable[[dict[str, Any]], None] = lambda cell: None
+    """Called with each finished cell."""
+
+
+@dataclass
+class Outcome(Generic[K]):
+    """The finished and the failed cells of a run, by key."""
+
+    done: dict[K, dict[str, Any]] = field(default_factory=dict)
+    failed: dict[K, dict[str, Any]] = field(default_factory=dict)
+
+    def in_order(self, keys: Sequence[K]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+        return [self.done[k] for k in keys if k in self.done], [self.failed[k] for k in keys if k in self.failed]
+
+
+def run_grid(
+    folder: RunFolder,
+    grid: Grid[K],
+    function: Callable[..., dict[str, Any]],
+    *,
+    backend: str = "local",
+    workers: int = 0,
+    timeout: float | None = None,
+    inline: bool = False,
+    before: Callable[[Mapping[K, Path]], None] | None = None,
+) -> Outcome[K]:
+    """Every cell of ``grid`` in ``folder`` (prepared), under its lock: the finished ones read back
+    through ``grid.read``, the others computed by ``function(*grid.call(key))`` on ``backend``
+    (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
+    ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`); when it is given, the
+    cells run in worker processes that are killed at it, even with one worker
+    (:func:`~ilc_steering.backends.run_calls`).
+    ``before(todo)`` is called once the cells to compute are known (a message)."""
+    outcome: Outcome[K] = Outcome()
+    with folder.locked():
+        todo: dict[K, Path] = {}
+        for key in grid.keys:
+            path = folder.path(grid.name(key))
+            if path.exists():
+                outcome.done[key] = grid.read(path, key)
+            else:
+                todo[key] = path
+        if before is not None:
+            before(todo)
+
+        def finish(key: K, result: dict[str, Any]) -> None:
+            cell = {**result, **grid.stamp(key)}
+            write_json(folder.path(grid.name(key)), cell)
+            folder.path(grid.name(key), failed=True).unlink(missing_ok=True)
+            outcome.done[key] = cell
+            grid.progress(cell)
+
+        def fail(key: K, message: str) -> None:
+            outcome.failed[key] = grid.failure(key, message)
+            path = folder.path(grid.name(key), failed=True)
+            path.parent.mkdir(exist_ok=True)
+            write_json(path, outcome.failed[key])
+            line = f"{grid.describe(key)}: FAILED, recorded in {path}: {message}"
+            print(line, flush=True)
+            print(f"ilc-steering: {' '.join(line.split())}", file=sys.stderr, flush=True)
+
+        if inline:
+            for key in todo:
+                finish(key, function(*grid.call(key)))
+        else:
+            calls = {key: grid.call(key) for key in todo}
+            bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
+            run_calls(function, calls, finish, backend, workers, fail, bound, isolate=timeout is not None)
+    return outcome
