@@ -231,6 +231,12 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         key = the_plan.key(cell)
         return {**{name: key[name] for name in ("prior", "method", "scenario", "seed", "budget")}, "error": message}
 
+    def made_by(cell: Cell) -> dict[str, Any]:
+        # A resumed RL cell must be of the backend this run uses (ILC_STEERING_RL_BACKEND, SBX or SB3):
+        # its trials depend on it. A committed cell of --against is taken as it was made.
+        key = the_plan.key(cell)
+        return {**key, "implementation": implementation(cell[1])} if registry.lookup(cell[1]).family == "RL" else key
+
     def describe_cell(cell: Cell) -> str:
         prior, method, name, seed = cell
         return f"{prior:7s} {name:26s} {method:13s} seed {seed}"
@@ -238,7 +244,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     grid = Grid(
         keys=the_plan.grid,
         name=lambda cell: cell_name(*cell),
-        read=lambda path, cell: read_cell(path, the_plan.key(cell)),
+        read=lambda path, cell: read_cell(path, the_plan.key(cell) if cell in the_plan.held else made_by(cell)),
         call=call,
         stamp=lambda cell: {"config_sha": the_plan.configs[cell[2]], "version": the_plan.key(cell)["version"]},
         failure=failure,

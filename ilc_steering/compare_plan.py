@@ -165,8 +165,10 @@ def check_options(args: Args) -> None:
     unknown_priors = [p for p in args.priors if p not in PRIORS]
     if unknown_priors:
         raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
-    for method in args.methods:
-        registry.lookup(method)
+    if any(registry.lookup(method).family == "RL" for method in args.methods):
+        from ilc_steering.agents.rl import rl_backend
+
+        rl_backend()  # ILC_STEERING_RL_BACKEND checked before any cell, not in each RL cell
     bad = [s for s in args.seeds or () if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
     if bad:
         raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")

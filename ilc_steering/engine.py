@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import fcntl
 import math
+import os
 import sys
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -29,7 +30,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ilc_steering.backends import run_calls
-from ilc_steering.output import check_output_dir, check_output_file, check_run_settings, write_json
+from ilc_steering.output import check_output_dir, check_output_file, check_run_settings, open_lock, write_json
 
 __all__ = ["DEFAULT_CELL_TIMEOUT", "MAX_CELL_TIMEOUT", "Grid", "Outcome", "RunFolder", "check_timeout", "run_grid"]
 
@@ -80,7 +81,8 @@ class RunFolder:
     @contextmanager
     def locked(self) -> Iterator[None]:
         """Hold an exclusive lock on the folder: a second run on it is refused at once."""
-        with open(self.out / ".lock", "a") as handle:
+        handle = open_lock(self.out / ".lock")  # a FIFO or a link loop in its place is refused, never waited on
+        try:
             try:
                 fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -89,6 +91,8 @@ class RunFolder:
                 yield
             finally:
                 fcntl.flock(handle, fcntl.LOCK_UN)
+        finally:
+            os.close(handle)
 
     def path(self, name: str, failed: bool = False) -> Path:
         """The file of the result named ``name`` (or of its failure)."""
