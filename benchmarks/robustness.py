@@ -63,6 +63,47 @@ class Args:
     """Local worker processes of each sweep (0: one per core)."""
     quick: bool = False
     """A 3 x 3 grid, 6 trials, the first map only: that the script runs."""
+    report: bool = False
+    """Write the table from the committed maps' ``sweep.json`` alone, computing nothing: a map's
+    methods may lie in ``<map>`` and ``<map>_others`` (two runs of the same settings)."""
+
+
+def committed_lines(out: Path, name: str) -> dict[str, dict[str, Any]]:
+    """The summary lines of map ``name`` by method, from ``out/name`` then ``out/name_others``,
+    whose settings must be the same but for the methods."""
+    lines: dict[str, dict[str, Any]] = {}
+    first: dict[str, Any] | None = None
+    for folder in (out / name, out / f"{name}_others"):
+        if not (folder / "sweep.json").exists():
+            continue
+        summary = read_json(folder / "sweep.json", MAX_RESULT_BYTES)
+        settings = {k: v for k, v in summary["settings"].items() if k not in ("methods", "oracle", "out", "workers")}
+        if first is not None and settings != first:
+            raise ValueError(f"{folder}: not a run of {out / name}'s settings; it cannot complete that map")
+        first = first or settings
+        for line in summary["rows"]:
+            lines.setdefault(line["method"], line)
+    oracle = lines.get("oracle")
+    if oracle is not None and oracle["converged_fraction"] == 1.0:  # all solvable: the share of it is the share
+        lines = {m: {**line, "of_solvable": line["converged_fraction"]} if m != "oracle" else line
+                 for m, line in lines.items()}  # fmt: skip
+    return lines
+
+
+def _run(args: Args, name: str, config: str, axes: Any, size: int, trials: int) -> list[dict[str, Any]]:
+    """Map ``name`` computed (or resumed) with the oracle and every method: its summary lines."""
+    return sweep(
+        SweepArgs(
+            config=config,
+            methods=METHODS,
+            grid=size,
+            trials=trials,
+            out=args.out / name,
+            workers=args.workers,
+            axes=axes,
+            oracle=True,
+        )
+    )
 
 
 def main(args: Args) -> list[dict[str, Any]]:
@@ -71,19 +112,10 @@ def main(args: Args) -> list[dict[str, Any]]:
     rows = []
     for name, (config, axes, own_grid) in maps.items():
         size = grid if args.quick or own_grid is None else own_grid
-        lines = sweep(
-            SweepArgs(
-                config=config,
-                methods=METHODS,
-                grid=size,
-                trials=trials,
-                out=args.out / name,
-                workers=args.workers,
-                axes=axes,
-                oracle=True,
-            )
-        )
-        by_method = {line["method"]: line for line in lines}
+        if args.report:
+            by_method = committed_lines(args.out, name)
+        else:
+            by_method = {line["method"]: line for line in _run(args, name, config, axes, size, trials)}
         row: dict[str, Any] = {
             "map": name,
             "grid": size,
@@ -132,8 +164,9 @@ def parse(argv: list[str] | None = None) -> Args:
     parser.add_argument("--trials", type=int, default=Args.trials)
     parser.add_argument("--workers", type=int, default=Args.workers)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--report", action="store_true", help="the table from the committed maps, computing nothing")
     ns = parser.parse_args(argv)
-    return Args(out=ns.out, grid=ns.grid, trials=ns.trials, workers=ns.workers, quick=ns.quick)
+    return Args(out=ns.out, grid=ns.grid, trials=ns.trials, workers=ns.workers, quick=ns.quick, report=ns.report)
 
 
 if __name__ == "__main__":

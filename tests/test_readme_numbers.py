@@ -92,9 +92,14 @@ def test_the_robustness_table_is_the_committed_maps():
     written = (ROOT / "docs/robustness/robustness.md").read_text().strip()
     assert written in (ROOT / "docs/robustness.md").read_text()
     for row in json.loads((ROOT / "docs/robustness/robustness.json").read_text())["rows"]:
-        summary = json.loads((ROOT / "docs/robustness" / row["map"] / "sweep.json").read_text())["rows"]
-        lines = {line["method"]: line for line in summary}
+        lines: dict = {}
+        for folder in (row["map"], row["map"] + "_others"):  # a map's methods may lie in two runs of its settings
+            path = ROOT / "docs/robustness" / folder / "sweep.json"
+            for line in json.loads(path.read_text())["rows"] if path.exists() else []:
+                lines.setdefault(line["method"], line)
         assert row["solvable"] == lines["oracle"]["converged_fraction"]
+        if row["solvable"] == 1.0:  # every plant solvable: the share of the solvable is the share
+            lines = {m: {**line, "of_solvable": line["converged_fraction"]} for m, line in lines.items()}
         for method in ("ilc_paper", "newton_ilc", "robust_ilc"):
             assert row[f"{method}_of_solvable"] == lines[method]["of_solvable"]
             assert row[f"{method}_median"] == lines[method]["median_trials"]
