@@ -41,6 +41,7 @@ __all__ = [
     "TimedUpdates",
     "close_learner",
     "load_factory",
+    "residual_box",
     "update_times",
 ]
 
@@ -211,7 +212,7 @@ class LearnerContext:
         high = np.asarray(self.action_space.high, dtype=np.float64)
         if self.prior == "none":
             return 0.5 * (high + low), 0.5 * (high - low)
-        return np.clip(self.model.solve(), low, high), RESIDUAL_SCALE * self.model.action_scale()
+        return residual_box(self.model, self.action_space)
 
     def start_point(self, restart: int = 0) -> Array:
         """A start in the search box's ``[-1, 1]`` units: the centre for the first start under the
@@ -232,6 +233,14 @@ class LearnerContext:
 
 LearnerFactory = Callable[[LearnerContext], Learner]
 """Builds a learner: ``make(context) -> Learner``; ``compare --methods pkg.module:make`` takes one."""
+
+
+def residual_box(model: NominalModel, action_space: spaces.Box) -> tuple[Array, Array]:
+    """Centre and half-widths [physical units] of the residual box under ``prior="nominal"``: the
+    nominal solution (clipped to ``action_space``) and :data:`RESIDUAL_SCALE` times its action scale."""
+    low = np.asarray(action_space.low, dtype=np.float64)
+    high = np.asarray(action_space.high, dtype=np.float64)
+    return np.clip(model.solve(), low, high), RESIDUAL_SCALE * model.action_scale()
 
 
 def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:

@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.adapters import SearchBox
-from ilc_steering.agents.base import RESIDUAL_SCALE, LearnerContext
+from ilc_steering.agents.base import RESIDUAL_SCALE, residual_box
 from ilc_steering.envs.steering_env import check_action
 
 __all__ = ["MAX_SCALE", "ResidualAction"]
@@ -107,7 +107,7 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
                 f"ResidualAction must wrap the env's own action box {unwrapped.action_space}, got "
                 f"{env.action_space}: put it below no other action wrapper"
             )
-        boxes = [LearnerContext(model, env.action_space, env.observation_space).search_box() for model in models]
+        boxes = [residual_box(model, env.action_space) for model in models]
         ratio = float(scale) / RESIDUAL_SCALE  # 1.0 exactly by default: the comparison's box, bit for bit
         self.centres: Array = np.array([centre for centre, _ in boxes])
         self.halves: Array = np.array([half * ratio for _, half in boxes])

@@ -118,3 +118,29 @@ def test_a_robot_from_module_colon_class_loads_without_registering(skate, tmp_pa
     path = tmp_path / "by_class.yaml"
     path.write_text(skate.read_text().replace("model: skate", "model: toy_robot:SkatePlantConfig"))
     assert load_config(path).plant.model == "skate"
+
+
+@pytest.mark.slow  # three fresh processes, each compiling the robot's kernel
+def test_a_robot_from_module_colon_class_runs_through_run_compare_and_sweep(tmp_path):
+    # No entry point and no register(): the YAML names the class, and each process (the workers
+    # of compare and sweep included) imports it from PYTHONPATH.
+    shutil.copy(HERE / "toy_robot.py", tmp_path / "toy_robot.py")
+    config = (HERE / "toy_robot.py").read_text().split('CONFIG = """\\\n')[1].split('"""')[0]
+    path = tmp_path / "by_class.yaml"
+    path.write_text(config.replace("model: skate", "model: toy_robot:SkatePlantConfig"))
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    commands = {
+        "run": ["run", str(path), "--trials", "3"],
+        "compare": ["compare", "--scenarios", str(path), "--methods", "ilc_paper", "newton", "--seeds", "0",
+                    "--priors", "nominal", "--model-trials", "3", "--blackbox-trials", "3",
+                    "--workers", "1", "--out", str(tmp_path / "compare")],
+        "sweep": ["sweep", str(path), "--grid", "2", "--trials", "3", "--workers", "1",
+                  "--out", str(tmp_path / "sweep")],
+    }  # fmt: skip
+    for name, arguments in commands.items():
+        done = subprocess.run(
+            [sys.executable, "-m", "ilc_steering", *arguments], env=env, cwd=tmp_path, capture_output=True, text=True
+        )
+        assert done.returncode in (0, 1), f"{name}: exit {done.returncode}: {done.stderr[-400:]}"
+        assert "Traceback" not in done.stderr, f"{name}: {done.stderr[-400:]}"
+    assert (tmp_path / "compare" / "compare.json").is_file() and (tmp_path / "sweep" / "sweep.json").is_file()
