@@ -155,7 +155,9 @@ def test_lazy_names_resolve():
         _ = ilc_steering.nope
 
 
-@pytest.mark.parametrize("learner", ["ilc_steering.agents.newton_ilc", "ilc_steering.agents.costs"])
+@pytest.mark.parametrize(
+    "learner", ["ilc_steering.agents.newton_ilc", "ilc_steering.agents.robust_ilc", "ilc_steering.agents.costs"]
+)
 def test_the_learners_that_simulate_use_their_own_family_never_the_env_plant(learner):
     # newton_ilc and the cost of section 7 simulate plants, but only those a ModelFamily builds from
     # the nominal model: they reach the plant classes and the kernel, never an env, the config or
@@ -168,7 +170,8 @@ def test_the_learners_that_simulate_use_their_own_family_never_the_env_plant(lea
 
     from ilc_steering.core.family import ModelFamily
 
-    assert list(inspect.signature(ModelFamily).parameters) == ["model", "max_step"]
+    # the nominal model, the step and the names of the actuator parameters it frees: nothing of the true plant
+    assert list(inspect.signature(ModelFamily).parameters) == ["model", "max_step", "actuators"]
 
 
 DISPATCH = re.compile(
