@@ -43,6 +43,7 @@ __all__ = [
     "load_factory",
     "residual_box",
     "update_times",
+    "working_directory_importable",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -241,6 +242,15 @@ def residual_box(model: NominalModel, action_space: spaces.Box) -> tuple[Array, 
     low = np.asarray(action_space.low, dtype=np.float64)
     high = np.asarray(action_space.high, dtype=np.float64)
     return np.clip(model.solve(), low, high), RESIDUAL_SCALE * model.action_scale()
+
+
+def working_directory_importable() -> None:
+    """Put the working directory on ``sys.path`` (last, so it shadows nothing installed): a user's
+    learner module sits there (``my_learners.py``), where ``python -m ilc_steering`` finds it and
+    the ``ilc-steering`` script would not. Spawned workers inherit the path."""
+    cwd = os.getcwd()
+    if cwd not in sys.path and "" not in sys.path:
+        sys.path.append(cwd)
 
 
 def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:

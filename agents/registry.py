@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from importlib import import_module
 from typing import Any
 
-from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
+from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory, working_directory_importable
 
 __all__ = [
     "DEFAULT_METHODS",
@@ -85,8 +85,6 @@ class LearnerSpec:
     def factory(self) -> LearnerFactory:
         """The factory ``make(context)`` of a model-based or user's learner (imported now)."""
         if self.family == "yours":
-            from ilc_steering.runner import working_directory_importable
-
             working_directory_importable()
             return load_factory(self.id, self.option)
         module, _, attr = self.entry_point.partition(":")

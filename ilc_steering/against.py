@@ -15,18 +15,14 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ilc_steering.inputs import read_json
-
-if TYPE_CHECKING:
-    from ilc_steering.compare import Args
+from ilc_steering.inputs import is_file, read_json
 
 __all__ = [
     "CommittedRun",
-    "against_args",
     "check_out",
     "committed_cells",
     "copy_committed",
@@ -74,7 +70,7 @@ def read_committed(folder: Path) -> CommittedRun:
     if not folder.is_dir():
         raise _refuse(folder, "not a folder; give a compare run folder (one with run.json)")
     record_path = folder / "run.json"
-    if not record_path.is_file():
+    if not is_file(record_path):  # a FIFO, a link loop, ...: there, and refused by name when read
         raise _refuse(folder, "no run.json, so this is not a compare run folder")
     try:
         record = read_json(record_path, MAX_RUN_BYTES)
@@ -94,7 +90,7 @@ def read_committed(folder: Path) -> CommittedRun:
         raise _refuse(folder, f"{record_path}: 'configs' must map scenario names to content hashes")
     cells: dict[str, tuple[str, Any]] = {}
     report = folder / "compare.json"
-    if report.is_file():
+    if is_file(report):
         try:
             data = read_json(report, MAX_REPORT_BYTES)
         except ValueError as error:
@@ -196,58 +192,8 @@ def check_out(out: Path, folder: Path) -> None:
         )
 
 
-def against_args(args: Args) -> tuple[Args, CommittedRun]:
-    """``args`` for ``--against`` and the committed run as read: its settings (budgets, seeds,
-    ``quick``) where ``args`` holds the defaults, its scenarios and priors unless a subset of them
-    is given. ``ValueError`` (one line, naming the option) for a run of another version or other
-    settings, an ``--out`` inside it, a method list left at the default, a scenario or prior it
-    has no cells of, or a scenario of its that is not packaged and not given as a YAML file."""
-    from ilc_steering import __version__
-    from ilc_steering.agents.base import PRIORS
-    from ilc_steering.compare import Args, run_settings
-    from ilc_steering.config import load_config, packaged_configs
-    from ilc_steering.output import differences
-
-    folder = args.against
-    if folder is None:
-        raise ValueError("--against: give a committed run folder")
-    committed = read_committed(folder)
-    check_out(args.out, folder)
-    if args.methods == Args.methods:
-        raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
-    defaults = {f.name: f.default for f in fields(Args)}
-    args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
-    cells = [cell for _, cell in committed.cells]
-    scenarios = [name for name in committed.configs if any(c["scenario"] == name for c in cells)]
-    if args.scenarios == Args.scenarios:
-        unknown = [name for name in scenarios if name not in packaged_configs()]
-        if unknown:
-            raise ValueError(
-                f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
-                f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
-            )
-        args = replace(args, scenarios=tuple(scenarios))
-    for scenario in args.scenarios:
-        if load_config(scenario).name not in scenarios:
-            raise ValueError(
-                f"--scenarios {scenario}: the committed run --against {folder} has no cells of it; its scenarios: "
-                f"{' '.join(scenarios)}"
-            )
-    priors = [prior for prior in PRIORS if any(c["prior"] == prior for c in cells)]
-    if args.priors == Args.priors:
-        args = replace(args, priors=tuple(priors))
-    elif not set(args.priors) <= set(priors):
-        raise ValueError(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
-    settings = run_settings(args)
-    if settings != committed.settings:
-        raise ValueError(
-            f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
-        )
-    return args, committed
-
-
 def committed_cells(
-    args: Args, committed: CommittedRun, configs: dict[str, str], budget: Budget
+    args: Any, committed: CommittedRun, configs: dict[str, str], budget: Budget
 ) -> tuple[dict[Cell, dict[str, Any]], dict[str, str]]:
     """The committed run's cells, each checked against its key and value by value, and the
     content hash of every scenario's config; ``ValueError`` if a scenario to run has another
@@ -290,7 +236,7 @@ def committed_cells(
     return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
 
 
-def joint_grid(args: Args, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
+def joint_grid(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
     """The cells of an ``--against`` run, in the report's order: every committed one, and those of
     ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
     from ilc_steering.agents.base import PRIORS

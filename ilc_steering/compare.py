@@ -84,7 +84,7 @@ from ilc_steering.compare_plan import (
 )
 from ilc_steering.compare_report import LADDER, write_report
 from ilc_steering.engine import Grid, RunFolder, run_grid
-from ilc_steering.inputs import read_json
+from ilc_steering.inputs import is_file, read_json
 from ilc_steering.output import write_json
 
 __all__ = [
@@ -151,7 +151,7 @@ def _restore_cells(folder: Path) -> None:
     run whose cells were not kept): the settings matched, so they are the cells this run would compute.
     Each is checked like any resumed cell when it is read (its config's hash and version included)."""
     report = folder / "compare.json"
-    if not report.is_file():
+    if not is_file(report):
         return
     try:
         data = read_json(report, MAX_REPORT_BYTES)

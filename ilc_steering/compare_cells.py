@@ -27,7 +27,7 @@ from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 
 if TYPE_CHECKING:
-    from ilc_steering.compare import Args
+    from ilc_steering.compare_args import Args
 
 __all__ = [
     "CELL_KEYS",

@@ -10,8 +10,7 @@ report's order.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import gymnasium as gym
@@ -21,6 +20,7 @@ from ilc_steering.against import Cell, CommittedRun
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
 from ilc_steering.backends import check_backend, check_workers
+from ilc_steering.compare_args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args
 from ilc_steering.compare_cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
 from ilc_steering.engine import check_timeout
@@ -28,65 +28,11 @@ from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
 
-MAX_SEED = 2**32 - 1
-SCENARIOS = (
-    "forward_parking",
-    "forward_parking_saturated",
-    "parallel_parking",
-    "forward_parking_noisy",
-    "unicycle_parking",
-    "trailer_bay",
-)
-SEEDS = tuple(range(10))
-"""The seeds of a comparison when none are given."""
-MAX_BUDGET = 1_000_000
-"""The largest budget of any method [trials]: the trial log is kept in memory."""
-QUICK = {"model_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "custom_trials": 20}
-"""``--quick``'s budgets, where no budget was given."""
-QUICK_SEEDS = (0, 1)
-"""``--quick``'s seeds, where none were given."""
-
-
-@dataclass(frozen=True)
-class Args:
-    quick: bool = False
-    """Tiny budgets and two seeds: checks that everything runs and writes well-formed output (CI)."""
-    out: Path = Path("runs/compare")
-    """Run folder; an existing one is resumed."""
-    against: Path | None = None
-    """A committed run folder, only read: run the cells of ``methods`` it lacks, with its settings,
-    and report both (:mod:`~ilc_steering.against`)."""
-    priors: tuple[str, ...] = PRIORS
-    """Conditions: ``nominal`` (start from the nominal solution) and ``none`` (no prior)."""
-    methods: tuple[str, ...] = registry.DEFAULT_METHODS
-    """Methods: the library's ids, or ``module:attr`` for a user's learner factory."""
-    scenarios: tuple[str, ...] = SCENARIOS
-    """Packaged config names or YAML paths of one-trial tasks."""
-    seeds: tuple[int, ...] | None = None
-    """Seeds; each (prior, method, scenario, seed) is one cell. None: :data:`SEEDS`, or
-    :data:`QUICK_SEEDS` with ``quick``."""
-    model_trials: int = 30
-    """Budget of the model-based learners (``ilc``, ``ilc_paper``, ``newton``) [trials]."""
-    blackbox_trials: int = 3000
-    """Budget of each black-box optimizer [trials]."""
-    rl_trials: int | None = None
-    """Budget of each RL algorithm [trials]; None: ``n_timesteps`` of its hyperparameter file."""
-    custom_trials: int = 300
-    """Budget of a user's learner (``module:attr``) [trials]."""
-    workers: int = 0
-    """Worker processes; 0: one per core."""
-    progress_bar: bool = False
-    """SB3's progress bar on RL cells (with one worker only)."""
-    backend: str = "local"
-    """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.backends`)."""
-    cell_timeout: float | None = None
-    """[s] a cell still running after this is stopped and recorded as failed; None: no limit."""
-
 
 def resolve(args: Args) -> Args:
     """``args`` with ``quick`` applied (its budgets where none was given, its seeds where none
     were) and the seeds filled in: the one place ``quick`` is read. Under ``--against`` the
-    committed run's settings are taken instead (:func:`~ilc_steering.against.against_args`)."""
+    committed run's settings are taken instead (:func:`against_args`)."""
     if args.against is None and args.quick:
         quick: dict[str, Any] = {k: v for k, v in QUICK.items() if getattr(args, k) == getattr(Args, k)}
         args = replace(args, **quick)
@@ -215,8 +161,6 @@ def plan(args: Args) -> Plan:
 
     committed = None
     if args.against is not None:
-        from ilc_steering.against import against_args
-
         args, committed = against_args(args)
     args = resolve(args)
     check_options(args)
@@ -247,3 +191,54 @@ def plan(args: Args) -> Plan:
         for cell in grid:
             budget(*cell[:3])
     return Plan(args, names, configs, tuple(grid), table, warnings, committed, held)
+
+
+def against_args(args: Args) -> tuple[Args, CommittedRun]:
+    """``args`` for ``--against`` and the committed run as read: its settings (budgets, seeds,
+    ``quick``) where ``args`` holds the defaults, its scenarios and priors unless a subset of them
+    is given. ``ValueError`` (one line, naming the option) for a run of another version or other
+    settings, an ``--out`` inside it, a method list left at the default, a scenario or prior it
+    has no cells of, or a scenario of its that is not packaged and not given as a YAML file."""
+    from ilc_steering import __version__
+    from ilc_steering.agents.base import PRIORS
+    from ilc_steering.config import load_config, packaged_configs
+    from ilc_steering.output import differences
+
+    folder = args.against
+    if folder is None:
+        raise ValueError("--against: give a committed run folder")
+    from ilc_steering.against import check_out, read_committed, resolve_settings
+
+    committed = read_committed(folder)
+    check_out(args.out, folder)
+    if args.methods == Args.methods:
+        raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
+    defaults = {f.name: f.default for f in fields(Args)}
+    args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
+    cells = [cell for _, cell in committed.cells]
+    scenarios = [name for name in committed.configs if any(c["scenario"] == name for c in cells)]
+    if args.scenarios == Args.scenarios:
+        unknown = [name for name in scenarios if name not in packaged_configs()]
+        if unknown:
+            raise ValueError(
+                f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
+                f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
+            )
+        args = replace(args, scenarios=tuple(scenarios))
+    for scenario in args.scenarios:
+        if load_config(scenario).name not in scenarios:
+            raise ValueError(
+                f"--scenarios {scenario}: the committed run --against {folder} has no cells of it; its scenarios: "
+                f"{' '.join(scenarios)}"
+            )
+    priors = [prior for prior in PRIORS if any(c["prior"] == prior for c in cells)]
+    if args.priors == Args.priors:
+        args = replace(args, priors=tuple(priors))
+    elif not set(args.priors) <= set(priors):
+        raise ValueError(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
+    settings = run_settings(args)
+    if settings != committed.settings:
+        raise ValueError(
+            f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
+        )
+    return args, committed

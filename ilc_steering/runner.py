@@ -6,8 +6,6 @@ Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`.
 from __future__ import annotations
 
 import dataclasses
-import os
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,15 +110,6 @@ def step_warning(config: SteeringConfig) -> str | None:
         f"configuration by {miss:.2g}, over {MAX_STEP_MISS:.0%} of the tolerance {tightest:g}, so the counts are "
         "the integrator's, not the plant's; lower simulation.max_step (default 1/32 s)"
     )
-
-
-def working_directory_importable() -> None:
-    """Put the working directory on ``sys.path`` (last, so it shadows nothing installed): a user's
-    learner module sits there (``my_learners.py``), where ``python -m ilc_steering`` finds it and
-    the ``ilc-steering`` script would not. Spawned workers inherit the path."""
-    cwd = os.getcwd()
-    if cwd not in sys.path and "" not in sys.path:
-        sys.path.append(cwd)
 
 
 def learner_spec(name: str) -> LearnerSpec:
