@@ -84,10 +84,13 @@ class Scenario:
         start_error: float | Sequence[float] | None = None,
         parameter_jitter: float | None = None,
     ) -> None:
+        # Asked once here, not per trial: a Protocol's isinstance checks every member.
+        self.external: ExternalPlant | None = None
         if isinstance(plant, ExternalPlant):  # someone else's code: it reports in the task frame, nothing to jitter
             if parameter_jitter:
                 raise ValueError("simulation.parameter_jitter: an external plant has no true factors to jitter")
-            plant = plant.with_frame(frame)  # type: ignore[assignment]  # an ExternalPlant serves as the Plant here
+            self.external = plant.with_frame(frame)
+            plant = self.external  # type: ignore[assignment]  # an ExternalPlant serves as the Plant here
         self.plant = plant
         self.kind = plant.kind
         self.frame = frame
@@ -228,8 +231,8 @@ class Scenario:
             x0 = np.empty((c.shape[0], self.x_start.shape[0]))
             x0[:] = self.x_start
         profile = self.nominals[leg].profile
-        if isinstance(self.plant, ExternalPlant):  # it runs its own trials (a disturbance was refused above)
-            return self.plant.run_trials(profile, np.ascontiguousarray(x0), c, record)
+        if self.external is not None:  # it runs its own trials (a disturbance was refused above)
+            return self.external.run_trials(profile, np.ascontiguousarray(x0), c, record)
         true = self.plant if plant is None else plant
         return simulate(true, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
 
