@@ -33,7 +33,7 @@ __all__ = ["GRID", "Args", "main"]
 
 GRID: dict[str, dict[str, list[Any]]] = {
     # sweep 2 (docs/tuning/sweep2): around the nominal values chosen by sweep 1 (docs/compare/tuning.md)
-    "td3": {"noise_std": [0.005, 0.01], "learning_rate": [1.0e-3, 3.0e-4]},
+    "td3": {"noise_std": [0.005, 0.01], "learning_rate": [3.0e-3, 1.0e-3, 3.0e-4]},
     "sac": {"gradient_steps": [1, 2], "target_entropy": [-12.0, -16.0]},
     "ppo": {"n_steps": [16, 64], "policy_kwargs.log_std_init": [-3.0, -4.0]},
     "crossq": {
