@@ -1,7 +1,9 @@
 """Bayesian optimization of the trial's log error: TuRBO-1 with BoTorch (the ``bo`` extra).
 
 A Gaussian process (BoTorch's ``SingleTaskGP``: Matérn-5/2 kernel with one length scale per
-coefficient, its hyperparameters fitted by maximum marginal likelihood before every trial) models
+coefficient, its hyperparameters fitted by maximum marginal likelihood every ``refit_every`` trials
+and after every change of the trust region, and kept in between, the GP conditioned on every new
+trial) models
 ``-log10(cost)`` over the ``[-1, 1]`` units of
 :class:`~ilc_steering.agents.adapters.SearchBox`; the cost spans ten decades, and a GP on the raw
 cost sees only its largest trials. Each trial maximizes the log expected improvement
@@ -18,6 +20,11 @@ Every trial counts, the initial design included: the first is the context's star
 region. When the region has shrunk below ``min_length``, TuRBO restarts from a new seeded start
 with fresh data. The GP sees at most ``max_points`` trials, those nearest the region's centre:
 TuRBO's model is local, and this bounds the cost of a trial (``docs/benchmarks/baselines.md``).
+
+Fitting the hyperparameters is most of a trial's cost (an L-BFGS run on the marginal likelihood);
+between refits the GP keeps its fitted length scales, output scale and noise and is only
+conditioned on the new data, as BoTorch's own loops allow. ``refit_every=1`` fits before every
+trial, as the first version did (``docs/benchmarks/bayes_opt_refit.md`` measures both).
 """
 
 from __future__ import annotations
@@ -37,8 +44,10 @@ __all__ = ["MAX_TRIALS", "bayes_opt"]
 Array = npt.NDArray[np.float64]
 MAX_TRIALS = 300
 """The budget ``compare`` gives ``bayes_opt`` at most [trials]: BO is the method for a few hundred
-expensive trials, and its GP costs about 0.25 s a trial here (2 cores, ``max_points`` = 64),
+expensive trials, and its GP costs about 0.05-0.2 s a trial here (2 cores, ``max_points`` = 64),
 against under 2 ms for every other black-box method."""
+REFIT_EVERY = 8
+"""Trials between two fits of the GP's hyperparameters (a change of the trust region refits too)."""
 COST_FLOOR = 1e-12
 """The smallest cost the log model tells apart [m + rad]."""
 
@@ -50,10 +59,13 @@ def _objective(env: gym.Env[Any, Any], x: Array) -> float:
     return -math.log10(max(-float(reward), COST_FLOOR))
 
 
-def _next_point(x: Array, y: Array, centre: Array, length: float, seed: int, candidates: int) -> Array:
+def _next_point(
+    x: Array, y: Array, centre: Array, length: float, seed: int, candidates: int, fitted: dict[str, Any] | None
+) -> tuple[Array, dict[str, Any]]:
     """The maximizer of the log expected improvement of a GP on ``(x, y)`` over ``candidates``
     scrambled-Sobol points of the trust region (edge ``length`` at ``centre``, stretched by the GP's
-    length scales, within the box)."""
+    length scales, within the box), and the GP's hyperparameters: ``fitted`` if given (kept, the GP
+    only conditioned on the data), else fitted now."""
     import torch
     from botorch.acquisition.analytic import LogExpectedImprovement
     from botorch.exceptions.errors import ModelFittingError
@@ -63,11 +75,16 @@ def _next_point(x: Array, y: Array, centre: Array, length: float, seed: int, can
 
     train_x = torch.as_tensor(0.5 * (x + 1.0), dtype=torch.float64)  # the GP's inputs in [0, 1]
     train_y = torch.as_tensor(y, dtype=torch.float64).unsqueeze(-1)
-    model = SingleTaskGP(train_x, train_y)  # standardizes y itself
-    try:
-        fit_gpytorch_mll(ExactMarginalLogLikelihood(model.likelihood, model))
-    except ModelFittingError:  # a failed fit keeps the prior hyperparameters, as BoTorch's own loops do
-        pass
+    model = SingleTaskGP(train_x, train_y)  # standardizes y itself, from this data
+    if fitted is None:
+        try:
+            fit_gpytorch_mll(ExactMarginalLogLikelihood(model.likelihood, model))
+        except ModelFittingError:  # a failed fit keeps the prior hyperparameters, as BoTorch's own loops do
+            pass
+        fitted = {k: v.detach().clone() for k, v in model.state_dict().items() if not k.startswith("outcome_transform")}
+    else:
+        model.load_state_dict(fitted, strict=False)  # the kernel's, likelihood's and mean's; y's scaling is this data's
+    model.eval()
     kernel = model.covar_module
     scales = getattr(kernel, "base_kernel", kernel).lengthscale.detach().numpy().ravel()
     weights = scales / np.exp(np.mean(np.log(scales)))  # TuRBO: the region is stretched like the GP
@@ -78,7 +95,7 @@ def _next_point(x: Array, y: Array, centre: Array, length: float, seed: int, can
     points = torch.as_tensor(0.5 * (low + 1.0)) + unit * torch.as_tensor(0.5 * (high - low))  # in [0, 1]
     with torch.no_grad():
         values = LogExpectedImprovement(model, best_f=train_y.max())(points.unsqueeze(1))
-    return np.asarray(2.0 * points[int(values.argmax())].numpy() - 1.0, dtype=np.float64)
+    return np.asarray(2.0 * points[int(values.argmax())].numpy() - 1.0, dtype=np.float64), fitted
 
 
 def bayes_opt(
@@ -90,15 +107,21 @@ def bayes_opt(
     success_tolerance: int = 3,
     max_points: int = 64,
     candidates: int = 1024,
+    refit_every: int = REFIT_EVERY,
 ) -> None:
     """TuRBO-1 on ``-log10(cost)`` in the search box: lengths in ``[-1, 1]`` box units, tolerances
-    in trials; restarts whenever the trust region shrinks below ``min_length``."""
+    in trials; restarts whenever the trust region shrinks below ``min_length``; the GP's
+    hyperparameters refitted every ``refit_every`` trials and whenever the region changes."""
+    if isinstance(refit_every, bool) or not isinstance(refit_every, int) or refit_every < 1:
+        raise ValueError(f"bayes_opt: refit_every must be a whole number of trials >= 1, got {refit_every!r}")
     import torch
 
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # GPs of 64 points: more threads only cost; the caller's count comes back
     try:
-        _turbo(env, context, initial_length, min_length, max_length, success_tolerance, max_points, candidates)
+        _turbo(
+            env, context, initial_length, min_length, max_length, success_tolerance, max_points, candidates, refit_every
+        )
     finally:
         torch.set_num_threads(threads)
 
@@ -112,6 +135,7 @@ def _turbo(
     success_tolerance: int,
     max_points: int,
     candidates: int,
+    refit_every: int,
 ) -> None:
     import torch
 
@@ -125,17 +149,26 @@ def _turbo(
         xs = [start, *np.clip(design, -1.0, 1.0)]
         ys = [_objective(env, x) for x in xs]
         length, successes, failures = initial_length, 0, 0
+        fitted: dict[str, Any] | None = None
+        since_fit = 0
         while length >= min_length:
             x, y = np.asarray(xs), np.asarray(ys)
             centre = x[int(y.argmax())]
             near = np.argsort(np.max(np.abs(x - centre), axis=1), kind="stable")[:max_points]
-            candidate = _next_point(x[near], y[near], centre, length, int(rng.integers(2**31)), candidates)
+            if since_fit >= refit_every:
+                fitted = None
+            if fitted is None:
+                since_fit = 0
+            candidate, fitted = _next_point(
+                x[near], y[near], centre, length, int(rng.integers(2**31)), candidates, fitted
+            )
+            since_fit += 1
             value = _objective(env, candidate)
             improved = value > y.max() + 1e-3 * abs(y.max())
             successes, failures = (successes + 1, 0) if improved else (0, failures + 1)
             if successes == success_tolerance:
-                length, successes = min(2.0 * length, max_length), 0
+                length, successes, fitted = min(2.0 * length, max_length), 0, None
             elif failures == failure_tolerance:
-                length, failures = 0.5 * length, 0
+                length, failures, fitted = 0.5 * length, 0, None
             xs.append(candidate)
             ys.append(value)

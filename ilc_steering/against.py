@@ -56,6 +56,8 @@ class CommittedRun:
     """``(where, cell)``: each cell as read, ``where`` naming its file (or its place in ``compare.json``)."""
     failed: int = 0
     """How many cells the committed run recorded as failed (they are not taken)."""
+    made_by: dict[str, Any] | None = None
+    """What made its cells (``run.json``'s provenance, :mod:`~ilc_steering.provenance`)."""
 
 
 def _refuse(folder: Path, problem: str) -> ValueError:
@@ -79,6 +81,8 @@ def read_committed(folder: Path) -> CommittedRun:
     if not isinstance(record, dict):
         raise _refuse(folder, f"{record_path} is not a run record (a JSON object)")
     configs = record.pop("configs", None)
+    made_by = record.pop("provenance", None)
+    record.pop("sessions", None)
     if "version" not in record or not isinstance(configs, dict):
         missing = "package version" if "version" not in record else "content hashes of its configs"
         raise _refuse(
@@ -114,7 +118,7 @@ def read_committed(folder: Path) -> CommittedRun:
     if not cells:
         raise _refuse(folder, "holds no cells (neither cells/*.json nor compare.json)")
     failed = len(list((folder / "failed").glob("*.json")))
-    return CommittedRun(folder, record, configs, list(cells.values()), failed)
+    return CommittedRun(folder, record, configs, list(cells.values()), failed, made_by)
 
 
 def _identity(cell: Any, where: str) -> str:
@@ -240,6 +244,7 @@ def joint_grid(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) ->
     """The cells of an ``--against`` run, in the report's order: every committed one, and those of
     ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
     from ilc_steering.agents.base import PRIORS
+    from ilc_steering.compare_args import seeds_of
 
     priors = [prior for prior in PRIORS if prior in args.priors or any(cell[0] == prior for cell in held)]
     scenarios = list(dict.fromkeys([*(cell[2] for cell in held), *names]))
@@ -249,7 +254,7 @@ def joint_grid(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) ->
         for prior in priors
         for name in scenarios
         for method in methods
-        for seed in args.seeds or ()
+        for seed in seeds_of(args, prior)
         if (prior, method, name, seed) in held or (method in args.methods and prior in args.priors and name in names)
     ]
 

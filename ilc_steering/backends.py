@@ -185,6 +185,12 @@ def _process_map(
             raise
 
 
+STARTUP_ALLOWANCE = 60.0
+"""[s] a fresh worker's imports before its call starts, on top of the call's time limit."""
+STARTED = "started"
+"""What a killable worker sends once it holds its call, imports done: the call's clock starts then."""
+
+
 def _serve(connection: Any) -> None:
     """A killable worker's loop: run each ``(function, args)`` it is sent and send back ``(True,
     result)`` or ``(False, message)``, until it is sent None or its parent goes."""
@@ -195,7 +201,8 @@ def _serve(connection: Any) -> None:
             return
         if task is None:
             return
-        function, args = task
+        function, args = task  # unpickled: the function's modules are imported by now
+        connection.send(STARTED)  # the cell's time limit starts here, not at the worker's imports
         try:
             outcome: tuple[bool, Any] = (True, function(*args))
         except Exception as error:
@@ -251,7 +258,7 @@ def _killable_map(
             while queue and len(busy) < count:
                 worker = idle.pop() if idle else _Worker()
                 worker.key = queue.pop(0)
-                worker.deadline = None if timeout is None else time.monotonic() + timeout
+                worker.deadline = None if timeout is None else time.monotonic() + timeout + STARTUP_ALLOWANCE
                 worker.connection.send((function, calls[worker.key]))
                 busy[worker.connection] = worker
             deadlines = [w.deadline for w in busy.values() if w.deadline is not None]
@@ -261,9 +268,13 @@ def _killable_map(
             for connection, worker in list(busy.items()):
                 if connection.poll():
                     try:
-                        ok, value = connection.recv()
+                        message = connection.recv()
                     except (EOFError, OSError):
-                        ok, value = None, None
+                        message = (None, None)
+                    if message == STARTED:
+                        worker.deadline = None if timeout is None else time.monotonic() + timeout
+                        continue
+                    ok, value = message
                     if ok is not None:
                         del busy[connection]
                         idle.append(worker)

@@ -304,7 +304,43 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_sweep_arguments(sweep)
     sweep.set_defaults(handler=_sweep)
+    current = sub.add_parser(
+        "current", help="is a run folder current for the code in this tree? exit 0 if it is, 1 if it is stale"
+    )
+    current.add_argument("folders", type=Path, nargs="+", metavar="DIR", help="compare or sweep run folders")
+    current.set_defaults(handler=_current)
+    tables = sub.add_parser("tables", help="rewrite the comparison tables of Markdown files from a compare run")
+    tables.add_argument("folder", type=Path, metavar="DIR", help="the compare run folder, e.g. docs/compare")
+    tables.add_argument("--into", type=Path, nargs="+", required=True, metavar="FILE", help="the Markdown files")
+    tables.add_argument("--check", action="store_true", help="rewrite nothing; exit 1 if a table differs")
+    tables.set_defaults(handler=_tables)
     return parser
+
+
+def _current(args: argparse.Namespace) -> int:
+    from ilc_steering.provenance import freshness
+
+    stale = 0
+    for folder in args.folders:
+        current, lines = freshness(folder)
+        stale += not current
+        print("\n  ".join(lines), flush=True)
+    return 1 if stale else 0
+
+
+def _tables(args: argparse.Namespace) -> int:
+    from ilc_steering import compare_tables
+
+    if args.check:
+        stale = compare_tables.check(args.folder, args.into)
+        for block in stale:
+            print(f"{block}: differs from {args.folder}", flush=True)
+        if not stale:
+            print(f"every comparison table of {' '.join(map(str, args.into))} is {args.folder}'s", flush=True)
+        return 1 if stale else 0
+    changed = compare_tables.write(args.folder, args.into)
+    print(f"rewrote {' '.join(map(str, changed)) or 'nothing'} from {args.folder}", flush=True)
+    return 0
 
 
 def _compare(args: argparse.Namespace) -> int:

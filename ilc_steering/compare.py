@@ -175,15 +175,27 @@ def _restore_cells(folder: Path) -> None:
         print(f"restored {restored} cells from {report}", flush=True)
 
 
-def _progress(cell: dict[str, Any]) -> None:
+def _progress(cell: dict[str, Any]) -> str:
     reached = cell["trials_to"]
-    print(
+    return (
         f"{cell['prior']:7s} {cell['scenario']:26s} {cell['method']:13s} seed {cell['seed']}: "
         f"best {cell['best_error']:.2e}; 1 cm at trial {reached['1cm'] or '-'}, "
         f"0.5 mm / 0.5 mrad at {reached['0.5mm'] or '-'} ('-': not within {cell['budget']}); "
-        f"{100 * cell['off_chart_fraction']:.0f}% off the chart; {cell['wall_s']:.1f} s",
-        flush=True,
+        f"{100 * cell['off_chart_fraction']:.0f}% off the chart; {cell['wall_s']:.1f} s"
     )
+
+
+TRIAL_SECONDS = {"model-based": 0.03, "black-box": 7e-4, "RL": 5e-3, "yours": 0.01}
+"""A rough cost of one trial [s] per family (``bayes_opt``: :data:`BAYES_OPT_TRIAL_SECONDS`), measured
+on this machine: the cells run longest first, and the progress bar's estimate starts from it."""
+BAYES_OPT_TRIAL_SECONDS = 0.1
+
+
+def expected_seconds(method: str, budget: int) -> float:
+    """A cell's rough cost [s]: its budget times :data:`TRIAL_SECONDS` of its family."""
+    family = "yours" if registry.is_custom(method) else registry.REGISTRY[method].family
+    per_trial = BAYES_OPT_TRIAL_SECONDS if method == "bayes_opt" else TRIAL_SECONDS[family]
+    return 1.0 + budget * per_trial
 
 
 def workers(args: Args) -> int:
@@ -215,6 +227,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     folder = RunFolder(args.out, "cells", "compare")
     reports = [f"compare.{suffix}" for suffix in ("csv", "json", "md")]
     reports += [f"compare_{name}.png" for name in dict.fromkeys(cell[2] for cell in the_plan.grid)]
+    reports.append("compare_profile.png")
     if folder.prepare(the_plan.settings, the_plan.configs, reports):
         _restore_cells(args.out)
     inline = runner is not run_cell
@@ -250,6 +263,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         failure=failure,
         describe=describe_cell,
         progress=_progress,
+        cost=lambda cell: expected_seconds(cell[1], the_plan.budgets[cell[:3]]),
     )
     committed = the_plan.committed
 
@@ -367,6 +381,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             help=f"budget of {what} [trials] (default: {getattr(Args, option)}; with --quick: {QUICK[option]})",
         )
     parser.add_argument(
+        "--ablation-seeds",
+        type=int,
+        default=argparse.SUPPRESS,
+        metavar="K",
+        help=f"prior=none, the ablation, runs the first K seeds (default: {Args.ablation_seeds})",
+    )
+    parser.add_argument(
         "--workers", type=int, default=0, help=f"worker processes (0: one per core; at most {MAX_WORKERS})"
     )
     parser.add_argument(
@@ -387,7 +408,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def from_namespace(ns: argparse.Namespace) -> Args:
-    budgets = {k: getattr(ns, k) for k in QUICK if hasattr(ns, k)}
+    budgets = {k: getattr(ns, k) for k in (*QUICK, "ablation_seeds") if hasattr(ns, k)}
     args = Args(
         quick=ns.quick,
         out=ns.out,

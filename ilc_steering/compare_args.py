@@ -12,7 +12,7 @@ from pathlib import Path
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
 
-__all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args"]
+__all__ = ["ABLATION_SEEDS", "MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "seeds_of"]
 
 MAX_SEED = 2**32 - 1
 SCENARIOS = (
@@ -25,6 +25,8 @@ SCENARIOS = (
 )
 SEEDS = tuple(range(10))
 """The seeds of a comparison when none are given."""
+ABLATION_SEEDS = 5
+"""How many of the seeds (the first) the ``prior=none`` ablation runs when none is said."""
 MAX_BUDGET = 1_000_000
 """The largest budget of any method [trials]: the trial log is kept in memory."""
 QUICK = {"model_trials": 6, "blackbox_trials": 40, "rl_trials": 48, "custom_trials": 20}
@@ -51,6 +53,8 @@ class Args:
     seeds: tuple[int, ...] | None = None
     """Seeds; each (prior, method, scenario, seed) is one cell. None: :data:`SEEDS`, or
     :data:`QUICK_SEEDS` with ``quick``."""
+    ablation_seeds: int = ABLATION_SEEDS
+    """``prior=none``, the ablation, runs the first this many of ``seeds`` (all of them if fewer)."""
     model_trials: int = 30
     """Budget of the model-based learners (``ilc``, ``ilc_paper``, ``newton``) [trials]."""
     blackbox_trials: int = 3000
@@ -67,3 +71,10 @@ class Args:
     """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.backends`)."""
     cell_timeout: float | None = None
     """[s] a cell still running after this is stopped and recorded as failed; None: no limit."""
+
+
+def seeds_of(args: Args, prior: str) -> tuple[int, ...]:
+    """The seeds of ``prior``'s cells: all of ``args.seeds``, the first ``ablation_seeds`` under
+    ``prior=none``."""
+    seeds = tuple(args.seeds or ())
+    return seeds[: args.ablation_seeds] if prior == "none" else seeds

@@ -20,7 +20,7 @@ from ilc_steering.against import Cell, CommittedRun
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
 from ilc_steering.backends import check_backend, check_workers
-from ilc_steering.compare_args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args
+from ilc_steering.compare_args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
 from ilc_steering.compare_cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
 from ilc_steering.engine import check_timeout
@@ -128,6 +128,9 @@ def check_options(args: Args) -> None:
             )
     check_workers(args.workers)
     check_timeout(args.cell_timeout)
+    k = args.ablation_seeds
+    if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SEED:
+        raise ValueError(f"--ablation-seeds: a whole number of seeds >= 1, got {k!r}")
 
 
 def _configs(args: Args) -> tuple[dict[str, str], dict[str, SteeringConfig]]:
@@ -181,8 +184,9 @@ def plan(args: Args) -> Plan:
                 budget(prior, method, name)
     held: dict[Cell, dict[str, Any]] = {}
     if committed is None:
-        seeds = args.seeds or ()
-        grid = [(p, m, n, s) for p in args.priors for n in names.values() for m in args.methods for s in seeds]
+        grid = [
+            (p, m, n, s) for p in args.priors for n in names.values() for m in args.methods for s in seeds_of(args, p)
+        ]
     else:
         from ilc_steering.against import committed_cells, joint_grid
 
@@ -211,6 +215,7 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
 
     committed = read_committed(folder)
     check_out(args.out, folder)
+    _warn_if_stale(committed)
     if args.methods == Args.methods:
         raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
     defaults = {f.name: f.default for f in fields(Args)}
@@ -242,3 +247,23 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
             f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
         )
     return args, committed
+
+
+def _warn_if_stale(committed: CommittedRun) -> None:
+    """Say on stderr when the committed run was made by other code than this tree's: its cells are
+    taken as they were made, beside cells this code computes (``ilc-steering current`` says more)."""
+    import sys
+
+    from ilc_steering.provenance import changed, provenance
+
+    made_by, now = committed.made_by, provenance()
+    if isinstance(made_by, dict) and made_by.get("code") == now["code"]:
+        return
+    files = changed(made_by.get("files") or {}, now["files"]) if isinstance(made_by, dict) else []
+    why = f"{len(files)} files of its code differ ({', '.join(files[:3])}...)" if files else "it records no code hash"
+    print(
+        f"ilc-steering: warning: --against {committed.folder}: made by other code than this tree's ({why}); its cells "
+        f"are taken as they were made (ilc-steering current {committed.folder})",
+        file=sys.stderr,
+        flush=True,
+    )

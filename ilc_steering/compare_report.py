@@ -29,9 +29,12 @@ __all__ = [
     "LADDER",
     "LADDER_NAMES",
     "bootstrap_median",
+    "profile",
+    "profile_figure",
     "quartiles",
     "ratios",
     "scenario_figure",
+    "statistic_ci",
     "summarize",
     "write_report",
 ]
@@ -47,6 +50,10 @@ LADDER_NAMES = {
 }
 
 BOOTSTRAP_RESAMPLES = 2000
+CENSORED = 1e15
+"""Where a seed that never reached a level stands in a bootstrap (``inf`` has no arithmetic): any
+statistic it enters exceeds :data:`UNREACHED`, and is reported as not within the budget."""
+UNREACHED = 1e9
 
 
 def quartiles(values: list[float]) -> tuple[float, float, float]:
@@ -55,14 +62,58 @@ def quartiles(values: list[float]) -> tuple[float, float, float]:
     return float(q1), float(q2), float(q3)
 
 
+def _median(data: Any, axis: int = -1) -> Any:
+    return np.median(data, axis=axis)
+
+
+def _iqm(data: Any, axis: int = -1) -> Any:
+    """The interquartile mean: the mean of the middle half (``scipy.stats.trim_mean``, a quarter cut
+    from each end), the aggregate Agarwal et al. (NeurIPS 2021) recommend over few seeds."""
+    from scipy.stats import trim_mean
+
+    return trim_mean(data, 0.25, axis=axis)
+
+
+STATISTICS = {"median": _median, "iqm": _iqm}
+"""The statistics of trials to a level across seeds, each with a bootstrap interval."""
+
+
+def _uncensored(value: float) -> float:
+    return math.inf if value > UNREACHED else float(value)
+
+
+def statistic_ci(values: list[float], statistic: str, seed: int = 0) -> tuple[float, tuple[float, float] | None]:
+    """``statistic`` (``median`` or ``iqm``) of ``values`` (trials; ``inf``: not reached) and its
+    95 % percentile-bootstrap confidence interval from ``scipy.stats.bootstrap``
+    (:data:`BOOTSTRAP_RESAMPLES` resamples of the seeds, seeded); None for fewer than two seeds. A
+    statistic or bound that a seed which never got there enters is ``inf`` (:data:`CENSORED`)."""
+    from scipy.stats import bootstrap
+
+    function = STATISTICS[statistic]
+    data = np.where(np.isinf(values), CENSORED, np.asarray(values, dtype=np.float64))
+    value = _uncensored(float(function(data)))
+    if data.size < 2:
+        return value, None
+    if np.all(data == data[0]):  # every resample is the sample: the interval is the point
+        return value, (value, value)
+    result = bootstrap(
+        (data,),
+        function,
+        n_resamples=BOOTSTRAP_RESAMPLES,
+        confidence_level=0.95,
+        method="percentile",
+        vectorized=True,
+        rng=np.random.default_rng(seed),
+    )
+    low, high = result.confidence_interval
+    return value, (_uncensored(float(low)), _uncensored(float(high)))
+
+
 def bootstrap_median(values: list[float], seed: int = 0) -> tuple[float, float]:
-    """A 95 % percentile-bootstrap confidence interval of the median (order statistics throughout)."""
-    data = np.asarray(values, dtype=np.float64)
-    rng = np.random.default_rng(seed)
-    samples = data[rng.integers(0, data.size, size=(BOOTSTRAP_RESAMPLES, data.size))]
-    medians = np.percentile(samples, 50, axis=1, method="inverted_cdf")
-    low, high = np.percentile(medians, [2.5, 97.5], method="inverted_cdf")
-    return float(low), float(high)
+    """The 95 % bootstrap confidence interval of the median (:func:`statistic_ci`); ``(v, v)`` for
+    one seed."""
+    value, interval = statistic_ci(values, "median", seed)
+    return interval if interval is not None else (value, value)
 
 
 def summarize(cells: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -81,12 +132,14 @@ def summarize(cells: list[dict[str, Any]]) -> list[dict[str, Any]]:
         }
         for level in LADDER:
             reached = [math.inf if c["trials_to"][level] is None else c["trials_to"][level] for c in group]
-            row[f"trials_to_{level}"] = {
-                "q1_median_q3": quartiles(reached),
-                "median_ci95": bootstrap_median(reached),
-                "reached": int(np.isfinite(reached).sum()),
-                "fragile": sum(level in c.get("fragile", ()) for c in group),
-            }
+            entry: dict[str, Any] = {"q1_median_q3": quartiles(reached)}
+            for name in STATISTICS:
+                value, interval = statistic_ci(reached, name)
+                entry[name] = value
+                entry[f"{name}_ci95"] = interval
+            entry["reached"] = int(np.isfinite(reached).sum())
+            entry["fragile"] = sum(level in c.get("fragile", ()) for c in group)
+            row[f"trials_to_{level}"] = entry
         row["best_error_q1_median_q3"] = quartiles([c["best_error"] for c in group])
         row["off_chart_fraction_median"] = float(np.median([c["off_chart_fraction"] for c in group]))
         row["clipped_fraction_median"] = float(np.median([c.get("clipped_fraction", 0.0) for c in group]))
@@ -101,12 +154,26 @@ def _trials(value: float, budget: int) -> str:
     return f"> {budget}" if math.isinf(value) else f"{value:.0f}"
 
 
+def _interval(interval: Any, budget: int) -> str:
+    if interval is None:
+        return ""
+    low, high = (math.inf if v is None else v for v in interval)
+    return f" [{_trials(low, budget)}, {_trials(high, budget)}]"
+
+
+def _statistic(entry: dict[str, Any], name: str, budget: int) -> str:
+    """``value [95 % CI]``, trials; ``> budget`` where the seeds that never got there decide it."""
+    value = math.inf if entry[name] is None else entry[name]
+    shown = _trials(value, budget) if math.isinf(value) or name == "median" else f"{value:.1f}"
+    interval = entry[f"{name}_ci95"]
+    if interval is not None and all(v is None or math.isinf(v) for v in interval) and math.isinf(value):
+        return shown  # no seed got there: nothing to bound
+    return shown + _interval(interval, budget)
+
+
 def _reached(entry: dict[str, Any], budget: int, seeds: int) -> str:
-    q1, q2, q3 = entry["q1_median_q3"]
     mark = " †" if entry.get("fragile") else ""
-    if math.isinf(q2):
-        return f"> {budget} ({entry['reached']}/{seeds}){mark}"
-    return f"{q2:.0f} [{_trials(q1, budget)}, {_trials(q3, budget)}] ({entry['reached']}/{seeds}){mark}"
+    return f"{_statistic(entry, 'median', budget)} ({entry['reached']}/{seeds}){mark}"
 
 
 def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
@@ -140,20 +207,17 @@ def _main_table(rows: list[dict[str, Any]], prior: str) -> str:
     return markdown_table(header, lines, [False, False, *[True] * (len(header) - 2)])
 
 
-def _ci_table(rows: list[dict[str, Any]], prior: str) -> str:
+def _iqm_table(rows: list[dict[str, Any]], prior: str) -> str:
     header = ["scenario", "method", *(LADDER_NAMES[level] for level in LADDER)]
     lines = []
     for row in (r for r in rows if r["prior"] == prior):
-        cells = []
-        for level in LADDER:
-            low, high = row[f"trials_to_{level}"]["median_ci95"]
-            cells.append(f"[{_trials(low, row['budget'])}, {_trials(high, row['budget'])}]")
+        cells = [_statistic(row[f"trials_to_{level}"], "iqm", row["budget"]) for level in LADDER]
         lines.append([row["scenario"], row["method"], *cells])
     return markdown_table(header, lines, [False, False, *[True] * len(LADDER)])
 
 
 def _median_trials(row: dict[str, Any], level: str) -> float:
-    return float(row[f"trials_to_{level}"]["q1_median_q3"][1])
+    return float(row[f"trials_to_{level}"]["median"])
 
 
 def ratios(rows: list[dict[str, Any]], families: dict[str, tuple[str, ...]]) -> list[dict[str, Any]]:
@@ -197,12 +261,14 @@ def _ratio_table(entries: list[dict[str, Any]], families: list[str]) -> str:
 
 
 NOTE = (
-    "Median [interquartile range] (k/n) across seeds, order statistics; (k/n): seeds that reached the tolerance "
-    "within the budget. Every trial counts: probes, random exploration and RL's deterministic trials included. "
-    "Errors are those of the true final configuration (the noisy scenario measures with noise). Best error: the "
-    "lowest true Cartesian error [m] + orientation error [rad] (a chained plant: error norm) of any trial, "
-    "1000 added for a trial that left the chart. Off chart: the median fraction of trials that left the chart; "
-    "clipped: of actions the env clipped to its box. "
+    "Median [95 % bootstrap confidence interval] (k/n) of the trials to each level across seeds; (k/n): seeds that "
+    "reached it within the budget; a seed that never did counts as more than the budget, so a median or bound it "
+    "decides reads '> budget'. Intervals: scipy.stats.bootstrap, percentile method, 2000 resamples of the seeds. "
+    "Every trial counts: probes, random exploration and RL's deterministic trials included. "
+    "Errors are those of the true final configuration (the noisy scenario measures with noise). Best error: median "
+    "[interquartile range] of the lowest true Cartesian error [m] + orientation error [rad] (a chained plant: error "
+    "norm) of any trial, 1000 added for a trial that left the chart. Off chart: the median fraction of trials that "
+    "left the chart; clipped: of actions the env clipped to its box. "
     "A level is met when the error is at most the level; †: in some seed, a relative change of 1e-6 in the "
     "error would move this count (the error lands on the level, and the integrator's last digits decide).\n"
 )
@@ -234,8 +300,8 @@ def report(
         parts += [title, _ratio_table(entries, families)]
     for prior in priors:
         parts += [
-            f"### prior={prior}: 95 % bootstrap confidence interval of the median trials\n",
-            _ci_table(rows, prior),
+            f"### prior={prior}: interquartile mean of the trials [95 % bootstrap confidence interval]\n",
+            _iqm_table(rows, prior),
         ]
     return "\n".join(parts)
 
@@ -317,6 +383,65 @@ def plot_scenario(
     write_figure(path, scenario_figure(cells, scenario, groups), dpi=100)
 
 
+PROFILE_LEVELS = ("1cm", "0.5mm")
+"""The levels of the performance profile's panels."""
+
+
+def profile(cells: list[dict[str, Any]], level: str, grid: np.ndarray) -> np.ndarray:
+    """The share of ``cells`` (runs: one task, one seed) that reached ``level`` within each number
+    of trials of ``grid``; a run that never did counts as unsolved everywhere."""
+    reached = np.array([np.inf if c["trials_to"][level] is None else c["trials_to"][level] for c in cells])
+    return np.asarray((reached[:, None] <= grid[None, :]).mean(axis=0), dtype=np.float64)
+
+
+def profile_figure(cells: list[dict[str, Any]], groups: Mapping[str, Sequence[str]] | None = None) -> Figure:
+    """The performance profile of every method (a data profile in Moré and Wild's sense, the
+    score distribution of Agarwal et al.): over every (scenario, seed) run of a prior, the share
+    that reached a level within ``t`` trials against ``t``, log-scaled; one panel per prior and level
+    of :data:`PROFILE_LEVELS`. Higher and further left is better."""
+    from matplotlib.figure import Figure
+
+    priors = list(dict.fromkeys(c["prior"] for c in cells))
+    methods = list(dict.fromkeys(c["method"] for c in cells))
+    styles = method_styles(methods, groups or {})
+    figure = Figure(figsize=(4.6 * len(PROFILE_LEVELS) + 2.4, 3.6 * len(priors)), layout="constrained")
+    axes = figure.subplots(len(priors), len(PROFILE_LEVELS), squeeze=False)
+    most = max(c["budget"] for c in cells)
+    grid = np.unique(np.geomspace(1, most, 400).astype(int))
+    handles: dict[str, Any] = {}
+    for row, prior in enumerate(priors):
+        for column, level in enumerate(PROFILE_LEVELS):
+            ax = axes[row][column]
+            for index, method in enumerate(methods):
+                runs = [c for c in cells if c["prior"] == prior and c["method"] == method]
+                if not runs:
+                    continue
+                style = styles[method]
+                (line,) = ax.step(
+                    grid,
+                    profile(runs, level, grid),
+                    where="post",
+                    color=style.colour,
+                    marker=style.marker,
+                    linestyle=style.linestyle,
+                    markersize=4,
+                    markevery=(0.013 * (index % 7), 0.09),
+                    label=method,
+                )
+                handles.setdefault(method, line)
+            ax.set_xscale("log")
+            ax.set_ylim(-0.02, 1.02)
+            ax.set_xlabel("trials")
+            ax.set_ylabel("share of runs (scenario x seed)")
+            ax.set_title(f"prior {prior}: reached {LADDER_NAMES[level]}", fontsize=9)
+            ax.grid(True, which="major", alpha=0.3)
+    figure.legend(
+        list(handles.values()), list(handles), loc="outside right upper", fontsize=7, handlelength=3, frameon=False
+    )
+    figure.suptitle("Performance profile: the share of runs that reached the level within t trials", fontsize=9)
+    return figure
+
+
 def _finite(data: Any) -> Any:
     """``data`` with every infinite float (not reached) as ``None``: strict JSON has no infinity."""
     if isinstance(data, float) and math.isinf(data):
@@ -353,7 +478,9 @@ def write_report(
         )
     extra = {"summary": _finite(rows), "ratios": _finite(entries), "cells": cells, "failed": failed or []}
     write_results(flat, out, "compare", text, extra)
+    styles = families if groups is None else groups
     for scenario in scenarios:
         if any(c["scenario"] == scenario for c in cells):
-            plot_scenario(cells, scenario, out / f"compare_{scenario}.png", families if groups is None else groups)
+            plot_scenario(cells, scenario, out / f"compare_{scenario}.png", styles)
+    write_figure(out / "compare_profile.png", profile_figure(cells, styles), dpi=100)
     return text

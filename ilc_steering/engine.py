@@ -23,16 +23,35 @@ import fcntl
 import math
 import os
 import sys
+import time
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ilc_steering.backends import run_calls
-from ilc_steering.output import check_output_dir, check_output_file, check_run_settings, open_lock, write_json
+from ilc_steering.output import (
+    check_output_dir,
+    check_output_file,
+    check_run_settings,
+    open_lock,
+    record_session,
+    write_json,
+)
+from ilc_steering.provenance import check_code, machine, provenance
 
-__all__ = ["DEFAULT_CELL_TIMEOUT", "MAX_CELL_TIMEOUT", "Grid", "Outcome", "RunFolder", "check_timeout", "run_grid"]
+__all__ = [
+    "DEFAULT_CELL_TIMEOUT",
+    "MAX_CELL_TIMEOUT",
+    "Grid",
+    "Outcome",
+    "Progress",
+    "RunFolder",
+    "check_timeout",
+    "run_grid",
+]
 
 K = TypeVar("K", bound=Hashable)
 MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
@@ -74,7 +93,7 @@ class RunFolder:
         results = self.out / self.results
         if results.exists() and not results.is_dir():
             raise ValueError(f"{results}: exists and is not a folder; this is not a {self.command} run folder")
-        resumed = check_run_settings(self.out, settings, results, configs)
+        resumed = check_run_settings(self.out, settings, results, configs, provenance(), check_code)
         results.mkdir(exist_ok=True)
         return resumed
 
@@ -117,8 +136,40 @@ class Grid(Generic[K]):
     """The record of a failed cell."""
     describe: Callable[[K], str]
     """A cell in a line of text (for its failure)."""
-    progress: Callable[[dict[str, Any]], None] = lambda cell: None
-    """Called with each finished cell."""
+    progress: Callable[[dict[str, Any]], str] | None = None
+    """A finished cell in a line of text, printed after the run's progress bar (None: the bar alone)."""
+    cost: Callable[[K], float] | None = None
+    """A cell's expected cost [s]: the cells run longest first (no worker left alone with a long
+    cell at the end), and the time left is estimated from it."""
+
+
+class Progress:
+    """The progress bar of a run and its estimate of the time left: the expected cost of the cells
+    still to finish, scaled by the wall time the finished ones took against their expected cost."""
+
+    WIDTH = 24
+
+    def __init__(self, expected: Mapping[Any, float], workers: int) -> None:
+        self.expected = dict(expected)
+        self.total = len(self.expected)
+        self.left = sum(self.expected.values())
+        self.spent = 0.0
+        self.done = 0
+        self.workers = max(1, workers)
+        self.start = time.monotonic()
+
+    def line(self, key: Any) -> str:
+        self.done += 1
+        cost = self.expected.get(key, 0.0)
+        self.left -= cost
+        self.spent += cost
+        elapsed = time.monotonic() - self.start
+        rate = elapsed / self.spent if self.spent > 0 else 1.0 / self.workers
+        seconds = max(0.0, self.left * rate)
+        filled = round(self.WIDTH * self.done / max(1, self.total))
+        bar = "#" * filled + "-" * (self.WIDTH - filled)
+        left = f"{seconds / 60:.0f} min" if seconds >= 90 else f"{seconds:.0f} s"
+        return f"[{bar}] {self.done}/{self.total} ({100 * self.done / max(1, self.total):.0f}%), about {left} left"
 
 
 @dataclass
@@ -161,13 +212,22 @@ def run_grid(
                 todo[key] = path
         if before is not None:
             before(todo)
+        if grid.cost is not None:  # the longest first
+            expected = {key: float(grid.cost(key)) for key in todo}
+            todo = dict(sorted(todo.items(), key=lambda item: -expected[item[0]]))
+        else:
+            expected = {key: 1.0 for key in todo}
+        count = 1 if inline else min(workers or os.cpu_count() or 1, max(1, len(todo)))
+        progress = Progress(expected, count)
+        started, clock = datetime.now(timezone.utc), time.monotonic()
 
         def finish(key: K, result: dict[str, Any]) -> None:
             cell = {**result, **grid.stamp(key)}
             write_json(folder.path(grid.name(key)), cell)
             folder.path(grid.name(key), failed=True).unlink(missing_ok=True)
             outcome.done[key] = cell
-            grid.progress(cell)
+            text = progress.line(key)
+            print(text if grid.progress is None else f"{text} {grid.progress(cell)}", flush=True)
 
         def fail(key: K, message: str) -> None:
             outcome.failed[key] = grid.failure(key, message)
@@ -184,5 +244,34 @@ def run_grid(
         else:
             calls = {key: grid.call(key) for key in todo}
             bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
-            run_calls(function, calls, finish, backend, workers, fail, bound, isolate=timeout is not None)
+            try:
+                run_calls(function, calls, finish, backend, workers, fail, bound, isolate=timeout is not None)
+            finally:
+                _session(folder, todo, outcome, started, clock, count, backend)
     return outcome
+
+
+def _session(
+    folder: RunFolder,
+    todo: Mapping[Any, Path],
+    outcome: Outcome[Any],
+    started: datetime,
+    clock: float,
+    count: int,
+    backend: str,
+) -> None:
+    """Record a session of work on the folder in its ``run.json`` (an interrupted one too)."""
+    if todo:
+        record_session(
+            folder.out,
+            {
+                "started": started.isoformat(timespec="seconds"),
+                "wall_s": round(time.monotonic() - clock, 1),
+                "computed": sum(key in outcome.done for key in todo),
+                "failed": len(outcome.failed),
+                "workers": count,
+                "backend": backend,
+                "commit": provenance()["commit"],
+                "machine": machine(),
+            },
+        )

@@ -18,7 +18,7 @@ import os
 import re
 import stat
 import tempfile
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import Any
 
@@ -235,21 +235,31 @@ def differences(stored: dict[str, Any], settings: dict[str, Any]) -> str:
 
 
 def check_run_settings(
-    folder: Path, settings: dict[str, Any], results: Path, configs: dict[str, str] | None = None
+    folder: Path,
+    settings: dict[str, Any],
+    results: Path,
+    configs: dict[str, str] | None = None,
+    made_now: dict[str, Any] | None = None,
+    check_code: Callable[[Any, Path], None] | None = None,
 ) -> bool:
     """Record ``settings`` and the content hash of each config (``configs``: name -> hash) in
     ``folder/run.json``; ``ValueError``, saying which setting or config differs, if the folder was
     written with other settings or another config of one of these names, or holds results
     (``results/*.json``) but no record of their settings. Returns whether the folder was a run
-    already (a resume). Configs of new names are added: a resume may add scenarios."""
+    already (a resume). Configs of new names are added: a resume may add scenarios. ``made_now``:
+    what made the results (:func:`~ilc_steering.provenance.provenance`), recorded; ``check_code``
+    checks the recorded one before a resume of a folder that holds results (``ValueError``)."""
     stored_path = folder / "run.json"
     resumed = is_file(stored_path)
     known: dict[str, str] = {}
+    sessions: list[Any] = []
     if resumed:
         stored = read_json(stored_path, MAX_RESULT_BYTES)
         if not isinstance(stored, dict):
             raise ValueError(f"{stored_path}: not a run record (a JSON object); use another --out folder")
         known = stored.pop("configs", {})
+        made_by = stored.pop("provenance", None)
+        sessions = stored.pop("sessions", [])
         if stored != settings:
             raise ValueError(
                 f"{stored_path} was written with other settings: {differences(stored, settings)}; "
@@ -261,11 +271,27 @@ def check_run_settings(
                     f"{stored_path}: its results are of another config named {name!r} (content hash "
                     f"{known[name]}, not {digest}): the same name, another content; use another --out folder"
                 )
+        if results.is_dir() and any(results.glob("*.json")):
+            if check_code is not None:
+                check_code(made_by, stored_path)  # a folder holds the results of one code
     elif results.is_dir() and any(results.glob("*.json")):
         raise ValueError(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
             "use another --out folder"
         )
     merged = {**(known if isinstance(known, dict) else {}), **(configs or {})}
-    write_json(stored_path, {**settings, **({"configs": merged} if configs is not None else {})})
+    record = {**settings, **({"configs": merged} if configs is not None else {})}
+    if made_now is not None:
+        record["provenance"] = made_now
+    write_json(stored_path, {**record, "sessions": sessions if isinstance(sessions, list) else []})
     return resumed
+
+
+def record_session(folder: Path, session: dict[str, Any]) -> None:
+    """Add ``session`` (when, wall time, cells, machine) to ``folder/run.json``'s ``sessions``."""
+    path = folder / "run.json"
+    stored = read_json(path, MAX_RESULT_BYTES)
+    if isinstance(stored, dict):
+        found = stored.get("sessions")
+        sessions: list[Any] = found if isinstance(found, list) else []
+        write_json(path, {**stored, "sessions": [*sessions, session]})

@@ -235,3 +235,27 @@ def test_any_module_attr_is_found_in_the_working_directory_or_refused_in_one_lin
         assert result.returncode == 0 and "converged at trial 3" in result.stdout, result.stderr
     else:
         assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1, result.stderr
+
+
+README = (ROOT / "README.md").read_text()
+
+
+@pytest.mark.skipif(not (ROOT / "docs" / "compare" / "run.json").is_file(), reason="needs the committed run")
+def test_the_readmes_row_beside_the_committed_comparison_runs_as_written(tmp_path):
+    section = README[README.index("Your learner as one more row") :]
+    command = re.findall(r"```bash\n(.*?)```", section, re.S)[0].strip()
+    words = shlex.split(command)
+    assert words[0] == "PYTHONPATH=examples" and words[1] == "ilc-steering" and words[-2:] == ["--out", "runs/mine"]
+    env = {**__import__("os").environ, "PYTHONPATH": str(ROOT / "examples")}
+    out = tmp_path / "mine"
+    result = subprocess.run(
+        [str(SCRIPT), *words[2:-1], str(out)], capture_output=True, text=True, cwd=ROOT, env=env, timeout=1800
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    report = json.loads((out / "compare.json").read_text())
+    committed = json.loads((ROOT / "docs" / "compare" / "compare.json").read_text())
+    mine = [c for c in report["cells"] if c["method"] == "my_learners:make"]
+    assert len(report["cells"]) == len(committed["cells"]) + len(mine)
+    assert {c["scenario"] for c in mine} == {c["scenario"] for c in committed["cells"]}
+    seeds = {prior: {c["seed"] for c in committed["cells"] if c["prior"] == prior} for prior in ("nominal", "none")}
+    assert {prior: {c["seed"] for c in mine if c["prior"] == prior} for prior in seeds} == seeds

@@ -1,0 +1,184 @@
+"""The comparison's tables in the README and the docs, generated from a committed run.
+
+A Markdown file holds a generated table between two markers::
+
+    <!-- compare-table: headline-1cm -->
+    ...
+    <!-- /compare-table -->
+
+``ilc-steering tables docs/compare --into README.md docs/comparison.md`` rewrites every such block
+from the run's ``compare.json`` (its cells, summarized as ``compare`` summarizes them,
+:mod:`~ilc_steering.compare_report`); ``--check`` rewrites nothing and exits 1 if a block differs,
+which is what the tests run: a table in the docs is always the committed run's.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ilc_steering.compare_report import (
+    LADDER_NAMES,
+    _iqm_table,
+    _main_table,
+    _ratio_table,
+    _statistic,
+    ratios,
+    summarize,
+)
+from ilc_steering.inputs import read_json, read_text
+from ilc_steering.output import write_atomic
+from ilc_steering.tables import markdown_table
+
+__all__ = ["BLOCK", "TABLES", "budget_check", "check", "headline", "render", "write"]
+
+BLOCK = re.compile(r"(<!-- compare-table: ([a-z0-9-]+) -->\n)(.*?)(<!-- /compare-table -->)", re.DOTALL)
+MAX_REPORT_BYTES = 256 << 20
+MAX_TEXT_BYTES = 16 << 20
+
+
+def headline(rows: list[dict[str, Any]], level: str, prior: str = "nominal") -> str:
+    """Methods down, scenarios across: the median trials to ``level`` with its 95 % bootstrap
+    interval and (seeds that got there / seeds)."""
+    scenarios = list(dict.fromkeys(r["scenario"] for r in rows if r["prior"] == prior))
+    methods = list(dict.fromkeys(r["method"] for r in rows if r["prior"] == prior))
+    by = {(r["method"], r["scenario"]): r for r in rows if r["prior"] == prior}
+    lines = []
+    for method in methods:
+        line = [method]
+        for scenario in scenarios:
+            row = by.get((method, scenario))
+            if row is None:
+                line.append("")
+                continue
+            entry = row[f"trials_to_{level}"]
+            line.append(f"{_statistic(entry, 'median', row['budget'])} ({entry['reached']}/{row['seeds']})")
+        lines.append(line)
+    header = ["method", *(s.replace("_", " ") for s in scenarios)]
+    return markdown_table(header, lines, [False, *[True] * len(scenarios)])
+
+
+def budget_check(cells: list[dict[str, Any]], levels: tuple[str, ...] = ("1cm", "0.5mm")) -> str:
+    """Per method: its budget, and at each level the most trials its best seed needed on any
+    (prior, scenario), against half the budget: a budget is ample when it is at least twice that."""
+    best: dict[tuple[str, str, str], dict[str, float]] = {}
+    budgets: dict[str, int] = {}
+    for cell in cells:
+        key = (cell["method"], cell["prior"], cell["scenario"])
+        budgets[cell["method"]] = max(budgets.get(cell["method"], 0), cell["budget"])
+        for level in levels:
+            reached = cell["trials_to"][level]
+            entry = best.setdefault(key, {})
+            if reached is not None:
+                entry[level] = min(entry.get(level, math.inf), reached)
+    lines = []
+    for method, budget in budgets.items():
+        line = [method, str(budget)]
+        for level in levels:
+            needed = [e[level] for (m, _, _), e in best.items() if m == method and level in e]
+            missed = sum(1 for (m, _, _), e in best.items() if m == method and level not in e)
+            worst = max(needed) if needed else math.inf
+            text = "no seed of any task" if not needed else f"{worst:.0f}"
+            if needed:
+                text += " (ample)" if 2 * worst <= budget else " (**less than twice**)"
+            if missed and needed:
+                text += f"; no seed on {missed} of {missed + len(needed)} tasks"
+            line.append(text)
+        lines.append(line)
+    header = [
+        "method",
+        "budget",
+        *(f"best seed's trials to {LADDER_NAMES[level]}, most over tasks" for level in levels),
+    ]
+    return markdown_table(header, lines, [False, True, *[False] * len(levels)])
+
+
+def _budgets(rows: list[dict[str, Any]]) -> str:
+    seen: dict[str, set[int]] = {}
+    for row in rows:
+        seen.setdefault(row["method"], set()).add(row["budget"])
+    return ", ".join(f"{m} {'/'.join(map(str, sorted(b)))}" for m, b in seen.items())
+
+
+TABLES: dict[str, Callable[[list[dict[str, Any]], list[dict[str, Any]], dict[str, Any]], str]] = {
+    "budget-check": lambda rows, entries, run: budget_check(run["cells"]),
+    "headline-1cm": lambda rows, entries, run: headline(rows, "1cm"),
+    "headline-0.5mm": lambda rows, entries, run: headline(rows, "0.5mm"),
+    "nominal": lambda rows, entries, run: _main_table(rows, "nominal"),
+    "none": lambda rows, entries, run: _main_table(rows, "none"),
+    "iqm-nominal": lambda rows, entries, run: _iqm_table(rows, "nominal"),
+    "iqm-none": lambda rows, entries, run: _iqm_table(rows, "none"),
+    "ratios": lambda rows, entries, run: _ratio_table(entries, ["black-box", "RL"]),
+    "budgets": lambda rows, entries, run: f"Budgets [trials]: {_budgets(rows)}.\n",
+    "run": lambda rows, entries, run: _run_line(run),
+}
+"""Every table a block may name."""
+
+
+def _run_line(run: dict[str, Any]) -> str:
+    made = run.get("provenance") or {}
+    sessions = run.get("sessions") or []
+    wall = sum(s.get("wall_s", 0.0) for s in sessions)
+    machine = sessions[-1].get("machine", {}) if sessions else {}
+    commit = made.get("commit") or "no commit"
+    return (
+        f"Made by ilc-steering {made.get('version')}, code {made.get('code')} (commit {str(commit)[:12]}), in "
+        f"{len(sessions)} session(s) of {wall / 60:.0f} min of wall time in all on {machine.get('cpus')} cores "
+        f"({machine.get('processor')}, Python {machine.get('python')}); seeds {run.get('seeds')} under prior=nominal, "
+        f"the first {min(len(run.get('seeds') or []), run.get('ablation_seeds') or 0)} under prior=none.\n"
+    )
+
+
+def _tables(folder: Path) -> dict[str, str]:
+    data = read_json(folder / "compare.json", MAX_REPORT_BYTES)
+    run = read_json(folder / "run.json", MAX_REPORT_BYTES)
+    if not isinstance(data, dict) or not isinstance(data.get("cells"), list) or not isinstance(run, dict):
+        raise ValueError(f"{folder}: not a compare run folder with compare.json and run.json")
+    from ilc_steering.agents import registry
+
+    rows = summarize(data["cells"])
+    entries = ratios(rows, {"black-box": registry.ids("black-box"), "RL": registry.ids("RL")})
+    return {name: make(rows, entries, {**run, "cells": data["cells"]}) for name, make in TABLES.items()}
+
+
+def render(text: str, tables: dict[str, str], where: str = "") -> str:
+    """``text`` with every block's table replaced by the one it names."""
+
+    def replace(match: re.Match[str]) -> str:
+        name = match.group(2)
+        if name not in tables:
+            raise ValueError(f"{where}: a compare-table block names {name!r}; choose from {list(tables)}")
+        return match.group(1) + tables[name].rstrip("\n") + "\n" + match.group(4)
+
+    return BLOCK.sub(replace, text)
+
+
+def write(folder: Path, files: list[Path]) -> list[Path]:
+    """Rewrite the blocks of ``files`` from the run in ``folder``; returns the files changed."""
+    tables = _tables(folder)
+    changed = []
+    for path in files:
+        text = read_text(path, MAX_TEXT_BYTES)
+        new = render(text, tables, str(path))
+        if new != text:
+            write_atomic(path, new)
+            changed.append(path)
+    return changed
+
+
+def check(folder: Path, files: list[Path]) -> list[str]:
+    """The blocks of ``files`` that differ from the run in ``folder`` (``file: block``)."""
+    tables = _tables(folder)
+    stale = []
+    for path in files:
+        text = read_text(path, MAX_TEXT_BYTES)
+        for match in BLOCK.finditer(text):
+            name = match.group(2)
+            if name not in tables:
+                raise ValueError(f"{path}: a compare-table block names {name!r}; choose from {list(tables)}")
+            if match.group(3) != tables[name].rstrip("\n") + "\n":
+                stale.append(f"{path}: {name}")
+    return stale
