@@ -35,7 +35,7 @@ from ilc_steering.tables import markdown_table
 
 __all__ = ["BLOCK", "TABLES", "budget_check", "check", "headline", "render", "write"]
 
-BLOCK = re.compile(r"(<!-- compare-table: ([a-z0-9-]+) -->\n)(.*?)(<!-- /compare-table -->)", re.DOTALL)
+BLOCK = re.compile(r"(<!-- compare-table: ([a-z0-9.-]+) -->\n)(.*?)(<!-- /compare-table -->)", re.DOTALL)
 MAX_REPORT_BYTES = 256 << 20
 MAX_TEXT_BYTES = 16 << 20
 
@@ -81,17 +81,17 @@ def budget_check(cells: list[dict[str, Any]], levels: tuple[str, ...] = ("1cm", 
             needed = [e[level] for (m, _, _), e in best.items() if m == method and level in e]
             missed = sum(1 for (m, _, _), e in best.items() if m == method and level not in e)
             worst = max(needed) if needed else math.inf
-            text = "no seed of any task" if not needed else f"{worst:.0f}"
+            text = "no seed of any pair" if not needed else f"{worst:.0f}"
             if needed:
                 text += " (ample)" if 2 * worst <= budget else " (**less than twice**)"
             if missed and needed:
-                text += f"; no seed on {missed} of {missed + len(needed)} tasks"
+                text += f"; none on {missed} of {missed + len(needed)} pairs"
             line.append(text)
         lines.append(line)
     header = [
         "method",
         "budget",
-        *(f"best seed's trials to {LADDER_NAMES[level]}, most over tasks" for level in levels),
+        *(f"best seed's trials to {LADDER_NAMES[level]}, most over (prior, scenario) pairs" for level in levels),
     ]
     return markdown_table(header, lines, [False, True, *[False] * len(levels)])
 
@@ -147,6 +147,8 @@ def _tables(folder: Path) -> dict[str, str]:
 def render(text: str, tables: dict[str, str], where: str = "") -> str:
     """``text`` with every block's table replaced by the one it names."""
 
+    _blocks(text, where)
+
     def replace(match: re.Match[str]) -> str:
         name = match.group(2)
         if name not in tables:
@@ -169,12 +171,21 @@ def write(folder: Path, files: list[Path]) -> list[Path]:
     return changed
 
 
+def _blocks(text: str, where: str) -> None:
+    """``ValueError`` for a marker that opens no well-formed block (it would be skipped silently)."""
+    if text.count("<!-- compare-table:") != len(BLOCK.findall(text)):
+        raise ValueError(
+            f"{where}: a <!-- compare-table: NAME --> marker without its <!-- /compare-table --> or a name"
+        )
+
+
 def check(folder: Path, files: list[Path]) -> list[str]:
     """The blocks of ``files`` that differ from the run in ``folder`` (``file: block``)."""
     tables = _tables(folder)
     stale = []
     for path in files:
         text = read_text(path, MAX_TEXT_BYTES)
+        _blocks(text, str(path))
         for match in BLOCK.finditer(text):
             name = match.group(2)
             if name not in tables:

@@ -79,6 +79,10 @@ def test_a_table_block_that_differs_from_the_run_is_found_and_rewritten(tmp_path
     assert (
         rendered == "intro\n<!-- compare-table: headline-1cm -->\n| a |\n| --- |\n| 1 |\n<!-- /compare-table -->\nend\n"
     )
+    dotted = text.replace("headline-1cm", "headline-0.5mm")
+    assert "| 1 |" in compare_tables.render(dotted, {"headline-0.5mm": tables["headline-1cm"]})
+    with pytest.raises(ValueError, match="marker without"):
+        compare_tables.render("<!-- compare-table: Bad Name -->\nx\n<!-- /compare-table -->", tables)
     with pytest.raises(ValueError, match="names 'nope'"):
         compare_tables.render("<!-- compare-table: nope -->\nx\n<!-- /compare-table -->", tables)
 
