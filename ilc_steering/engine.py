@@ -93,7 +93,8 @@ class RunFolder:
         results = self.out / self.results
         if results.exists() and not results.is_dir():
             raise ValueError(f"{results}: exists and is not a folder; this is not a {self.command} run folder")
-        resumed = check_run_settings(self.out, settings, results, configs, provenance(), check_code)
+        written = [self.out / name for name in reports]
+        resumed = check_run_settings(self.out, settings, results, configs, provenance(), check_code, written)
         results.mkdir(exist_ok=True)
         return resumed
 
@@ -235,7 +236,7 @@ def run_grid(
             path.parent.mkdir(exist_ok=True)
             write_json(path, outcome.failed[key])
             line = f"{grid.describe(key)}: FAILED, recorded in {path}: {message}"
-            print(line, flush=True)
+            print(f"{progress.line(key)} {line}", flush=True)
             print(f"ilc-steering: {' '.join(line.split())}", file=sys.stderr, flush=True)
 
         if inline:

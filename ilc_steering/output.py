@@ -241,6 +241,7 @@ def check_run_settings(
     configs: dict[str, str] | None = None,
     made_now: dict[str, Any] | None = None,
     check_code: Callable[[Any, Path], None] | None = None,
+    reports: Collection[Path] = (),
 ) -> bool:
     """Record ``settings`` and the content hash of each config (``configs``: name -> hash) in
     ``folder/run.json``; ``ValueError``, saying which setting or config differs, if the folder was
@@ -248,7 +249,8 @@ def check_run_settings(
     (``results/*.json``) but no record of their settings. Returns whether the folder was a run
     already (a resume). Configs of new names are added: a resume may add scenarios. ``made_now``:
     what made the results (:func:`~ilc_steering.provenance.provenance`), recorded; ``check_code``
-    checks the recorded one before a resume of a folder that holds results (``ValueError``)."""
+    checks the recorded one before a resume of a folder that holds results: ``results/*.json`` or
+    any of ``reports`` (a report's results may be restored from it), ``ValueError``."""
     stored_path = folder / "run.json"
     resumed = is_file(stored_path)
     known: dict[str, str] = {}
@@ -271,9 +273,9 @@ def check_run_settings(
                     f"{stored_path}: its results are of another config named {name!r} (content hash "
                     f"{known[name]}, not {digest}): the same name, another content; use another --out folder"
                 )
-        if results.is_dir() and any(results.glob("*.json")):
-            if check_code is not None:
-                check_code(made_by, stored_path)  # a folder holds the results of one code
+        held = (results.is_dir() and any(results.glob("*.json"))) or any(is_file(path) for path in reports)
+        if held and check_code is not None:
+            check_code(made_by, stored_path)  # a folder holds the results of one code
     elif results.is_dir() and any(results.glob("*.json")):
         raise ValueError(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "

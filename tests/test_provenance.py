@@ -126,3 +126,19 @@ def test_current_refuses_a_folder_without_a_run_record(tmp_path: Path) -> None:
     from ilc_steering.cli import main
 
     assert main(["current", str(tmp_path)]) == 2
+
+
+def test_a_report_whose_cells_a_resume_would_restore_counts_as_results_of_its_code(tmp_path: Path) -> None:
+    """A clone's run folder holds compare.json and no cells/: a resume restores its cells, so they
+    must be of this code too."""
+    folder = RunFolder(tmp_path / "run", "cells", "compare")
+    settings = {"quick": True, "version": ilc_steering.__version__}
+    folder.prepare(settings, {}, ["compare.json"])
+    record = json.loads((tmp_path / "run" / "run.json").read_text())
+    record["provenance"] = {**record["provenance"], "code": "0" * 16, "files": {"agents/ilc.py": "0" * 16}}
+    write_json(tmp_path / "run" / "run.json", record)
+    assert folder.prepare(settings, {}, ["compare.json"])  # nothing held yet: the folder is taken over
+    write_json(tmp_path / "run" / "run.json", record)
+    write_json(tmp_path / "run" / "compare.json", {"cells": []})
+    with pytest.raises(ValueError, match="made by other code"):
+        folder.prepare(settings, {}, ["compare.json"])
