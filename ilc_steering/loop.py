@@ -38,7 +38,7 @@ class LearnerError(Exception):
         super().__init__(message)
 
 
-def _fault(name: str, what: str, trial: int, error: Exception) -> LearnerError:
+def _fault(name: str, what: str, trial: int, error: BaseException) -> LearnerError:
     return LearnerError(f"learner {name}: {what} in trial {trial}: {type(error).__name__}: {error}")
 
 
@@ -91,7 +91,7 @@ def run_trials(
         for k in range(1, trials + 1):
             try:
                 action = learner.act(observation)
-            except Exception as error:
+            except (Exception, SystemExit) as error:  # a learner's sys.exit() is its failure, not success
                 raise _fault(who, "act() raised", k, error) from error
             try:
                 observation, reward, terminated, truncated, info = env.step(action)
@@ -99,7 +99,7 @@ def run_trials(
                 raise _fault(who, "the env refused its action", k, error) from error
             try:
                 learner.learn({key: value for key, value in info.items() if key not in TRUE_KEYS})
-            except Exception as error:
+            except (Exception, SystemExit) as error:  # a learner's sys.exit() is its failure, not success
                 raise _fault(who, "learn() raised", k, error) from error
             rollout.infos.append(info)
             rollout.rewards.append(float(reward))
@@ -150,7 +150,7 @@ def run_vector_trials(
             run = k
             try:
                 actions = np.array([learner.act(obs) for learner, obs in zip(learners, observations)])
-            except Exception as error:
+            except (Exception, SystemExit) as error:  # a learner's sys.exit() is its failure, not success
                 raise _fault(who, "act() raised", k, error) from error
             try:
                 observations, _, _, _, info = envs.step(actions)
@@ -162,7 +162,7 @@ def run_vector_trials(
             for learner, row in zip(learners, rows):
                 try:
                     learner.learn({key: value for key, value in row.items() if key not in TRUE_KEYS})
-                except Exception as error:
+                except (Exception, SystemExit) as error:
                     raise _fault(who, "learn() raised", k, error) from error
             if any([bool(callback(k, rows)) for callback in callbacks]):
                 break
