@@ -78,7 +78,7 @@ WHY_DIFFERENT = {
     "experiment_parallel": (
         "the imperfections are modelling choices, and parallel parking is sensitive to them: the steering "
         "linkage's play (0.02 rad) alone keeps eqs. 33-34 from converging in 15 trials (seed 0), each other "
-        "imperfection alone needs 3-4, all of them at half size 6 (README, 'Section 5')"
+        "imperfection alone needs 3-4, all of them at half size 6 (docs/paper.md, 'Section 5')"
     ),
 }
 
