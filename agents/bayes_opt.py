@@ -144,7 +144,11 @@ def _turbo(
     for restart in count():
         start = context.start_point(restart)
         rng = np.random.default_rng([context.seed, restart, 1])
-        sobol = torch.quasirandom.SobolEngine(size, scramble=True, seed=int(rng.integers(2**31)))  # type: ignore[no-untyped-call]
+        sobol = torch.quasirandom.SobolEngine(  # type: ignore[no-untyped-call]
+            size,
+            scramble=True,
+            seed=int(rng.integers(2**31)),
+        )
         design = start + 0.5 * initial_length * (2.0 * sobol.draw(2 * size, dtype=torch.float64).numpy() - 1.0)
         xs = [start, *np.clip(design, -1.0, 1.0)]
         ys = [_objective(env, x) for x in xs]

@@ -87,7 +87,11 @@ def _columns(config: SteeringConfig) -> list[str]:
     names = ["cartesian [m]", "orientation [rad]"] if config.plant.kind.has_pose else ["error norm"]
     if not config.is_cyclic:
         return names
-    return [f"wp{l} {name}" for l in range(1, len(config.task.waypoints) + 1) for name in names]  # type: ignore[union-attr]
+    return [
+        f"wp{l} {name}"
+        for l in range(1, len(config.task.waypoints) + 1)  # type: ignore[union-attr]
+        for name in names
+    ]
 
 
 def _print_header(config: SteeringConfig, count: int) -> None:

@@ -65,7 +65,16 @@ _LAB_EVENT_TIME = 1e-14  # relative to the step: how closely a lab event is loca
 
 
 @njit(cache=True, inline="always")
-def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheelbase, true_wheel_radius):  # type: ignore[no-untyped-def]
+def closed_loop_velocity(  # type: ignore[no-untyped-def]
+    theta,
+    phi,
+    v1,
+    v2,
+    wheelbase,
+    wheel_radius,
+    true_wheelbase,
+    true_wheel_radius,
+):
     """Eq. (3) of a car with the true geometry, driven by eqs. (4)-(5) with the nominal one:
     ``(dx, dy, dtheta, dphi)`` [m/s, m/s, rad/s, rad/s].
 
