@@ -22,10 +22,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from importlib import import_module
 from typing import Any
 
-from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory, working_directory_importable
+from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
+from ilc_steering.entries import load_entry
 
 __all__ = [
     "DEFAULT_METHODS",
@@ -85,10 +85,8 @@ class LearnerSpec:
     def factory(self) -> LearnerFactory:
         """The factory ``make(context)`` of a model-based or user's learner (imported now)."""
         if self.family == "yours":
-            working_directory_importable()
             return load_factory(self.id, self.option)
-        module, _, attr = self.entry_point.partition(":")
-        return getattr(import_module(module), attr)  # type: ignore[no-any-return]
+        return load_entry(self.entry_point, f"learner {self.id}")  # type: ignore[no-any-return]
 
     def budget(self, budgets: Budgets, task: str = "", prior: str = "nominal") -> int:
         """Its budget [trials] under ``budgets`` on the config named ``task`` (RL reads its
@@ -124,10 +122,10 @@ class LearnerSpec:
     def make(self, context: LearnerContext, budget: int) -> Learner:
         """The learner for ``context`` and a budget of ``budget`` trials, with the context's
         ``learning.cost`` attached. A factory that raises is a
-        :class:`~ilc_steering.loop.LearnerError` naming the learner; one that makes something
+        :class:`~ilc_steering.errors.LearnerError` naming the learner; one that makes something
         without ``act``, ``learn`` and ``reset`` is a ``ValueError``."""
         from ilc_steering.agents.costs import with_cost
-        from ilc_steering.loop import LearnerError
+        from ilc_steering.errors import LearnerError
 
         if self.family == "RL":
             from ilc_steering.agents import rl

@@ -394,7 +394,7 @@ LEARNERS = """
 import time
 import numpy as np
 from ilc_steering.agents.ilc import make_ilc
-from ilc_steering.core.checks import ParameterError
+from ilc_steering.errors import ParameterError
 
 
 class Wrapped:

@@ -42,7 +42,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.core.checks import ParameterError
+from ilc_steering.errors import ParameterError
 
 __all__ = [
     "BACKENDS",

@@ -26,8 +26,8 @@ from pathlib import Path
 
 from ilc_steering.agents.registry import REGISTRY
 from ilc_steering.compare import add_arguments as add_compare_arguments
-from ilc_steering.config import MAX_TRIALS, ConfigError, SteeringConfig, load_config, packaged_configs
-from ilc_steering.loop import LearnerError
+from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
+from ilc_steering.errors import ConfigError, LearnerError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
     DEFAULT_LEARNER,

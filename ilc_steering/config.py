@@ -22,6 +22,7 @@ import types
 import typing
 from collections.abc import Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from importlib import resources
 from math import isfinite
@@ -31,16 +32,16 @@ from typing import Any, Literal
 import numpy as np
 
 from ilc_steering.core import robots
-from ilc_steering.core.checks import ParameterError, check_gains, check_jitter, check_noise
+from ilc_steering.core.checks import check_gains, check_jitter, check_noise
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.errors import ConfigError, ParameterError
 from ilc_steering.inputs import MAX_DEPTH, check_depth, read_text
 
 __all__ = [
-    "ConfigError",
     "CyclicTaskConfig",
     "LearningConfig",
     "SegmentConfig",
@@ -53,8 +54,8 @@ __all__ = [
 ]
 
 
-class ConfigError(ValueError):
-    """A config that cannot be used, with the file and key at fault in its message."""
+_FOLDERS: ContextVar[tuple[str, ...]] = ContextVar("_FOLDERS", default=())
+"""The folder of the config being loaded, searched for a robot's module it names."""
 
 
 def _require(ok: bool, key: str, message: str) -> None:
@@ -407,7 +408,7 @@ def _coerce(hint: Any, value: Any, key: str) -> Any:
         model = value.get("model")
         if isinstance(model, str) and robots.ENTRY.fullmatch(model):  # "package.module:ConfigClass", as --learner
             with _domain(f"{key}.model"):
-                cls = robots.config_class(model)
+                cls = robots.config_class(model, _FOLDERS.get())
             return _build(cls, {**value, "model": robots.model_name(cls)}, key)
         known = robots.names()
         _require(
@@ -604,8 +605,12 @@ def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> Steerin
         raise ConfigError(f"{origin}: more than {MAX_VALUES} values; not a config")
     if isinstance(source, dict):
         _depth(data, origin)
+    folders = (str(Path(source).parent),) if isinstance(source, (str, Path)) and Path(source).is_file() else ()
+    token = _FOLDERS.set(folders)  # a robot's module beside its config is found (entries.load_entry)
     try:
         config: SteeringConfig = _build(SteeringConfig, data, "")
         return config
     except ConfigError as error:
         raise ConfigError(f"{origin}: {error}") from None
+    finally:
+        _FOLDERS.reset(token)

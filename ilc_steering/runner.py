@@ -19,7 +19,8 @@ from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.loop import LearnerError, run_trials
+from ilc_steering.errors import LearnerError
+from ilc_steering.loop import run_trials
 
 __all__ = [
     "DEFAULT_LEARNER",
@@ -203,7 +204,7 @@ def run_ilc(
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
 
-    A learner that fails raises :class:`~ilc_steering.loop.LearnerError` naming it (``learner``),
+    A learner that fails raises :class:`~ilc_steering.errors.LearnerError` naming it (``learner``),
     its ``partial`` the :class:`RunResult` of the trials run before.
     """
     config = load_config(config)

@@ -184,7 +184,7 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
             raise ValueError(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
     if (args.low, args.high) != (SweepArgs.low, SweepArgs.high):
         raise ValueError("--range: the ratio axes' range; with --axis give each axis its own range (KEY LOW HIGH)")
-    from ilc_steering.config import ConfigError
+    from ilc_steering.errors import ConfigError
 
     nominal = Scenario.from_config(config).nominal.solve()
     for key, low, high in args.axes:  # a map varies the true plant; the learner's model stays the nominal one

@@ -17,8 +17,8 @@ from ilc_steering.agents import bayes_opt as bo
 from ilc_steering.agents import rl
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.compare import BLACKBOX, ENV_ID, RL, Args, measure, run_cell
-from ilc_steering.config import ConfigError
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
+from ilc_steering.errors import ConfigError
 
 
 def context_of(scenario: str, seed: int = 0) -> tuple[gym.Env[Any, Any], LearnerContext]:
@@ -94,7 +94,7 @@ def test_sbx_and_sb3_act_in_the_same_units(algorithm: str) -> None:
     for backend in rl.RL_BACKENDS:
         env, context = context_of("forward_parking")
         params = rl.hyperparameters(algorithm, "forward_parking")
-        from ilc_steering.agents.adapters import SearchBox
+        from ilc_steering.envs.boxes import SearchBox
 
         box = SearchBox(env, *context.search_box())
         model = rl.build(algorithm, box, params, 0, 100, backend=backend)

@@ -14,11 +14,12 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering import compare, compare_report
 from ilc_steering.agents import rl
 from ilc_steering.agents.adapters import PullLearner
-from ilc_steering.agents.base import RESIDUAL_SCALE, LearnerContext
+from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
 from ilc_steering.compare import Args, TrialLog, run_cell, run_cells
-from ilc_steering.config import ConfigError
 from ilc_steering.core.score import OFF_CHART_PENALTY
+from ilc_steering.envs.boxes import RESIDUAL_SCALE
+from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"

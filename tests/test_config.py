@@ -3,7 +3,8 @@
 import pytest
 import yaml
 
-from ilc_steering.config import ConfigError, load_config, packaged_configs
+from ilc_steering.config import load_config, packaged_configs
+from ilc_steering.errors import ConfigError
 
 ISSUE_EXAMPLE = """
 name: forward_parking

@@ -15,7 +15,8 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering import compare
 from ilc_steering.cli import main
 from ilc_steering.compare import Args, run_cell, run_cells
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
+from ilc_steering.errors import ConfigError
 from ilc_steering.output import safe_name, write_json
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"

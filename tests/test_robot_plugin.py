@@ -14,11 +14,12 @@ import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core import robots
 from ilc_steering.core.reference import trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 
 HERE = Path(__file__).parent

@@ -16,8 +16,9 @@ import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.cli import main
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.errors import ConfigError
 from ilc_steering.inputs import MAX_DEPTH, read_json, read_text
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -302,7 +303,7 @@ import time
 import numpy as np
 
 from ilc_steering.agents.ilc import make_ilc
-from ilc_steering.core.checks import ParameterError
+from ilc_steering.errors import ParameterError
 
 
 class Failing:
@@ -487,8 +488,7 @@ def test_the_librarys_errors_survive_pickling():
     import pickle
 
     import ilc_steering.backends  # noqa: F401  (registers ParameterError's reduction)
-    from ilc_steering.core.checks import ParameterError
-    from ilc_steering.loop import LearnerError
+    from ilc_steering.errors import LearnerError, ParameterError
 
     for error in (ParameterError("nu_b", "must be in (0, 2)"), ConfigError("a.yaml: x: y"), LearnerError("learner z")):
         back = pickle.loads(pickle.dumps(error))

@@ -21,11 +21,12 @@ from hypothesis import strategies as st
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.rl import BACKEND_VARIABLE, check_hyperparameters, hyperparameters, rl_backend
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core.checks import DURATION_RANGE, FACTOR_RANGE, LENGTH_RANGE, MAX_START_ERROR
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.envs.steering_vector_env import MAX_ENVS, ChainedSteeringVectorEnv
 from ilc_steering.envs.wrappers import MAX_SCALE, ResidualAction
+from ilc_steering.errors import ConfigError
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 FAST = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
