@@ -22,9 +22,9 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 
+from ilc_steering.boxes import residual_box
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.entries import load_entry
-from ilc_steering.envs.boxes import residual_box
 
 __all__ = [
     "PRIORS",

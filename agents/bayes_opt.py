@@ -5,7 +5,7 @@ coefficient, its hyperparameters fitted by maximum marginal likelihood every ``r
 and after every change of the trust region, and kept in between, the GP conditioned on every new
 trial) models
 ``-log10(cost)`` over the ``[-1, 1]`` units of
-:class:`~ilc_steering.envs.boxes.SearchBox`; the cost spans ten decades, and a GP on the raw
+:class:`~ilc_steering.boxes.SearchBox`; the cost spans ten decades, and a GP on the raw
 cost sees only its largest trials. Each trial maximizes the log expected improvement
 (``LogExpectedImprovement``) within a trust region around the best trial so far, as TuRBO does
 (Eriksson et al., *Scalable Global Optimization via Local Bayesian Optimization*, NeurIPS 2019):

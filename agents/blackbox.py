@@ -4,7 +4,7 @@ Each one drives a one-trial env through ``env.step`` until it is stopped; as lea
 (:func:`make_learner`) they drive the :class:`~ilc_steering.agents.adapters.TrialPort` of a
 :class:`~ilc_steering.agents.adapters.PullLearner`, so the trial loop runs and counts every
 trial they ask for, probes included. They search the ``[-1, 1]`` units of
-:class:`~ilc_steering.envs.boxes.SearchBox`: the residual box around the nominal solution
+:class:`~ilc_steering.boxes.SearchBox`: the residual box around the nominal solution
 under ``prior="nominal"``, the env's whole action box under ``prior="none"``
 (:meth:`~ilc_steering.agents.base.LearnerContext.search_box`). Their first trial is the
 context's start (under the nominal prior, the nominal solution itself), and when one stalls it
@@ -42,8 +42,8 @@ import scipy.optimize
 
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import LearnerContext
+from ilc_steering.boxes import SearchBox
 from ilc_steering.core.score import OFF_CHART_PENALTY
-from ilc_steering.envs.boxes import SearchBox
 
 __all__ = [
     "BLACKBOX_METHODS",

@@ -25,7 +25,7 @@ for good. On the SBX path it turns on JAX's persistent compilation cache, unless
 
 What the algorithm sees and does, the same under both priors and both backends:
 
-- actions in the ``[-1, 1]`` units of :class:`~ilc_steering.envs.boxes.SearchBox`: the
+- actions in the ``[-1, 1]`` units of :class:`~ilc_steering.boxes.SearchBox`: the
   residual box around the nominal solution (``prior="nominal"``) or the whole action box;
 - the first trial is the context's start (the nominal solution under that prior);
 - the reward is ``-log10(cost)`` (the cost floored at :data:`REWARD_FLOOR`): the cost spans ten
@@ -56,7 +56,7 @@ import yaml
 
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import PRIORS, LearnerContext
-from ilc_steering.envs.boxes import SearchBox
+from ilc_steering.boxes import SearchBox
 from ilc_steering.errors import ConfigError
 
 __all__ = [

@@ -94,7 +94,7 @@ def test_sbx_and_sb3_act_in_the_same_units(algorithm: str) -> None:
     for backend in rl.RL_BACKENDS:
         env, context = context_of("forward_parking")
         params = rl.hyperparameters(algorithm, "forward_parking")
-        from ilc_steering.envs.boxes import SearchBox
+        from ilc_steering.boxes import SearchBox
 
         box = SearchBox(env, *context.search_box())
         model = rl.build(algorithm, box, params, 0, 100, backend=backend)

@@ -16,9 +16,9 @@ from ilc_steering.agents import rl
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
+from ilc_steering.boxes import RESIDUAL_SCALE
 from ilc_steering.compare import Args, TrialLog, run_cell, run_cells
 from ilc_steering.core.score import OFF_CHART_PENALTY
-from ilc_steering.envs.boxes import RESIDUAL_SCALE
 from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 

@@ -1,8 +1,10 @@
 """The boxes a learner searches, in the env's physical units: the residual box around the nominal
 solution under ``prior="nominal"``, and the wrapper that maps actions in ``[-1, 1]`` into a box.
 
-They sit on the envs' floor, below the agents: the agents build their search from them, and
-:class:`~ilc_steering.envs.wrappers.ResidualAction` offers the same box to any user.
+They sit below the envs and the agents (only the nominal model and Gymnasium's spaces beneath
+them): the agents build their search from them, and
+:class:`~ilc_steering.envs.wrappers.ResidualAction` offers the same box to any user, without an
+agent reaching an env or an env an agent.
 """
 
 from __future__ import annotations
