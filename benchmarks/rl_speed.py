@@ -1,7 +1,7 @@
 """Per-trial cost of the RL baselines: SB3 (torch's default threads and one thread) against SBX (JAX).
 
 In one run, for each algorithm, each implementation runs the comparison's own learner
-(:func:`ilc_steering.agents.rl.make_learner` through :func:`ilc_steering.compare.measure`:
+(:func:`ilc_steering.agents.rl.make_learner` through :func:`ilc_steering.compare.cells.measure`:
 every trial counted, deterministic trials included) on forward parking under
 ``prior=nominal`` with its packaged hyperparameters, for ``short`` and for ``long`` trials:
 
@@ -70,7 +70,7 @@ def _cell_seconds(algorithm: str, mode: str, scenario: str, trials: int, seed: i
 
     from ilc_steering.agents import rl
     from ilc_steering.agents.base import LearnerContext
-    from ilc_steering.compare import ENV_ID, measure
+    from ilc_steering.compare.cells import ENV_ID, measure
 
     backend = "sbx" if mode == "sbx" else "sb3"
     rl.TORCH_THREADS = 1 if mode == "sb3, 1 thread" else DEFAULT_THREADS

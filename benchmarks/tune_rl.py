@@ -2,7 +2,7 @@
 
 A small grid per algorithm around the packaged values, each candidate run on forward parking
 under ``prior=nominal`` for a few seeds with the comparison's own counting
-(:func:`ilc_steering.compare.measure`: every trial counts, deterministic trials included). A
+(:func:`ilc_steering.compare.cells.measure`: every trial counts, deterministic trials included). A
 candidate is ranked by how many seeds reach 1 cm / 0.01 rad, then by its median trials to 1 cm, then
 by its median best error. The
 sweep's own cost in trials is reported beside its table: the RL rows of the comparison stand on
@@ -89,7 +89,7 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
 
     from ilc_steering.agents import rl
     from ilc_steering.agents.base import LearnerContext
-    from ilc_steering.compare import ENV_ID, measure
+    from ilc_steering.compare.cells import ENV_ID, measure
 
     torch.set_num_threads(1)
     env = gym.make(ENV_ID, config=scenario)
@@ -103,7 +103,7 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
 def main(args: Args) -> list[dict[str, Any]]:
 
     from ilc_steering.agents import rl
-    from ilc_steering.backends import run_calls
+    from ilc_steering.engine.backends import run_calls
 
     unknown = [a for a in args.algorithms if a not in GRID]
     if unknown:

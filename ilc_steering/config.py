@@ -9,8 +9,8 @@ zero (``010``, octal 8 to YAML 1.1, 10 to YAML 1.2), a sexagesimal one (``1:30``
 1.1) and one with an underscore (``0.0_2``, 0.002 to YAML 1.1, text to YAML 1.2) are refused for
 a numeric key, naming the key and both readings; the same text under a string key stays text.
 ``1e-3`` is the number it looks like; merge keys (``<<: *defaults``) are
-honoured. A file is read through :mod:`ilc_steering.inputs`: its size checked before it is read
-(:data:`MAX_FILE_BYTES`), its nesting after (:data:`~ilc_steering.inputs.MAX_DEPTH`).
+honoured. A file is read through :mod:`ilc_steering.readers`: its size checked before it is read
+(:data:`MAX_FILE_BYTES`), its nesting after (:data:`~ilc_steering.readers.MAX_DEPTH`).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.errors import ConfigError, ParameterError
-from ilc_steering.inputs import MAX_DEPTH, check_depth, read_text
+from ilc_steering.readers import MAX_DEPTH, check_depth, read_text
 
 __all__ = [
     "CyclicTaskConfig",
@@ -540,7 +540,7 @@ def _depth(data: Any, origin: str) -> None:
 
 def _yaml(text: str, origin: str) -> Any:
     """Parse a config's YAML: safe types only, merge keys, no duplicate keys, integers read strictly,
-    at most :data:`MAX_VALUES` values and :data:`~ilc_steering.inputs.MAX_DEPTH` levels."""
+    at most :data:`MAX_VALUES` values and :data:`~ilc_steering.readers.MAX_DEPTH` levels."""
     import yaml
 
     merge = "tag:yaml.org,2002:merge"

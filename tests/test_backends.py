@@ -6,8 +6,9 @@ import math
 import pytest
 import ray
 
-from ilc_steering import compare, sweep
-from ilc_steering.backends import run_calls
+from ilc_steering.compare import command as compare
+from ilc_steering.engine.backends import run_calls
+from ilc_steering.sweep import command as sweep
 
 pytestmark = pytest.mark.slow  # a local Ray, and the quick comparison on it
 

@@ -16,7 +16,9 @@ import pytest
 from ilc_steering.agents import bayes_opt as bo
 from ilc_steering.agents import rl
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.compare import BLACKBOX, ENV_ID, RL, Args, measure, run_cell
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.cells import ENV_ID, measure, run_cell
+from ilc_steering.compare.command import BLACKBOX, RL
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.errors import ConfigError
 
@@ -179,7 +181,7 @@ def test_noisy_least_squares_bad_settings_are_one_line_errors() -> None:
 
 
 def test_bayes_opt_budget_is_its_own() -> None:
-    from ilc_steering.compare import budget
+    from ilc_steering.compare.cells import budget
 
     assert budget(Args(), "nominal", "bayes_opt", "forward_parking") == bo.MAX_TRIALS < Args().blackbox_trials
     assert budget(Args(blackbox_trials=40), "nominal", "bayes_opt", "forward_parking") == 40

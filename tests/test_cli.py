@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from ilc_steering import compare
 from ilc_steering.cli import main
+from ilc_steering.compare import command as compare
 
 
 def test_run_writes_json_and_exits_0_when_converged(tmp_path, capsys):

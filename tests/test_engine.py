@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_steering.backends import run_calls
-from ilc_steering.engine import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
+from ilc_steering.engine.backends import run_calls
+from ilc_steering.engine.runs import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
 
 # Calls a worker can run, as (function, args) importable in a spawned process, and what each must give.
 KINDS = {
@@ -124,7 +124,7 @@ def _server(behaviour):
 @settings(max_examples=6, deadline=None)
 @given(st.sampled_from(["silent", "garbage", "close"]), st.sampled_from(["", "ray://"]))
 def test_a_port_that_is_no_ray_cluster_is_refused_within_the_promised_time(behaviour, scheme):
-    from ilc_steering import backends
+    from ilc_steering.engine import backends
 
     listener, held = _server(behaviour)
     address = f"{scheme}127.0.0.1:{listener.getsockname()[1]}"
@@ -150,8 +150,8 @@ def test_a_port_that_is_no_ray_cluster_is_refused_within_the_promised_time(behav
 def test_a_cell_whose_trials_to_contradicts_itself_or_its_curve_is_refused(reached, costs):
     """A resumed or committed cell is checked by value: its levels in order, each met where its
     best-so-far curve allows it (both errors within a level: a cost of at most twice it)."""
-    from ilc_steering.compare_cells import _contradictions
-    from ilc_steering.compare_report import LADDER
+    from ilc_steering.compare.cells import _contradictions
+    from ilc_steering.compare.report import LADDER
 
     best = [min(costs[: i + 1]) for i in range(len(costs))]
     curve = [[i + 1, c] for i, c in enumerate(best) if i == 0 or c < best[i - 1]]
@@ -176,7 +176,7 @@ def test_a_report_path_that_is_a_folder_is_refused_before_any_cell(tmp_path, cap
 def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
     import json
 
-    from ilc_steering.against import read_committed
+    from ilc_steering.compare.against import read_committed
 
     (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
     cell = {"prior": "nominal", "method": "ilc", "scenario": "forward_parking", "seed": 0}

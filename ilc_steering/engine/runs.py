@@ -2,7 +2,7 @@
 
 ``compare`` (a cell: one learner on one scenario, seed and prior) and ``sweep`` (a row of a
 robustness map) are thin layers on it. A command resolves its arguments once into a frozen plan
-(:class:`~ilc_steering.compare.Plan`, :class:`~ilc_steering.sweep.Plan`): every option checked,
+(:class:`~ilc_steering.compare.plan.Plan`, :class:`~ilc_steering.sweep.command.Plan`): every option checked,
 every config loaded and hashed, every cell's key and budget known. The engine then
 
 1. prepares the run folder (:meth:`RunFolder.prepare`): ``run.json`` records the settings, the
@@ -12,7 +12,7 @@ every config loaded and hashed, every cell's key and budget known. The engine th
 2. holds an exclusive lock on it (:meth:`RunFolder.locked`): two runs never share a folder;
 3. reads every finished result back through the command's checker (a resume never trusts a file
    it did not check) and runs only the others (:func:`run_grid`), in worker processes or Ray
-   tasks (:mod:`~ilc_steering.backends`);
+   tasks (:mod:`~ilc_steering.engine.backends`);
 4. writes each result the moment it arrives (finish), or its error under ``failed/`` (fail,
    named on stderr too); a resume computes the failed ones again.
 """
@@ -31,7 +31,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
-from ilc_steering.backends import run_calls
+from ilc_steering.engine.backends import run_calls
+from ilc_steering.engine.provenance import check_code, machine, provenance
 from ilc_steering.output import (
     check_output_dir,
     check_output_file,
@@ -40,7 +41,6 @@ from ilc_steering.output import (
     record_session,
     write_json,
 )
-from ilc_steering.provenance import check_code, machine, provenance
 
 __all__ = [
     "DEFAULT_CELL_TIMEOUT",
@@ -200,7 +200,7 @@ def run_grid(
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
     ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`); when it is given, the
     cells run in worker processes that are killed at it, even with one worker
-    (:func:`~ilc_steering.backends.run_calls`).
+    (:func:`~ilc_steering.engine.backends.run_calls`).
     ``before(todo)`` is called once the cells to compute are known (a message)."""
     outcome: Outcome[K] = Outcome()
     with folder.locked():

@@ -1,7 +1,7 @@
 """What ``compare`` reports from its cells: summaries across seeds, tables, ratios and figures.
 
 One summary row per (prior, method, scenario): for each tolerance of
-:data:`~ilc_steering.compare.LADDER`, the median trials to it with the interquartile range (order
+:data:`~ilc_steering.compare.report.LADDER`, the median trials to it with the interquartile range (order
 statistics, so a seed that never got there stays ``inf``), a 95 % bootstrap confidence interval
 of the median, how many seeds got there, and how many of those counts are fragile (a relative
 change of 1e-6 in the error would move them: marked ``†`` in the tables); the best true cost, the

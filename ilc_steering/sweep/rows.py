@@ -23,10 +23,10 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.inputs import read_json
 from ilc_steering.loop import run_vector_trials
 from ilc_steering.oracle import SOLVED
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
+from ilc_steering.readers import read_json
 
 __all__ = [
     "MAX_GRID",

@@ -7,7 +7,7 @@ stops. Every point of the grid is a true robot, the config's with its two parame
 grid is one :class:`~ilc_steering.envs.steering_vector_env.ChainedSteeringVectorEnv` with
 ``true_factors``: one learner per plant, all stepped in lock-step, one compiled call per trial
 index (:func:`lockstep`). Each finished row is written at once, so a sweep resumes where it
-stopped, on the local machine or on Ray (``--backend ray``, see :mod:`ilc_steering.backends`).
+stopped, on the local machine or on Ray (``--backend ray``, see :mod:`ilc_steering.engine.backends`).
 
     ilc-steering sweep forward_parking --methods ilc_paper newton --nu-b 1 0.5 --out runs/sweep
 
@@ -35,45 +35,30 @@ import numpy as np
 
 from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
-from ilc_steering.backends import MAX_WORKERS, check_backend, check_workers
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine import Grid, RunFolder, check_timeout, run_grid
+from ilc_steering.engine.backends import MAX_WORKERS, check_backend, check_workers
+from ilc_steering.engine.runs import Grid, RunFolder, check_timeout, run_grid
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.inputs import read_json
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
-from ilc_steering.sweep_report import write_sweep_report
-from ilc_steering.sweep_rows import (
+from ilc_steering.readers import read_json
+from ilc_steering.sweep.report import write_sweep_report
+from ilc_steering.sweep.rows import (
     MAX_GRID,
     ORACLE,
     SweepArgs,
     axis_values,
     gain_text,
-    lockstep,
     map_name,
     read_oracle,
     read_row,
     row_name,
-    row_path,
     row_plants,
     run_oracle,
     run_row,
 )
 
-__all__ = [
-    "Plan",
-    "SweepArgs",
-    "gain_text",
-    "lockstep",
-    "main",
-    "main_with_failures",
-    "plan",
-    "read_row",
-    "row_path",
-    "run_all",
-    "run_row",
-    "run_rows",
-]
+__all__ = ["Plan", "main", "main_with_failures", "plan", "run_all", "run_rows"]
 
 Row = tuple[str, float, int]
 """A row's (method, gain, row index)."""
@@ -234,7 +219,7 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
 
 
 def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]]], list[dict[str, Any]]]:
-    """Run the rows of ``the_plan`` on the engine (:func:`~ilc_steering.engine.run_grid`): each
+    """Run the rows of ``the_plan`` on the engine (:func:`~ilc_steering.engine.runs.run_grid`): each
     finished row is written the moment it finishes, a failed one under ``failed/``."""
     args = the_plan.args
     if the_plan.warning is not None:

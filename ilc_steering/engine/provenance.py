@@ -1,6 +1,6 @@
 """What made a run's results, and whether the code in the tree would make them again.
 
-Every run folder's ``run.json`` (``compare`` and ``sweep``, :class:`~ilc_steering.engine.RunFolder`)
+Every run folder's ``run.json`` (``compare`` and ``sweep``, :class:`~ilc_steering.engine.runs.RunFolder`)
 records under ``"provenance"``:
 
 - ``code``: a content hash of the code that makes the results (:data:`CODE`: the simulator and
@@ -41,7 +41,10 @@ CODE: dict[str, tuple[str, ...]] = {
     "ilc_steering.agents": ("**/*.py",),
     "ilc_steering.envs": ("**/*.py",),
     "ilc_steering.configs": ("rl/*.yaml",),
-    "ilc_steering": ("loop.py", "config.py", "runner.py", "oracle.py", "compare_cells.py", "sweep_rows.py"),
+    "ilc_steering": (
+        *("errors.py", "entries.py", "boxes.py", "loop.py", "config.py", "runner.py", "oracle.py"),
+        *("compare/cells.py", "sweep/rows.py"),  # files, not imports: the engine names no command
+    ),
 }
 """The code that makes a run's results: package -> glob patterns of its files. The scenario
 configs are not here: each run records the content hash of every config it used."""
@@ -135,7 +138,7 @@ def _provenance() -> tuple[tuple[str, Any], ...]:
 
 
 def provenance() -> Provenance:
-    """What :mod:`this module <ilc_steering.provenance>` records of the code in this process
+    """What :mod:`this module <ilc_steering.engine.provenance>` records of the code in this process
     (computed once per process)."""
     return dict(_provenance())
 
@@ -179,8 +182,8 @@ def freshness(folder: Path) -> tuple[bool, list[str]]:
     from dataclasses import asdict
 
     from ilc_steering.config import load_config, packaged_configs
-    from ilc_steering.inputs import read_json
     from ilc_steering.output import content_hash
+    from ilc_steering.readers import read_json
 
     path = folder / "run.json"
     stored = read_json(path, 1 << 24)

@@ -8,7 +8,7 @@ A Markdown file holds a generated table between two markers::
 
 ``ilc-steering tables docs/compare --into README.md docs/comparison.md`` rewrites every such block
 from the run's ``compare.json`` (its cells, summarized as ``compare`` summarizes them,
-:mod:`~ilc_steering.compare_report`); ``--check`` rewrites nothing and exits 1 if a block differs,
+:mod:`~ilc_steering.compare.report`); ``--check`` rewrites nothing and exits 1 if a block differs,
 which is what the tests run: a table in the docs is always the committed run's.
 """
 
@@ -20,7 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.compare_report import (
+from ilc_steering.compare.report import (
     LADDER_NAMES,
     _iqm_table,
     _main_table,
@@ -29,8 +29,8 @@ from ilc_steering.compare_report import (
     ratios,
     summarize,
 )
-from ilc_steering.inputs import read_json, read_text
 from ilc_steering.output import write_atomic
+from ilc_steering.readers import read_json, read_text
 from ilc_steering.tables import markdown_table
 
 __all__ = ["BLOCK", "TABLES", "budget_check", "check", "headline", "render", "write"]
