@@ -25,7 +25,8 @@ def test_the_top_level_folders_are_linked_into_the_package(link):
 def test_the_clones_own_modules_import_from_its_root():
     code = (
         "import ilc_steering, ilc_steering.agents, ilc_steering.envs.steering_env, ilc_steering.config as c\n"
-        "print(ilc_steering.__file__); print(ilc_steering.agents.__file__); print(c.load_config('forward_parking').name)"
+        "print(ilc_steering.__file__); print(ilc_steering.agents.__file__)\n"
+        "print(c.load_config('forward_parking').name)"
     )
     result = run_from_root("-c", code)
     assert result.returncode == 0, result.stderr[-2000:]
