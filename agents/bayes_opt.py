@@ -39,13 +39,9 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
 
-__all__ = ["MAX_TRIALS", "bayes_opt"]
+__all__ = ["bayes_opt"]
 
 Array = npt.NDArray[np.float64]
-MAX_TRIALS = 300
-"""The budget ``compare`` gives ``bayes_opt`` at most [trials]: BO is the method for a few hundred
-expensive trials, and its GP costs about 0.05-0.2 s a trial here (2 cores, ``max_points`` = 64),
-against under 2 ms for every other black-box method."""
 REFIT_EVERY = 8
 """Trials between two fits of the GP's hyperparameters (a change of the trust region refits too)."""
 COST_FLOOR = 1e-12

@@ -46,8 +46,6 @@ from ilc_steering.boxes import SearchBox
 from ilc_steering.core.score import OFF_CHART_PENALTY
 
 __all__ = [
-    "BLACKBOX_METHODS",
-    "bayes_opt",
     "cma_es",
     "gauss_newton",
     "least_squares",
@@ -228,27 +226,9 @@ def noisy_least_squares(
                 inverse = np.linalg.pinv(jacobian(x, r))
 
 
-def bayes_opt(env: gym.Env[Any, Any], context: LearnerContext) -> None:
-    """TuRBO-1 with BoTorch on the log cost: :func:`ilc_steering.agents.bayes_opt.bayes_opt`."""
-    from ilc_steering.agents.bayes_opt import bayes_opt as turbo
-
-    turbo(env, context)
-
-
-BLACKBOX_METHODS: dict[str, Optimizer] = {
-    "least_squares": least_squares,
-    "noisy_least_squares": noisy_least_squares,
-    "bayes_opt": bayes_opt,
-    "gauss_newton": gauss_newton,
-    "nelder_mead": nelder_mead,
-    "cma_es": cma_es,
-}
-
-
-def make_learner(method: str, context: LearnerContext) -> PullLearner:
-    """Black-box ``method`` (a key of :data:`BLACKBOX_METHODS`) as a learner, seeded with
-    ``context.seed``, in the search box of the context's prior."""
-    optimizer = BLACKBOX_METHODS[method]
+def make_learner(optimizer: Optimizer, context: LearnerContext) -> PullLearner:
+    """A black-box ``optimizer(env, context)`` (a spec's entry in the registry) as a learner,
+    seeded with ``context.seed``, in the search box of the context's prior."""
 
     def run(env: gym.Env[Any, Any]) -> None:
         optimizer(SearchBox(env, *context.search_box()), context)

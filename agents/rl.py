@@ -56,6 +56,7 @@ import yaml
 
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import PRIORS, LearnerContext
+from ilc_steering.agents.registry import REGISTRY, RLAlgorithm, ids
 from ilc_steering.boxes import SearchBox
 from ilc_steering.errors import ConfigError
 
@@ -78,7 +79,8 @@ __all__ = [
     "train",
 ]
 
-RL_ALGORITHMS = ("ppo", "sac", "td3", "crossq", "tqc")
+RL_ALGORITHMS = ids("RL")
+"""The RL method ids (a view of the registry, which holds each algorithm's facts: :class:`RLAlgorithm`)."""
 RL_BACKENDS = ("sbx", "sb3")
 """``sbx``: SBX (JAX); ``sb3``: Stable-Baselines3 and sb3-contrib (PyTorch), the reference."""
 BACKEND_VARIABLE = "ILC_STEERING_RL_BACKEND"
@@ -88,10 +90,7 @@ TORCH_THREADS = 1
 """torch's intra-op threads while :func:`train` runs on SB3 (restored when it returns)."""
 REWARD_FLOOR = 1e-9
 """The smallest cost the log reward tells apart [m + rad]."""
-_CLASS_NAMES = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "crossq": "CrossQ", "tqc": "TQC"}
-_SB3_MODULE = {"ppo": "stable_baselines3", "sac": "stable_baselines3", "td3": "stable_baselines3"}
 _DISTRIBUTIONS = {"stable_baselines3": "stable-baselines3", "sb3_contrib": "sb3-contrib", "sbx": "sbx-rl"}
-_SQUASHED = ("sac", "crossq", "tqc")  # a squashed-Gaussian actor: mean and log-std layers
 _OWN_KEYS = {
     "n_timesteps",
     "noise_std",
@@ -128,17 +127,27 @@ def backend_setting(methods: Iterable[str]) -> dict[str, str]:
 
 
 def _module(algorithm: str, backend: str) -> str:
-    if algorithm not in RL_ALGORITHMS:
-        raise ValueError(f"algorithm must be one of {RL_ALGORITHMS}, got {algorithm!r}")
     if backend not in RL_BACKENDS:
         raise ValueError(f"backend must be one of {RL_BACKENDS}, got {backend!r}")
-    return "sbx" if backend == "sbx" else _SB3_MODULE.get(algorithm, "sb3_contrib")
+    return "sbx" if backend == "sbx" else _algorithm(algorithm).sb3_module
+
+
+def _algorithm(algorithm: str) -> RLAlgorithm:
+    """The registry's facts of RL method ``algorithm``; ``ValueError`` for any other id."""
+    spec = REGISTRY.get(algorithm)
+    if spec is None or spec.rl is None:
+        raise ValueError(f"algorithm must be one of {RL_ALGORITHMS}, got {algorithm!r}")
+    return spec.rl
+
+
+def _squashed(algorithm: str) -> bool:
+    return _algorithm(algorithm).actor == "squashed"
 
 
 def algorithm_class(algorithm: str, backend: str | None = None) -> type[Any]:
     """The class of ``algorithm`` on ``backend`` (default: :func:`rl_backend`)."""
     module = _module(algorithm, backend or rl_backend())
-    return getattr(import_module(module), _CLASS_NAMES[algorithm])  # type: ignore[no-any-return]
+    return getattr(import_module(module), _algorithm(algorithm).class_name)  # type: ignore[no-any-return]
 
 
 def implementation(algorithm: str, backend: str | None = None) -> str:
@@ -201,8 +210,8 @@ def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) ->
         raise ConfigError(f"{where}.n_timesteps: missing; the budget, an integer >= 1 [trials]")
     params = {key: check_value(key, value, f"{where}.{key}") for key, value in params.items()}
     std = params.get("initial_std")
-    if std is not None and (algorithm not in _SQUASHED or not isinstance(std, float) or not 0 < std <= 1):
-        names = ", ".join(_CLASS_NAMES[a] for a in _SQUASHED)
+    if std is not None and (not _squashed(algorithm) or not isinstance(std, float) or not 0 < std <= 1):
+        names = ", ".join(_algorithm(a).class_name for a in RL_ALGORITHMS if _squashed(a))
         raise ConfigError(f"{where}.initial_std: {names} only, a number in (0, 1] [search units]")
     return params
 
@@ -302,9 +311,9 @@ def _deterministic_trials(env: gym.Env[Any, Any], every: int) -> Any:
 def _start_at_centre_sb3(model: Any, algorithm: str, initial_std: float | None) -> None:
     import torch
 
-    if algorithm == "td3":
+    if _algorithm(algorithm).actor == "deterministic":  # TD3: the action layer and its target's
         layers = [model.actor.mu[-2], model.actor_target.mu[-2]]
-    elif algorithm in _SQUASHED:
+    elif _squashed(algorithm):
         layers = [model.actor.mu]
     else:
         layers = [model.policy.action_net]
@@ -312,7 +321,7 @@ def _start_at_centre_sb3(model: Any, algorithm: str, initial_std: float | None) 
         for layer in layers:
             layer.weight.zero_()
             layer.bias.zero_()
-        if algorithm in _SQUASHED and initial_std is not None:
+        if _squashed(algorithm) and initial_std is not None:
             model.actor.log_std.weight.zero_()
             model.actor.log_std.bias.fill_(math.log(initial_std))
 
@@ -327,16 +336,16 @@ def _start_at_centre_sbx(model: Any, algorithm: str, initial_std: float | None) 
     params = jax.tree_util.tree_map(lambda leaf: leaf, state.params)  # a mutable copy of the tree
     layers = params.get("params", params)  # CrossQ's actor keeps its batch statistics apart, without the level
     dense = sorted((name for name in layers if name.startswith("Dense_")), key=lambda name: int(name[6:]))
-    mean = dense[-2] if algorithm in _SQUASHED else dense[-1]
+    mean = dense[-2] if _squashed(algorithm) else dense[-1]
     layers[mean] = jax.tree_util.tree_map(jnp.zeros_like, layers[mean])
-    if algorithm in _SQUASHED and initial_std is not None:
+    if _squashed(algorithm) and initial_std is not None:
         log_std = layers[dense[-1]]
         layers[dense[-1]] = {
             "kernel": jnp.zeros_like(log_std["kernel"]),
             "bias": jnp.full_like(log_std["bias"], math.log(initial_std)),
         }
     changes: dict[str, Any] = {"params": params}
-    if algorithm == "td3":
+    if _algorithm(algorithm).actor == "deterministic":
         changes["target_params"] = params
     model.policy.actor_state = state.replace(**changes)
 
@@ -406,7 +415,7 @@ def build(
         kwargs["action_noise"] = NormalActionNoise(np.zeros(size), params["noise_std"] * np.ones(size))
     if "learning_starts" in kwargs:
         kwargs["learning_starts"] = min(kwargs["learning_starts"], trials)
-    if "n_steps" in kwargs and algorithm == "ppo":
+    if "n_steps" in kwargs and _algorithm(algorithm).on_policy:
         kwargs["n_steps"] = min(kwargs["n_steps"], trials)
         kwargs["batch_size"] = min(kwargs.get("batch_size", 64), kwargs["n_steps"])
     model = cls(env=env, seed=seed, device="cpu", verbose=0, **kwargs)

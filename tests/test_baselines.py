@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ilc_steering.agents import bayes_opt as bo
-from ilc_steering.agents import rl
+from ilc_steering.agents import registry, rl
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.compare.args import Args
 from ilc_steering.compare.cells import ENV_ID, measure, run_cell
@@ -166,7 +166,7 @@ def test_noisy_least_squares_reaches_the_noisy_tolerance_where_least_squares_doe
     reached = {}
     for method in ("least_squares", "noisy_least_squares"):
         env, context = context_of("forward_parking_noisy", seed=0)
-        result = measure(env, blackbox.make_learner(method, context), 300, 0)
+        result = measure(env, blackbox.make_learner(getattr(blackbox, method), context), 300, 0)
         reached[method] = result["trials_to"]["0.5mm"]
     assert reached["least_squares"] is None
     assert reached["noisy_least_squares"] is not None and reached["noisy_least_squares"] <= 300
@@ -183,6 +183,10 @@ def test_noisy_least_squares_bad_settings_are_one_line_errors() -> None:
 def test_bayes_opt_budget_is_its_own() -> None:
     from ilc_steering.compare.cells import budget
 
-    assert budget(Args(), "nominal", "bayes_opt", "forward_parking") == bo.MAX_TRIALS < Args().blackbox_trials
+    assert (
+        budget(Args(), "nominal", "bayes_opt", "forward_parking")
+        == registry.lookup("bayes_opt").max_trials
+        < Args().blackbox_trials
+    )
     assert budget(Args(blackbox_trials=40), "nominal", "bayes_opt", "forward_parking") == 40
     assert math.isfinite(bo.COST_FLOOR)

@@ -127,10 +127,10 @@ LEARNERS = {
     "ilc_nominal": lambda ctx: ILCAgent(ctx.model, start=ctx.first_action()),
     "newton": make_newton,
     "newton_ilc": make_newton_ilc,
-    "least_squares": lambda ctx: blackbox.make_learner("least_squares", ctx),
-    "gauss_newton": lambda ctx: blackbox.make_learner("gauss_newton", ctx),
-    "nelder_mead": lambda ctx: blackbox.make_learner("nelder_mead", ctx),
-    "cma_es": lambda ctx: blackbox.make_learner("cma_es", ctx),
+    "least_squares": lambda ctx: blackbox.make_learner(blackbox.least_squares, ctx),
+    "gauss_newton": lambda ctx: blackbox.make_learner(blackbox.gauss_newton, ctx),
+    "nelder_mead": lambda ctx: blackbox.make_learner(blackbox.nelder_mead, ctx),
+    "cma_es": lambda ctx: blackbox.make_learner(blackbox.cma_es, ctx),
     "ppo": lambda ctx: rl.make_learner("ppo", rl.hyperparameters("ppo", "forward_parking"), 12, False, ctx),
 }
 

@@ -131,17 +131,11 @@ def _progress(cell: dict[str, Any]) -> str:
     )
 
 
-TRIAL_SECONDS = {"model-based": 0.03, "black-box": 7e-4, "RL": 5e-3, "yours": 0.01}
-"""A rough cost of one trial [s] per family (``bayes_opt``: :data:`BAYES_OPT_TRIAL_SECONDS`), measured
-on this machine: the cells run longest first, and the progress bar's estimate starts from it."""
-BAYES_OPT_TRIAL_SECONDS = 0.1
-
-
 def expected_seconds(method: str, budget: int) -> float:
-    """A cell's rough cost [s]: its budget times :data:`TRIAL_SECONDS` of its family."""
-    family = "yours" if registry.is_custom(method) else registry.REGISTRY[method].family
-    per_trial = BAYES_OPT_TRIAL_SECONDS if method == "bayes_opt" else TRIAL_SECONDS[family]
-    return 1.0 + budget * per_trial
+    """A cell's rough cost [s], from the spec's cost of a trial (the cells run longest first, and
+    the progress bar's estimate starts from it)."""
+    spec = registry.REGISTRY.get(method)  # a user's learner: the spec's default cost of a trial
+    return 1.0 + (spec.expected_seconds(budget) if spec else registry.LearnerSpec.trial_seconds * budget)
 
 
 def workers(args: Args) -> int:
