@@ -52,13 +52,13 @@ from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
-import yaml
 
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import PRIORS, LearnerContext
 from ilc_steering.agents.registry import REGISTRY, RLAlgorithm, ids
 from ilc_steering.boxes import SearchBox
 from ilc_steering.errors import ConfigError
+from ilc_steering.yaml_reader import load_yaml
 
 __all__ = [
     "BACKEND_VARIABLE",
@@ -172,7 +172,7 @@ def hyperparameters(algorithm: str, scenario: str, prior: str = "nominal") -> di
     _module(algorithm, "sb3")
     if prior not in PRIORS:
         raise ValueError(f"prior must be one of {list(PRIORS)}, got {prior!r}")
-    table = yaml.safe_load((resources.files("ilc_steering.configs") / "rl" / f"{algorithm}.yaml").read_text())
+    table = load_yaml((resources.files("ilc_steering.configs") / "rl" / f"{algorithm}.yaml").read_text(), source)
     section = table.get(prior) if isinstance(table, dict) else None
     if not isinstance(section, dict):
         raise ConfigError(f"{source}: no section for prior {prior!r}")

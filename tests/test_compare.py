@@ -18,7 +18,7 @@ from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperpa
 from ilc_steering.boxes import RESIDUAL_SCALE
 from ilc_steering.compare import cells as compare_cells
 from ilc_steering.compare import command as compare
-from ilc_steering.compare import report as compare_report
+from ilc_steering.compare import stats as compare_report
 from ilc_steering.compare.args import Args
 from ilc_steering.compare.cells import TrialLog, run_cell
 from ilc_steering.compare.command import run_cells

@@ -102,7 +102,7 @@ def test_bad_configs_name_the_key_and_the_file(tmp_path, changes, message):
 
 def test_nan_in_yaml_is_rejected(tmp_path):
     text = ISSUE_EXAMPLE.replace("start: [-1.0,", "start: [.nan,")
-    with pytest.raises(ConfigError, match=r"task\.start: values must be finite"):
+    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a finite number"):
         load_config(write(tmp_path, text))
 
 
@@ -122,5 +122,5 @@ def test_unknown_names_and_files():
 
 def test_an_integer_too_large_for_a_float_is_a_config_error(tmp_path):
     path = write(tmp_path, ISSUE_EXAMPLE.replace("start: [-1.0,", "start: [" + "9" * 400 + ","))
-    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a number a float can hold"):
+    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a finite number"):
         load_config(path)

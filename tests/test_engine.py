@@ -151,7 +151,7 @@ def test_a_cell_whose_trials_to_contradicts_itself_or_its_curve_is_refused(reach
     """A resumed or committed cell is checked by value: its levels in order, each met where its
     best-so-far curve allows it (both errors within a level: a cost of at most twice it)."""
     from ilc_steering.compare.cells import _contradictions
-    from ilc_steering.compare.report import LADDER
+    from ilc_steering.compare.stats import LADDER
 
     best = [min(costs[: i + 1]) for i in range(len(costs))]
     curve = [[i + 1, c] for i, c in enumerate(best) if i == 0 or c < best[i - 1]]

@@ -20,15 +20,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.compare.report import (
-    LADDER_NAMES,
-    _iqm_table,
-    _main_table,
-    _ratio_table,
-    _statistic,
-    ratios,
-    summarize,
-)
+from ilc_steering.compare.report import iqm_table, main_table, ratio_table, statistic
+from ilc_steering.compare.stats import LADDER_NAMES, ratios, summarize
 from ilc_steering.output import write_atomic
 from ilc_steering.readers import read_json, read_text
 from ilc_steering.tables import markdown_table
@@ -55,7 +48,7 @@ def headline(rows: list[dict[str, Any]], level: str, prior: str = "nominal") -> 
                 line.append("")
                 continue
             entry = row[f"trials_to_{level}"]
-            line.append(f"{_statistic(entry, 'median', row['budget'])} ({entry['reached']}/{row['seeds']})")
+            line.append(f"{statistic(entry, 'median', row['budget'])} ({entry['reached']}/{row['seeds']})")
         lines.append(line)
     header = ["method", *(s.replace("_", " ") for s in scenarios)]
     return markdown_table(header, lines, [False, *[True] * len(scenarios)])
@@ -107,11 +100,11 @@ TABLES: dict[str, Callable[[list[dict[str, Any]], list[dict[str, Any]], dict[str
     "budget-check": lambda rows, entries, run: budget_check(run["cells"]),
     "headline-1cm": lambda rows, entries, run: headline(rows, "1cm"),
     "headline-0.5mm": lambda rows, entries, run: headline(rows, "0.5mm"),
-    "nominal": lambda rows, entries, run: _main_table(rows, "nominal"),
-    "none": lambda rows, entries, run: _main_table(rows, "none"),
-    "iqm-nominal": lambda rows, entries, run: _iqm_table(rows, "nominal"),
-    "iqm-none": lambda rows, entries, run: _iqm_table(rows, "none"),
-    "ratios": lambda rows, entries, run: _ratio_table(entries, ["black-box", "RL"]),
+    "nominal": lambda rows, entries, run: main_table(rows, "nominal"),
+    "none": lambda rows, entries, run: main_table(rows, "none"),
+    "iqm-nominal": lambda rows, entries, run: iqm_table(rows, "nominal"),
+    "iqm-none": lambda rows, entries, run: iqm_table(rows, "none"),
+    "ratios": lambda rows, entries, run: ratio_table(entries, ["black-box", "RL"]),
     "budgets": lambda rows, entries, run: f"Budgets [trials]: {_budgets(rows)}.\n",
     "run": lambda rows, entries, run: _run_line(run),
 }
