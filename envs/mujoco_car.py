@@ -3,12 +3,15 @@ r"""A car-like robot in MuJoCo as an external plant: wheels that roll on contact
 ## Description
 
 The car is written as MJCF (:func:`mjcf`, a template filled from the config's geometry): a
-chassis on a free joint, four cylinder wheels touching a floor plane through MuJoCo's soft
-contacts with Coulomb friction (elliptic cones), a position-controlled steering linkage on the
-front wheels (one hinge per wheel about the vertical, its angle set by the Ackermann rule
-:func:`ackermann` from the bicycle angle ``phi``) and velocity-controlled rear wheels (an
-electronic differential: each wheel's speed is the one that rolls it without slip on the
-bicycle's turn). At the paper's scale: wheelbase ``ell`` = 0.2 m, wheel radius ``rho`` = 0.02 m
+chassis on a free joint, four wheels touching a floor plane through MuJoCo's soft contacts with
+Coulomb friction (elliptic cones), a position-controlled steering linkage on the front wheels
+(one hinge per wheel about the vertical, its angle set by the Ackermann rule :func:`ackermann`
+from the bicycle angle ``phi``) and velocity-controlled rear wheels (an electronic differential:
+each wheel's speed is the one that rolls it without slip on the bicycle's turn). The wheels are
+thin ellipsoids, which touch the floor at one point: a cylinder touches it at its two rims,
+whose friction scrubs in every turn (with cylinders the nominal forward parking ended 3.1 cm
+from the kinematic car's end, with ellipsoids 1.8 cm). At the paper's scale: wheelbase ``ell``
+= 0.2 m, wheel radius ``rho`` = 0.02 m, track 0.12 m, a 1 kg chassis on 30 g wheels
 (section 5, ``configs/forward_parking.yaml``).
 
 :class:`MujocoCarPlant` runs one trial as highway's adapter does (:mod:`ilc_steering.envs.highway`):
