@@ -353,7 +353,7 @@ class MujocoCarPlant(ExternalPlantBase):
             q = self._measure(sim)
             states.append(q)
         final = q if status == OK else halted
-        log = {"seed": config.seed, "trial": self.shared.trials, "friction": friction.tolist()}
+        log = {"seed": config.seed, "friction": friction.tolist()}
         return final, status, np.array(states), log
 
     def _follow(self, v1s: Array, v2s: Array, first: int, q: Array) -> tuple[float, float, float]:
