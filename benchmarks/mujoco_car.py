@@ -8,11 +8,13 @@ Two tables, for each of the packaged MuJoCo configs:
   simulated seconds per wall second, all measured in this one run;
 - **learners**: ``ilc-steering run CONFIG --learner ID --trials 15`` for each learner, counted from
   the first trial: the first within 1 cm / 0.01 rad, whether the last five all stay inside, their
-  worst errors.
+  worst errors;
+- **scatter sweep**: the scatter config with each ``friction_spread`` of ``spreads``: its
+  repeatability and the learners' runs, to see where the scatter outgrows the target.
 
     python benchmarks/mujoco_car.py [--quick] [--out DIR]
 
-writes ``mujoco_repeatability.{csv,json,md}`` and ``mujoco_learners.{csv,json,md}`` (committed in
+writes ``mujoco_repeatability``, ``mujoco_learners`` and ``mujoco_spread`` ``.{csv,json,md}`` (committed in
 ``docs/mujoco``, quoted by ``docs/mujoco.md``).
 """
 
@@ -20,13 +22,13 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ilc_steering.config import load_config
+from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.runner import run_ilc
 from ilc_steering.tables import markdown_table, write_results
@@ -57,13 +59,24 @@ class Args:
     """Trials per run."""
     last: int = 5
     """The last trials of a run that must all stay within the target."""
+    scatter: str = "mujoco_forward_parking_scatter"
+    """The config whose ``friction_spread`` the sweep varies."""
+    spreads: tuple[float, ...] = (0.1, 0.2, 0.4, 0.8)
+    """The sweep's ``friction_spread`` values (relative spread of each wheel's friction per trial)."""
     out: Path = Path("docs/mujoco")
     """Where the tables go."""
 
 
-def repeatability(name: str, repeats: int) -> dict[str, Any]:
-    """``repeats`` trials of the nominal solution on a fresh plant of config ``name``."""
-    scenario = Scenario.from_config(load_config(CONFIGS / f"{name}.yaml"))
+def config(name: str, spread: float | None = None) -> SteeringConfig:
+    """Packaged config ``name``, its ``friction_spread`` replaced by ``spread`` if given."""
+    loaded = load_config(CONFIGS / f"{name}.yaml")
+    return loaded if spread is None else replace(loaded, plant=replace(loaded.plant, friction_spread=spread))
+
+
+def repeatability(name: str, repeats: int, spread: float | None = None) -> dict[str, Any]:
+    """``repeats`` trials of the nominal solution on a fresh plant of config ``name`` (its
+    ``friction_spread`` replaced by ``spread`` if given)."""
+    scenario = Scenario.from_config(config(name, spread))
     c = np.repeat(scenario.nominal.solve()[None], repeats, axis=0)
     scenario.run(c[:1])  # the plant settles on its tyres once, when first used: not timed
     wall, cpu = time.perf_counter(), time.process_time()
@@ -88,10 +101,11 @@ def repeatability(name: str, repeats: int) -> dict[str, Any]:
     }
 
 
-def learner_run(name: str, learner: str, trials: int, last: int) -> dict[str, Any]:
-    """A run of ``learner`` on config ``name`` (the env's seed 1, as ``ilc-steering run``)."""
+def learner_run(name: str, learner: str, trials: int, last: int, spread: float | None = None) -> dict[str, Any]:
+    """A run of ``learner`` on config ``name`` (the env's seed 1, as ``ilc-steering run``; its
+    ``friction_spread`` replaced by ``spread`` if given)."""
     start = time.perf_counter()
-    result = run_ilc(CONFIGS / f"{name}.yaml", trials=trials, learner=learner)
+    result = run_ilc(config(name, spread), trials=trials, learner=learner)
     seconds = time.perf_counter() - start
     cartesian = [r.cartesian_error or 0.0 for r in result.trials]
     orientation = [r.orientation_error or 0.0 for r in result.trials]
@@ -113,10 +127,11 @@ def learner_run(name: str, learner: str, trials: int, last: int) -> dict[str, An
     }
 
 
-def main(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def main(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
     configs, learners, repeats, trials, last = args.configs, args.learners, args.repeats, args.trials, args.last
+    spreads = args.spreads
     if args.quick:
-        configs, learners, repeats, trials, last = configs[:1], learners[:1], 3, 3, 1
+        configs, learners, repeats, trials, last, spreads = configs[:1], learners[:1], 3, 3, 1, spreads[:1]
     spread = [repeatability(name, repeats) for name in configs]
     for row in spread:
         print(row, flush=True)
@@ -189,9 +204,45 @@ def main(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
         f"and the last {last} inside.\n",
         {"trials": trials, "last": last},
     )
+    sweep = []
+    for value in spreads:
+        scattered = repeatability(args.scatter, repeats, value)
+        for learner in learners:
+            sweep.append(
+                {"friction_spread": value, **scattered, **learner_run(args.scatter, learner, trials, last, value)}
+            )
+            print(sweep[-1], flush=True)
+    swept = markdown_table(
+        ["friction spread", "std x [mm]", "std y [mm]", "std θ [mrad]", "learner", "to 1 cm", f"last {last} inside",
+         f"worst of last {last} [mm]", f"worst of last {last} [mrad]"],
+        [
+            [
+                f"{r['friction_spread']:g}",
+                f"{1e3 * r['std_x_m']:.3g}",
+                f"{1e3 * r['std_y_m']:.3g}",
+                f"{1e3 * r['std_theta_rad']:.3g}",
+                r["learner"],
+                str(r["trials_to_1cm"] or f"> {trials}"),
+                "yes" if r["last_inside"] else "no",
+                f"{1e3 * r['last_worst_m']:.3g}",
+                f"{1e3 * r['last_worst_rad']:.3g}",
+            ]
+            for r in sweep
+        ],
+        [True, True, True, True, False, True, True, True, True],
+    )  # fmt: skip
+    write_results(
+        sweep,
+        args.out,
+        "mujoco_spread",
+        f"{swept}\n{args.scatter} with each friction spread: the std of {repeats} repeats of the nominal "
+        f"solution, and {trials} trials per run.\n",
+        {"repeats": repeats, "trials": trials, "last": last, "config": args.scatter},
+    )
     print(table)
     print(results)
-    return spread, runs
+    print(swept)
+    return spread, runs, sweep
 
 
 if __name__ == "__main__":
@@ -202,4 +253,5 @@ if __name__ == "__main__":
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--learners", default=",".join(Args.learners))
     cli = parser.parse_args()
-    main(Args(cli.quick, Args.configs, tuple(cli.learners.split(",")), cli.repeats, cli.trials, Args.last, cli.out))
+    learners = tuple(cli.learners.split(","))
+    main(Args(quick=cli.quick, learners=learners, repeats=cli.repeats, trials=cli.trials, out=cli.out))

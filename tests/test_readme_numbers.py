@@ -129,7 +129,7 @@ def test_the_slow_tiers_time_is_the_logged_run():
 def test_the_mujoco_page_quotes_its_artifacts():
     # benchmarks/mujoco_car.py's tables, as written; and the page's words match their numbers.
     page = (ROOT / "docs/mujoco.md").read_text()
-    for stem in ("mujoco_repeatability", "mujoco_learners"):
+    for stem in ("mujoco_repeatability", "mujoco_learners", "mujoco_spread"):
         assert (ROOT / f"docs/mujoco/{stem}.md").read_text().strip() in page, stem
     runs = json.loads((ROOT / "docs/mujoco/mujoco_learners.json").read_text())["rows"]
     smooth = [r for r in runs if not r["config"].endswith("_scatter")]
