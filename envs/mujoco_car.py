@@ -73,6 +73,20 @@ SUBSTEPS = 2
 """RK4 steps of the nominal closed loop over one control period (the adapter's prediction)."""
 STEER_JOINT_RANGE = 1.5
 """[rad] the front wheels' hinge stops (past any wheel angle :func:`ackermann` asks within the limit)."""
+WHEEL_HALF_WIDTH = 0.4
+"""A wheel's half-width, in wheel radii."""
+MASS_RANGE = (0.01, 100.0)
+"""[kg] the chassis' mass a config may give."""
+MAX_FRICTION = 5.0
+"""The largest tyre-floor friction coefficient a config may give [-]."""
+MAX_FRICTION_SPREAD = 1.0
+"""The largest relative spread of the wheels' friction per trial [-]."""
+TIMESTEP_RANGE = (1e-4, 5e-3)
+"""[s] MuJoCo's step a config may give."""
+MAX_CONTACT_TIME = 0.1
+"""[s] the softest contact (MuJoCo's ``solref`` time constant) a config may give."""
+MAX_STEPS_PER_PERIOD = 1000
+"""The most MuJoCo steps in one control period."""
 
 
 def ackermann(phi: float, wheelbase: float, track: float) -> tuple[float, float]:
@@ -164,7 +178,7 @@ def mjcf(config: MujocoCarConfig) -> str:
     return _MJCF.format(
         timestep=config.timestep,
         rho=rho,
-        half_width=0.4 * rho,
+        half_width=WHEEL_HALF_WIDTH * rho,
         wheel_mass=WHEEL_MASS,
         friction=config.friction,
         contact_time=config.contact_time,
@@ -409,33 +423,63 @@ class MujocoCarConfig:
         require_length("wheelbase", self.wheelbase)
         require_length("wheel_radius", self.wheel_radius)
         require_length("track", self.track)
-        require(isfinite(self.mass) and 0.01 <= self.mass <= 100, "mass", f"must be in [0.01, 100] kg, got {self.mass}")
-        limit = self.steering_limit
-        require(isfinite(limit) and 0 < limit <= 1.3, "steering_limit", f"must be in (0, 1.3] rad, got {limit}")
         require(
-            isfinite(self.friction) and 0 < self.friction <= 5, "friction", f"must be in (0, 5], got {self.friction}"
+            self.track >= 4 * WHEEL_HALF_WIDTH * self.wheel_radius,
+            "track",
+            f"must leave room for the chassis between the wheels (at least {4 * WHEEL_HALF_WIDTH:g} wheel_radius "
+            f"= {4 * WHEEL_HALF_WIDTH * self.wheel_radius:g} m), got {self.track}",
+        )
+        low, high = MASS_RANGE
+        require(
+            isfinite(self.mass) and low <= self.mass <= high, "mass", f"must be in [{low}, {high}] kg, got {self.mass}"
+        )
+        limit = self.steering_limit
+        require(
+            isfinite(limit) and 0 < limit < pi / 2 and self._inner_wheel(limit) < STEER_JOINT_RANGE,
+            "steering_limit",
+            f"must be in (0, pi/2) rad with the inner front wheel inside its hinge's {STEER_JOINT_RANGE} rad stop "
+            f"(Ackermann with wheelbase {self.wheelbase} m and track {self.track} m), got {limit}",
+        )
+        friction = self.friction
+        require(
+            isfinite(friction) and 0 < friction <= MAX_FRICTION,
+            "friction",
+            f"must be in (0, {MAX_FRICTION}], got {friction}",
         )
         spread = self.friction_spread
-        require(isfinite(spread) and 0 <= spread <= 1, "friction_spread", f"must be in [0, 1], got {spread}")
         require(
-            isfinite(self.timestep) and 1e-4 <= self.timestep <= 0.005,
+            isfinite(spread) and 0 <= spread <= MAX_FRICTION_SPREAD,
+            "friction_spread",
+            f"must be in [0, {MAX_FRICTION_SPREAD}], got {spread}",
+        )
+        low, high = TIMESTEP_RANGE
+        require(
+            isfinite(self.timestep) and low <= self.timestep <= high,
             "timestep",
-            f"must be in [1e-4, 0.005] s, got {self.timestep}",
+            f"must be in [{low}, {high}] s, got {self.timestep}",
         )
         require(
-            isfinite(self.contact_time) and self.contact_time >= 2 * self.timestep,
+            isfinite(self.contact_time) and 2 * self.timestep <= self.contact_time <= MAX_CONTACT_TIME,
             "contact_time",
-            f"must be at least two MuJoCo steps (2 * timestep = {2 * self.timestep} s), got {self.contact_time}",
+            f"must be in [2 * timestep, {MAX_CONTACT_TIME}] = [{2 * self.timestep}, {MAX_CONTACT_TIME}] s "
+            f"(a stiffer contact than two steps MuJoCo cannot resolve), got {self.contact_time}",
         )
         steps = self.control_period / self.timestep
         require(
-            isfinite(steps) and 1 <= round(steps) <= 1000 and abs(steps - round(steps)) < 1e-9,
+            isfinite(steps) and 1 <= round(steps) <= MAX_STEPS_PER_PERIOD and abs(steps - round(steps)) < 1e-9,
             "control_period",
-            f"must be a whole number (1-1000) of MuJoCo steps of {self.timestep} s, got {self.control_period}",
+            f"must be a whole number (1-{MAX_STEPS_PER_PERIOD}) of MuJoCo steps of {self.timestep} s, "
+            f"got {self.control_period}",
         )
         require(
             isinstance(self.seed, int) and 0 <= self.seed < 2**31, "seed", f"must be in [0, 2**31), got {self.seed}"
         )
+
+    def _inner_wheel(self, phi: float) -> float:
+        """The inner front wheel's angle [rad] at bicycle angle ``phi`` [rad] (``inf`` past 90°)."""
+        if 0.5 * self.track * tan(phi) >= self.wheelbase:
+            return float("inf")
+        return ackermann(phi, self.wheelbase, self.track)[0]
 
     def nominal_map(self) -> CarModel:
         """The geometry the controller assumes: the MJCF's wheelbase and wheel radius."""

@@ -67,6 +67,8 @@ def test_bad_keys_are_refused_by_name() -> None:
         mujoco_car.MujocoCarConfig(**keys, contact_time=0.001)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="friction_spread"):
         mujoco_car.MujocoCarConfig(**keys, friction_spread=-0.1)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"steering_limit: .* inner front wheel inside its hinge's 1.5 rad stop"):
+        mujoco_car.MujocoCarConfig(**keys, steering_limit=1.3)  # type: ignore[arg-type]  # inner wheel past 90°
 
 
 def test_ackermann_round_trip() -> None:
