@@ -124,3 +124,20 @@ def test_the_slow_tiers_time_is_the_logged_run():
     loads = re.findall(r"load average: ([\d.]+),", log)
     assert f"{int(failed) + int(passed)} tests in {seconds} s, on {float(user) + float(sys_):.1f} s of CPU time" in text
     assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text and failed == "1"
+
+
+def test_the_mujoco_page_quotes_its_artifacts():
+    # benchmarks/mujoco_car.py's tables, as written; and the page's words match their numbers.
+    page = (ROOT / "docs/mujoco.md").read_text()
+    for stem in ("mujoco_repeatability", "mujoco_learners", "mujoco_spread"):
+        assert (ROOT / f"docs/mujoco/{stem}.md").read_text().strip() in page, stem
+    runs = json.loads((ROOT / "docs/mujoco/mujoco_learners.json").read_text())["rows"]
+    smooth = [r for r in runs if not r["config"].endswith("_scatter")]
+    assert all(r["trials_to_1cm"] <= 2 and r["last_inside"] for r in smooth)
+    scattered = [r["last_worst_m"] for r in runs if r["config"].endswith("_scatter")]
+    assert f"{1e3 * min(scattered):.0f}-{1e3 * max(scattered):.0f} mm" in page
+    speed = [
+        r["simulated_per_wall"]
+        for r in json.loads((ROOT / "docs/mujoco/mujoco_repeatability.json").read_text())["rows"]
+    ]
+    assert f"{min(speed):.0f}-{max(speed):.0f} simulated seconds per wall second" in page
