@@ -14,7 +14,7 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import rl
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
+from ilc_steering.agents.rl_settings import RL_ALGORITHMS, check_hyperparameters, hyperparameters
 from ilc_steering.boxes import RESIDUAL_SCALE
 from ilc_steering.compare import cells as compare_cells
 from ilc_steering.compare import command as compare

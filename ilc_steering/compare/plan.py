@@ -112,7 +112,7 @@ def check_options(args: Args) -> None:
     if unknown_priors:
         raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
     if any(registry.lookup(method).family == "RL" for method in args.methods):
-        from ilc_steering.agents.rl import rl_backend
+        from ilc_steering.agents.rl_settings import rl_backend
 
         rl_backend()  # ILC_STEERING_RL_BACKEND checked before any cell, not in each RL cell
     bad = [s for s in args.seeds or () if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
