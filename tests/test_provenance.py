@@ -53,7 +53,7 @@ def test_current_and_stale_are_told_apart(tmp_path: Path) -> None:
     current, lines = prov.freshness(tmp_path / "now")
     assert current and "current" in lines[0]
     files = {**made["files"], "core/plants.py": "0" * 16}
-    _fake_run(tmp_path / "then", {"provenance": {**made, "code": "0" * 16, "files": files}})
+    _fake_run(tmp_path / "then", {"provenance": {**made, "code": prov.code_hash(files), "files": files}})
     current, lines = prov.freshness(tmp_path / "then")
     assert not current and "STALE" in lines[0]
     assert any("core/plants.py" in line for line in lines)
