@@ -83,7 +83,7 @@ from ilc_steering.compare_plan import (
     run_settings,
 )
 from ilc_steering.compare_report import LADDER, write_report
-from ilc_steering.engine import Grid, RunFolder, run_grid
+from ilc_steering.engine import Grid, RunFolder, run_grid, timeout_help
 from ilc_steering.inputs import is_file, read_json
 from ilc_steering.output import write_json
 
@@ -393,9 +393,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--cell-timeout",
         type=float,
-        default=None,
+        default=argparse.SUPPRESS,  # the default is the engine's, stated in the help
         metavar="SECONDS",
-        help="stop a cell still running after this and record it as failed (default: no limit)",
+        help=timeout_help("cell"),
     )
     parser.add_argument(
         "--backend",
@@ -420,7 +420,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),
     )
     return replace(args, **budgets)
 

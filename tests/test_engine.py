@@ -63,7 +63,7 @@ def test_a_killable_worker_ends_each_cell_as_returned_failed_died_or_timed_out(k
 
     for function in {f for f, _ in calls.values()}:  # run_calls maps one function over its calls
         mine = {k: args for k, (f, args) in calls.items() if f is function}
-        run_calls(function, mine, finish, workers=workers, failed=failed, timeout=4.0, isolate=True)
+        run_calls(function, mine, finish, workers=workers, failed=failed, timeout=4.0)
     assert outcomes == {index: KINDS[kind][1] for index, kind in enumerate(kinds)}
 
 
