@@ -4,16 +4,17 @@ import json
 import math
 
 import pytest
-import ray
 
 from ilc_steering import compare, sweep
 from ilc_steering.backends import run_calls
 
-pytestmark = pytest.mark.slow  # a local Ray, and the quick comparison on it
+pytestmark = [pytest.mark.slow, pytest.mark.extra("ray")]  # a local Ray, and the quick comparison on it
 
 
 @pytest.fixture(scope="module")
 def local_ray():
+    import ray
+
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
     yield
     ray.shutdown()

@@ -1,7 +1,8 @@
 """The baselines of issue 28: CrossQ and TQC, SBX beside SB3, bayes_opt and noisy_least_squares.
 
-SBX, sb3-contrib and BoTorch are installed by ``.ci/run`` (the ``rl-jax`` and ``bo`` extras), so
-nothing here skips itself when one is missing: a missing package is a failure.
+SBX, sb3-contrib and BoTorch are installed by ``.ci/run`` (the ``rl-jax`` and ``bo`` extras): a test
+marked with the extra it needs is skipped where that extra is missing, and fails in CI
+(``tests/conftest.py``).
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ def test_rl_cell_says_which_implementation_made_it(backend: str, monkeypatch: py
     assert cell["implementation"].split()[0] == expected
 
 
+@pytest.mark.extra("rl", "rl-jax")
 def test_sbx_is_the_default_backend_where_installed(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(rl.BACKEND_VARIABLE, raising=False)
     assert rl.rl_backend() == "sbx"
@@ -76,6 +78,7 @@ def test_bad_backend_is_a_one_line_error(monkeypatch: pytest.MonkeyPatch) -> Non
     assert "\n" not in str(caught.value)
 
 
+@pytest.mark.extra("rl")
 def test_a_key_only_one_backend_knows_is_refused() -> None:
     params = {**rl.hyperparameters("sac", "forward_parking"), "qf_learning_rate": 1e-3}  # SBX only
     with pytest.raises(ConfigError, match=r"here\.qf_learning_rate: unknown key for SAC \(stable-baselines3 "):
@@ -107,6 +110,7 @@ def test_sbx_and_sb3_act_in_the_same_units(algorithm: str) -> None:
     np.testing.assert_allclose(firsts["sb3"], firsts["sbx"], rtol=1e-6)
 
 
+@pytest.mark.extra("rl")
 def test_sb3_path_gives_the_callers_torch_threads_back() -> None:
     import torch
 

@@ -122,6 +122,7 @@ def test_the_residual_box_holds_every_packaged_solution():
         assert inside.max() < 0.75, (name, inside)  # the solution, with margin
 
 
+@pytest.mark.extra("rl")
 def test_rl_deterministic_trials_start_at_the_nominal_solution_and_are_counted():
     env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
     u = env.unwrapped
@@ -148,6 +149,7 @@ def test_an_off_chart_trial_costs_the_penalty_and_never_sets_the_best_error():
     assert compare.first_within(log, 10.0) is None and compare.best_so_far(log)[0][1] > OFF_CHART_PENALTY
 
 
+@pytest.mark.extra("rl")
 def test_rl_hyperparameter_files_load_and_unknown_keys_are_named():
     for algorithm in RL_ALGORITHMS:
         for prior in ("nominal", "none"):

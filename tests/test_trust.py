@@ -603,6 +603,7 @@ def test_an_ill_posed_task_is_refused_before_any_trial_naming_what_to_change(tmp
     assert not (tmp_path / "c" / "cells").exists() or not any((tmp_path / "c" / "cells").iterdir())
 
 
+@pytest.mark.extra("highway")  # highway_parking is packaged
 def test_every_packaged_one_trial_task_is_well_posed():
     import gymnasium as gym
 
