@@ -29,6 +29,7 @@ EXTRAS = {
 """The modules each extra of pyproject.toml installs, as a test imports them."""
 
 
+@pytest.hookimpl(tryfirst=True)  # before the test's fixtures are set up (the quick comparison's, for one)
 def pytest_runtest_setup(item: pytest.Item) -> None:
     for mark in item.iter_markers("extra"):
         for extra in mark.args:

@@ -30,6 +30,7 @@ def cells(folder):
     return found
 
 
+@pytest.mark.extra("rl", "bo")  # every default method: the RL ones and bayes_opt
 def test_the_quick_comparison_on_ray_writes_the_local_cells(tmp_path, local_ray, quick_comparison):
     # the local run: `compare --quick` (seeds QUICK_SEEDS), computed once per session (conftest.py)
     local = sorted((quick_comparison / "cells").glob("*.json"))

@@ -42,7 +42,15 @@ def step_counter(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     return calls
 
 
-@pytest.mark.parametrize("method", ["crossq", "tqc", "bayes_opt", "noisy_least_squares"])
+@pytest.mark.parametrize(
+    "method",
+    [
+        pytest.param("crossq", marks=pytest.mark.extra("rl", "rl-jax")),
+        pytest.param("tqc", marks=pytest.mark.extra("rl", "rl-jax")),
+        pytest.param("bayes_opt", marks=pytest.mark.extra("bo")),
+        "noisy_least_squares",
+    ],
+)
 @pytest.mark.slow  # RL and BoTorch trainings
 def test_new_method_runs_in_compare_and_counts_every_env_step(method: str, step_counter: list[int]) -> None:
     assert method in RL + BLACKBOX
@@ -57,6 +65,7 @@ def test_new_method_runs_in_compare_and_counts_every_env_step(method: str, step_
 
 @pytest.mark.parametrize("backend", rl.RL_BACKENDS)
 @pytest.mark.slow  # RL trainings
+@pytest.mark.extra("rl", "rl-jax")
 def test_rl_cell_says_which_implementation_made_it(backend: str, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(rl.BACKEND_VARIABLE, backend)
     cell = run_cell(Args(rl_trials=3), "nominal", "td3", "forward_parking", 0)
@@ -90,6 +99,7 @@ def test_a_key_only_one_backend_knows_is_refused() -> None:
 
 @pytest.mark.parametrize("algorithm", ["td3", "sac", "crossq", "tqc", "ppo"])
 @pytest.mark.slow  # JAX and torch compile a network each
+@pytest.mark.extra("rl", "rl-jax")
 def test_sbx_and_sb3_act_in_the_same_units(algorithm: str) -> None:
     """Same hyperparameters: the same [-1, 1] action box, and the same first deterministic trial,
     the box's centre (start_at_centre), so the same physical coefficients c = c0."""
@@ -152,6 +162,7 @@ class Quadratic(gym.Env[Any, Any]):
 
 
 @pytest.mark.slow  # a GP per trial
+@pytest.mark.extra("bo")
 def test_bayes_opt_improves_on_its_first_trials_on_a_smooth_task() -> None:
     _, context = context_of("forward_parking")
     task = Quadratic(np.array([0.4, -0.3, 0.2, 0.5]))

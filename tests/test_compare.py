@@ -85,7 +85,10 @@ def test_gauss_newton_reaches_the_tight_tolerance_without_a_prior():
 
 
 @pytest.mark.parametrize("prior", ["nominal", "none"])
-@pytest.mark.parametrize("method", ["newton", "nelder_mead", "cma_es", *RL_ALGORITHMS])
+@pytest.mark.parametrize(
+    "method",
+    ["newton", "nelder_mead", *(pytest.param(m, marks=pytest.mark.extra("rl")) for m in ("cma_es", *RL_ALGORITHMS))],
+)
 @pytest.mark.slow  # RL trainings
 def test_every_baseline_spends_exactly_its_budget(method, prior):
     cell = run_cell(Args(**TINY), prior, method, "parallel_parking", 1)
@@ -210,6 +213,7 @@ def test_a_clone_without_cells_resumes_from_compare_json(tmp_path):
 
 
 @pytest.mark.slow  # worker processes
+@pytest.mark.extra("rl")  # td3
 def test_workers_give_the_cells_of_one_process(tmp_path):
     settings = dict(
         priors=("nominal", "none"), methods=("ilc", "least_squares", "td3"), scenarios=("forward_parking_noisy",)
@@ -290,6 +294,7 @@ def test_a_users_learner_and_a_yaml_scenario_from_outside_the_package(tmp_path, 
 
 
 @pytest.mark.slow  # a comparison with PPO
+@pytest.mark.extra("rl")
 def test_main_writes_well_formed_results(tmp_path):
     args = Args(
         out=tmp_path,
