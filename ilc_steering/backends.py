@@ -19,7 +19,8 @@ it. Local calls with ``failed`` always run in worker processes that this process
 process (a learner that swallows the exception, an optimizer that never returns, a ``nogil``
 compiled loop), and a worker that dies (``os._exit``, a crash) is that call's failure, the
 others going on in a fresh worker. In a Ray task the limit is a ``SIGALRM``, which stops Python
-code only. Local workers are capped at :data:`MAX_WORKERS`.
+code only, and a task whose worker dies is its call's failure too. Local workers are capped at
+:data:`MAX_WORKERS`.
 """
 
 from __future__ import annotations
@@ -154,7 +155,7 @@ def run_calls(
 
         function, calls, finish = _guarded, guarded, settle
     if backend == "ray":
-        _ray_map(function, calls, finish)
+        _ray_map(function, calls, finish, failed)
         return
     if count <= 1:
         for key, args in calls.items():
@@ -384,7 +385,11 @@ def _init_ray(ray: Any, address: str) -> None:
         os.write(2, log.read())
 
 
-def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]], finish: Finish) -> None:
+def _ray_map(
+    function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]], finish: Finish, failed: Failed | None = None
+) -> None:
+    """Every call a Ray task. With ``failed``, a task whose worker dies (``os._exit``, a crash) is
+    that call's failure, never retried (a trial is never resent), and the others go on."""
     try:
         import ray
     except ImportError:
@@ -408,7 +413,7 @@ def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]],
         function, args = pickle.loads(payload)
         return function(*args)
 
-    task = ray.remote(on_worker)
+    task = ray.remote(max_retries=0)(on_worker)
     home = str(Path(__file__).resolve().parents[1])  # where this process found the package
     width = 2 * max(1, int(ray.cluster_resources().get("CPU", 1)))  # type: ignore[no-untyped-call]
     pending: dict[Any, Any] = {}
@@ -420,7 +425,16 @@ def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]],
                 pending[task.remote(home, pickle.dumps((function, calls[key])))] = key
             finished, _ = ray.wait(list(pending), num_returns=1)
             for ref in finished:
-                finish(pending.pop(ref), ray.get(ref))
+                key = pending.pop(ref)
+                try:
+                    value = ray.get(ref)
+                except ray.exceptions.RayError as error:
+                    if failed is None:
+                        raise
+                    what = " ".join(str(error).split())[:200]
+                    failed(key, f"WorkerDied: its Ray task ended before returning ({type(error).__name__}: {what})")
+                    continue
+                finish(key, value)
     except BaseException:
         for ref in pending:
             ray.cancel(ref)

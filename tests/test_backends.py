@@ -2,6 +2,7 @@
 
 import json
 import math
+import os
 
 import pytest
 
@@ -56,3 +57,17 @@ def test_a_sweep_on_ray_gives_the_local_map(tmp_path, local_ray):
 def test_an_error_in_a_ray_task_is_raised(local_ray):
     with pytest.raises(Exception, match="math domain error"):
         run_calls(math.sqrt, {0: (-1.0,)}, lambda key, value: None, "ray")
+
+
+def test_a_ray_task_whose_worker_dies_is_its_calls_failure_and_the_run_goes_on(local_ray):
+    outcomes = {}
+
+    def finish(key, value):
+        outcomes[key] = ("done", value)
+
+    def failed(key, message):
+        outcomes[key] = ("failed", message.split(":")[0])
+
+    run_calls(os._exit, {0: (3,)}, finish, "ray", failed=failed, timeout=60.0)
+    run_calls(math.sqrt, {1: (4.0,), 2: (-1.0,)}, finish, "ray", failed=failed, timeout=60.0)
+    assert outcomes == {0: ("failed", "WorkerDied"), 1: ("done", 2.0), 2: ("failed", "ValueError")}
