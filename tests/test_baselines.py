@@ -8,6 +8,7 @@ marked with the extra it needs is skipped where that extra is missing, and fails
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
 
 import gymnasium as gym
@@ -78,6 +79,17 @@ def test_sbx_is_the_default_backend_where_installed(monkeypatch: pytest.MonkeyPa
     monkeypatch.delenv(rl.BACKEND_VARIABLE, raising=False)
     assert rl.rl_backend() == "sbx"
     assert rl.implementation("crossq", "sb3").startswith("sb3-contrib ")
+
+
+@pytest.mark.parametrize(
+    ("backend", "package", "extra"), [("sb3", "stable_baselines3", "rl"), ("sbx", "sbx", "rl-jax")]
+)
+def test_an_rl_method_without_its_package_names_the_extra_to_install(
+    backend: str, package: str, extra: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, package, None)  # as if it were not installed: importing it fails
+    with pytest.raises(ValueError, match=rf'^ppo needs {package}: pip install "ilc-steering\[{extra}\]"$'):
+        rl.algorithm_class("ppo", backend)
 
 
 def test_bad_backend_is_a_one_line_error(monkeypatch: pytest.MonkeyPatch) -> None:
