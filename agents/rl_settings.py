@@ -97,9 +97,15 @@ def squashed(algorithm: str) -> bool:
 
 
 def algorithm_class(algorithm: str, backend: str | None = None) -> type[Any]:
-    """The class of ``algorithm`` on ``backend`` (default: :func:`rl_backend`)."""
+    """The class of ``algorithm`` on ``backend`` (default: :func:`rl_backend`); a ``ValueError``
+    naming the extra to install where its package is missing."""
     module = _module(algorithm, backend or rl_backend())
-    return getattr(import_module(module), facts(algorithm).class_name)  # type: ignore[no-any-return]
+    try:
+        imported = import_module(module)
+    except ModuleNotFoundError as error:
+        extra = "rl-jax" if module == "sbx" else "rl"
+        raise ValueError(f'{algorithm} needs {error.name}: pip install "ilc-steering[{extra}]"') from None
+    return getattr(imported, facts(algorithm).class_name)  # type: ignore[no-any-return]
 
 
 def implementation(algorithm: str, backend: str | None = None) -> str:

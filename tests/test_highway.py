@@ -10,7 +10,6 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-pytest.importorskip("highway_env", reason='the [highway] extra: pip install "ilc-steering[highway]"')
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
 import ilc_steering  # noqa: F401  (registers the envs)
@@ -18,6 +17,8 @@ from ilc_steering.config import load_config
 from ilc_steering.core.external import ExternalPlant, is_external
 from ilc_steering.envs import highway, highway_plant
 from ilc_steering.envs.scenario import Scenario
+
+pytestmark = pytest.mark.extra("highway")
 
 ENV = "ilc_steering/ChainedSteering-v0"
 

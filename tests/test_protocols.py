@@ -133,9 +133,13 @@ LEARNERS = {
     "cma_es": lambda ctx: blackbox.make_learner(blackbox.cma_es, ctx),
     "ppo": lambda ctx: rl.make_learner("ppo", rl_settings.hyperparameters("ppo", "forward_parking"), 12, False, ctx),
 }
+EXTRA = {"cma_es": "rl", "ppo": "rl"}
+"""The learners whose packages come with an extra (cma with rl)."""
 
 
-@pytest.mark.parametrize("method", sorted(LEARNERS))
+@pytest.mark.parametrize(
+    "method", [pytest.param(m, marks=pytest.mark.extra(EXTRA[m])) if m in EXTRA else m for m in sorted(LEARNERS)]
+)
 def test_learner_contract(method):
     env, ctx = context()
     learner = LEARNERS[method](ctx)

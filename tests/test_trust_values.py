@@ -249,6 +249,7 @@ def test_an_rl_hyperparameter_of_the_wrong_type_or_range_is_refused_naming_file_
 
 
 @pytest.mark.slow
+@pytest.mark.extra("rl")
 def test_the_packaged_hyperparameters_pass_and_a_bad_one_is_named_with_its_file():
     for algorithm in ("ppo", "sac", "td3", "crossq", "tqc"):
         for prior in ("nominal", "none"):

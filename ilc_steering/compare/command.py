@@ -62,7 +62,7 @@ from ilc_steering.compare.cells import (
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
 from ilc_steering.engine.backends import MAX_WORKERS
-from ilc_steering.engine.runs import Grid, RunFolder, run_grid
+from ilc_steering.engine.runs import Grid, RunFolder, run_grid, timeout_help
 from ilc_steering.output import write_json
 from ilc_steering.readers import is_file, read_json
 
@@ -333,9 +333,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--cell-timeout",
         type=float,
-        default=None,
+        default=argparse.SUPPRESS,  # the default is the engine's, stated in the help
         metavar="SECONDS",
-        help="stop a cell still running after this and record it as failed (default: no limit)",
+        help=timeout_help("cell"),
     )
     parser.add_argument(
         "--backend",
@@ -360,7 +360,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),
     )
     return replace(args, **budgets)
 

@@ -38,7 +38,7 @@ from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
 from ilc_steering.engine.backends import MAX_WORKERS, check_backend, check_workers
-from ilc_steering.engine.runs import Grid, RunFolder, check_timeout, run_grid
+from ilc_steering.engine.runs import Grid, RunFolder, check_timeout, run_grid, timeout_help
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
 from ilc_steering.readers import read_json
@@ -321,9 +321,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--cell-timeout",
         type=float,
-        default=None,
+        default=argparse.SUPPRESS,  # the default is the engine's, stated in the help
         metavar="SECONDS",
-        help="stop a row still running after this and record it as failed (default: no limit)",
+        help=timeout_help("row"),
     )
     parser.add_argument(
         "--axis",
@@ -361,5 +361,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         out=ns.out,
         backend=ns.backend,
         workers=ns.workers,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),
     )
