@@ -19,6 +19,7 @@ every config loaded and hashed, every cell's key and budget known. The engine th
 
 from __future__ import annotations
 
+import argparse
 import fcntl
 import math
 import os
@@ -69,6 +70,37 @@ def timeout_help(what: str) -> str:
         f"stop a {what} still running after this, its worker process ended, and record it as failed "
         f"(default: {DEFAULT_CELL_TIMEOUT / 3600:g} h; at most {MAX_CELL_TIMEOUT / 86400:g} days)"
     )
+
+
+def add_grid_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """The options every command over a grid of cells shares, with one help each: ``--backend``,
+    ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
+    from ilc_steering.engine.backends import MAX_WORKERS
+
+    parser.add_argument(
+        "--backend",
+        default="local",
+        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
+    )
+    parser.add_argument(
+        "--cell-timeout",
+        type=float,
+        default=argparse.SUPPRESS,  # the engine's bound, DEFAULT_CELL_TIMEOUT, stated in the help
+        metavar="SECONDS",
+        help=timeout_help(what),
+    )
+
+
+def check_grid_options(backend: str, workers: int, timeout: float | None) -> None:
+    """The shared options' rules, checked once, before any cell: ``ValueError`` naming the option."""
+    from ilc_steering.engine.backends import check_backend, check_workers
+
+    check_backend(backend)
+    check_workers(workers)
+    check_timeout(timeout)
 
 
 def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
