@@ -70,7 +70,7 @@ class Args:
 def config(name: str, spread: float | None = None) -> SteeringConfig:
     """Packaged config ``name``, its ``friction_spread`` replaced by ``spread`` if given."""
     loaded = load_config(CONFIGS / f"{name}.yaml")
-    return loaded if spread is None else replace(loaded, plant=replace(loaded.plant, friction_spread=spread))
+    return loaded if spread is None else replace(loaded, plant=replace(loaded.plant, friction_spread=spread))  # type: ignore[type-var]
 
 
 def repeatability(name: str, repeats: int, spread: float | None = None) -> dict[str, Any]:
