@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require
-from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.external import ExternalPlantBase
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
@@ -169,22 +169,8 @@ class HighwayParkingPlant(ExternalPlantBase):
         check_angles(q, "|theta| and |phi|")
         check_limit(np.asarray(q, dtype=np.float64)[..., 3], STEERING)
 
-    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
-        total = sum(profile.durations)
-        steps = round(total / ACTION_STEP)
-        require(
-            abs(steps * ACTION_STEP - total) < 1e-9,
-            "task.pieces",
-            f"must add up to a whole number of parking-v0's {ACTION_STEP} s action steps, got {total} s",
-        )
-        outcomes = [self._trial(profile, x0[b], c[b], steps) for b in range(c.shape[0])]
-        final = np.array([o[0] for o in outcomes])
-        status = np.array([o[1] for o in outcomes], dtype=np.int64)
-        logs = [o[3] for o in outcomes]
-        if not record:
-            return ExternalTrials(final, status, logs=logs)
-        times = ACTION_STEP * np.arange(steps + 1, dtype=np.float64)
-        return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
+    def control_period(self) -> float:
+        return float(ACTION_STEP)
 
     def _measure(self, vehicle: Any) -> Array:
         """The vehicle's configuration in the task frame, its heading wrapped to ``(-pi, pi]``."""
@@ -192,9 +178,7 @@ class HighwayParkingPlant(ExternalPlantBase):
         q[2] = np.angle(np.exp(1j * q[2]))
         return q
 
-    def _trial(
-        self, profile: InputProfile, x0: Array, c: Array, steps: int
-    ) -> tuple[Array, int, Array, dict[str, Any]]:
+    def trial(self, profile: InputProfile, x0: Array, c: Array, steps: int) -> tuple[Array, int, Array, dict[str, Any]]:
         env = self.env
         env.reset(seed=self.seed)
         vehicle = env.unwrapped.vehicle

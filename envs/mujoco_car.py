@@ -57,7 +57,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require, require_length
-from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.external import ExternalPlantBase
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
@@ -293,23 +293,8 @@ class MujocoCarPlant(ExternalPlantBase):
             self.shared.rng.append(np.random.default_rng(config.seed))
         return config.friction * np.exp(config.friction_spread * self.shared.rng[0].standard_normal(len(WHEELS)))
 
-    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
-        total = sum(profile.durations)
-        period = self.config.control_period
-        periods = round(total / period)
-        require(
-            abs(periods * period - total) < 1e-9,
-            "task.pieces",
-            f"must add up to a whole number of the MuJoCo car's {period} s control periods, got {total} s",
-        )
-        outcomes = [self._trial(profile, x0[b], c[b], periods) for b in range(c.shape[0])]
-        final = np.array([o[0] for o in outcomes])
-        status = np.array([o[1] for o in outcomes], dtype=np.int64)
-        logs = [o[3] for o in outcomes]
-        if not record:
-            return ExternalTrials(final, status, logs=logs)
-        times = period * np.arange(periods + 1, dtype=np.float64)
-        return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
+    def control_period(self) -> float:
+        return float(self.config.control_period)
 
     def _measure(self, sim: _Sim) -> Array:
         """The car's configuration in the task frame: the rear axle's midpoint [m], the chassis'
@@ -333,7 +318,7 @@ class MujocoCarPlant(ExternalPlantBase):
         data.ctrl[:2] = wheels
         mujoco.mj_forward(model, data)
 
-    def _trial(
+    def trial(
         self, profile: InputProfile, x0: Array, c: Array, periods: int
     ) -> tuple[Array, int, Array, dict[str, Any]]:
         sim, config = self.sim, self.config

@@ -123,13 +123,13 @@ def test_driven_once_per_counted_trial(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(mujoco, "mj_step", counted)
     trials: list[int] = []
-    original = mujoco_car.MujocoCarPlant._trial
+    original = mujoco_car.MujocoCarPlant.trial
 
     def counted_trial(self: Any, *args: Any) -> Any:
         trials.append(1)
         return original(self, *args)
 
-    monkeypatch.setattr(mujoco_car.MujocoCarPlant, "_trial", counted_trial)
+    monkeypatch.setattr(mujoco_car.MujocoCarPlant, "trial", counted_trial)
     result = run_ilc(FORWARD, trials=3, learner="ilc")
     assert len(result.trials) == 3 and len(trials) == 3
     settle = round(0.5 / 0.001)  # the plant settles on its tyres once, when first used: one call, no trial

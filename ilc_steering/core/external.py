@@ -24,6 +24,7 @@ from typing import Any, ClassVar, NoReturn, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.core.checks import require
 from ilc_steering.core.plants import Kernel, PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials
@@ -89,6 +90,39 @@ class ExternalPlantBase:
 
     name: ClassVar[str] = "an external plant"
     """What the refusals call the plant."""
+
+    def control_period(self) -> float:
+        """[s] the period at which the plant takes a new input (a trial's length is a whole number
+        of them); a plant that uses :meth:`run_trials` below gives it."""
+        self._refuse("control period")
+
+    def trial(
+        self, profile: InputProfile, x0: Array, c: Array, periods: int
+    ) -> tuple[Array, int, Array, dict[str, Any]]:
+        """One trial of ``periods`` control periods from state ``x0`` with coefficients ``c``: its
+        final state, status, the states at the period boundaries and its log; a plant that uses
+        :meth:`run_trials` below gives it."""
+        self._refuse("trial of its own")
+
+    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
+        """The ``B`` trials of ``c`` ``(B, 1 + q)``, one :meth:`trial` each, in order (one drive of
+        the plant per trial); ``ValueError`` naming ``task.pieces`` unless the profile lasts a whole
+        number of the plant's control periods."""
+        total, period = sum(profile.durations), self.control_period()
+        periods = round(total / period)
+        require(
+            abs(periods * period - total) < 1e-9,
+            "task.pieces",
+            f"must add up to a whole number of {self.name}'s {period} s control periods, got {total} s",
+        )
+        outcomes = [self.trial(profile, x0[b], c[b], periods) for b in range(c.shape[0])]
+        final = np.array([o[0] for o in outcomes])
+        status = np.array([o[1] for o in outcomes], dtype=np.int64)
+        logs = [o[3] for o in outcomes]
+        if not record:
+            return ExternalTrials(final, status, logs=logs)
+        times = period * np.arange(periods + 1, dtype=np.float64)
+        return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
 
     def _refuse(self, what: str) -> NoReturn:
         raise ValueError(f"{self.name} is someone else's code: it has no {what}")
