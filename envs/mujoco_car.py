@@ -268,15 +268,6 @@ class MujocoCarPlant(ExternalPlantBase):
     def with_frame(self, angle: float) -> MujocoCarPlant:
         return replace(self, frame=float(angle), shared=self.shared)
 
-    def configuration(self, x: Array) -> Array:
-        return np.array(x, dtype=np.float64)
-
-    def estimate(self, x: Array) -> Array:
-        return np.array(x, dtype=np.float64)
-
-    def initial_state(self, q: Array) -> Array:
-        return np.array(q, dtype=np.float64)
-
     def check_configuration(self, q: Array) -> None:
         check_chart(q)
         check_magnitude(q)

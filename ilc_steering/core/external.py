@@ -91,6 +91,18 @@ class ExternalPlantBase:
     name: ClassVar[str] = "an external plant"
     """What the refusals call the plant."""
 
+    def configuration(self, x: Array) -> Array:
+        """The configuration of state ``x``: an external plant's states are its measured configurations."""
+        return np.array(x, dtype=np.float64)
+
+    def estimate(self, x: Array) -> Array:
+        """What the controller sees of state ``x``: the measured configuration."""
+        return np.array(x, dtype=np.float64)
+
+    def initial_state(self, q: Array) -> Array:
+        """The state a trial starts from at configuration ``q``: ``q`` itself."""
+        return np.array(q, dtype=np.float64)
+
     def control_period(self) -> float:
         """[s] the period at which the plant takes a new input (a trial's length is a whole number
         of them); a plant that uses :meth:`run_trials` below gives it."""
