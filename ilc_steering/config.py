@@ -22,7 +22,6 @@ import types
 import typing
 from collections.abc import Iterator
 from contextlib import contextmanager
-from contextvars import ContextVar
 from dataclasses import dataclass, field
 from importlib import resources
 from math import isfinite
@@ -38,6 +37,7 @@ from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.entries import CONFIG_FOLDERS
 from ilc_steering.errors import ConfigError, ParameterError
 from ilc_steering.readers import MAX_DEPTH, check_depth, read_text
 
@@ -54,7 +54,7 @@ __all__ = [
 ]
 
 
-_FOLDERS: ContextVar[tuple[str, ...]] = ContextVar("_FOLDERS", default=())
+_FOLDERS = CONFIG_FOLDERS
 """The folder of the config being loaded, searched for a robot's module it names."""
 
 
