@@ -31,6 +31,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
+from scipy.integrate import cumulative_simpson
 
 from ilc_steering.core.cable import Cable, describe
 from ilc_steering.core.checks import require
@@ -106,15 +107,15 @@ def profile_message(profile: InputProfile) -> dict[str, Any]:
 def nominal_path(chained_map: Any, profile: InputProfile, q0: Array, c: Array, times: Array) -> tuple[Array, ...]:
     """The nominal model's motion from ``q0`` (task frame) under ``c``, at ``times`` [s]: ``v1``,
     ``v2`` (eqs. 15-17), the configurations (task frame) and the robot's inputs ``u = beta(q) v``
-    (eqs. 4-5). Eq. 1 is integrated by the trapezoid rule, coordinate by coordinate
-    (``z_{i+1}' = z_i v1``), on ``times``: fine enough at :data:`SUBSTEPS` per control sample."""
+    (eqs. 4-5). Eq. 1 is integrated by the cumulative Simpson rule, coordinate by coordinate
+    (``z_{i+1}' = z_i v1``), on ``times``: at :data:`SUBSTEPS` per control sample the end is
+    within 1e-6 of eq. 12's closed form (tested)."""
     v1, v2 = profile.evaluate(c, times)
     v1 = np.broadcast_to(np.asarray(v1, dtype=np.float64), times.shape)
     v2 = np.broadcast_to(np.asarray(v2, dtype=np.float64), times.shape)
-    h = np.diff(times)
 
     def integral(f: Array) -> Array:
-        return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * h)])
+        return np.asarray(cumulative_simpson(f, x=times, initial=0.0), dtype=np.float64)
 
     z0 = np.asarray(chained_map.to_chained(q0), dtype=np.float64)
     z = np.empty((times.size, z0.size))
