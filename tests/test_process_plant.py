@@ -156,18 +156,27 @@ def test_the_round_trip_one_start_and_one_request_per_counted_trial(tmp_path):
 
 
 def test_the_nominal_path_ends_where_the_nominal_model_says(tmp_path):
-    """The trapezoid rule on eq. 1 at the control samples: the end within 1e-6 of eq. 12's closed form."""
-    config = load_config(write_config(tmp_path))
-    plant, model = config.plant.plant(), None
+    """Without a steering stop, the nominal plant's path ends within 1e-9 of eq. 12's closed form."""
     from ilc_steering.envs.scenario import Scenario
 
+    config = load_config(write_config(tmp_path))
     scenario = Scenario.from_config(config)
-    model = scenario.nominal
+    model, plant = scenario.nominal, scenario.plant
     c = model.solve()
-    times = np.linspace(0.0, 5.0, 2501)
-    _, _, q, _, _ = nominal_path(plant.chained_map, model.profile, scenario.x_start, c, times)
-    assert np.max(np.abs(model.chained_map.to_chained(q[-1]) - model.final_state(c))) < 1e-6
-    assert np.max(np.abs(q[-1] - np.array(config.task.goal))) < 1e-6
+    times, q, _ = nominal_path(plant.nominal, model.profile, scenario.x_start, c, 0.002)
+    assert times[0] == 0.0 and times[-1] == 5.0 and np.max(np.diff(times)) <= 0.002 + 1e-15
+    assert np.max(np.abs(model.chained_map.to_chained(q[-1]) - model.final_state(c))) < 1e-9
+    assert np.max(np.abs(q[-1] - np.array(config.task.goal))) < 1e-9
+
+
+def test_the_nominal_path_stops_the_wheel_at_the_robots_steering_stop(tmp_path):
+    """With a steering limit the path is the nominal car's with its stop: |phi| never past it."""
+    from ilc_steering.envs.scenario import Scenario
+
+    scenario = Scenario.from_config(load_config("experiment_parallel_process"))
+    c = 3.0 * scenario.nominal.solve()
+    _, q, _ = nominal_path(scenario.plant.nominal, scenario.profile, scenario.x_start, c, 0.002)
+    assert np.max(np.abs(q[:, 3])) == pytest.approx(0.4363323129985824)
 
 
 @pytest.mark.parametrize("mode", sorted(HOSTILE))
@@ -294,3 +303,13 @@ def test_section_5s_mario_in_another_process_gives_the_same_trials_bit_for_bit(e
         assert outside.converged_at == inside.converged_at
         rows = [{k: v for k, v in t.to_json().items() if k != "plant"} for t in outside.trials]
         assert rows == [t.to_json() for t in inside.trials]
+
+
+def test_the_plant_and_limit_errors_survive_pickling():
+    import pickle
+
+    from ilc_steering.errors import LimitError, PlantError
+
+    for error in (PlantError("plant process 'robot': died"), LimitError("plant.limits.speed: too fast")):
+        back = pickle.loads(pickle.dumps(error))
+        assert type(back) is type(error) and str(back) == str(error)

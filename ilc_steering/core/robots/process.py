@@ -31,7 +31,6 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
-from scipy.integrate import cumulative_simpson
 
 from ilc_steering.core.cable import Cable, describe
 from ilc_steering.core.checks import require
@@ -40,18 +39,21 @@ from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantConfig, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
 from ilc_steering.core.robots.car import rotate
+from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.entries import CONFIG_FOLDERS
 from ilc_steering.errors import LimitError
 
-__all__ = ["PROTOCOL", "ProcessLimits", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message"]
+__all__ = [
+    "PROTOCOL", "ProcessLimits", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message", "sample",
+]  # fmt: skip
 
 Array = npt.NDArray[np.float64]
 
 PROTOCOL = 1
 """The protocol's version, sent and expected in both ``hello`` messages."""
 SUBSTEPS = 10
-"""Samples of the nominal path between two control samples, where the limits are checked."""
+"""Integrator steps of the nominal path per control period, at each of which the limits are checked."""
 RESULT_KEYS = frozenset({"type", "trial", "final", "trajectory", "log", "left_chart"})
 """The keys a ``result`` may hold."""
 
@@ -104,28 +106,22 @@ def profile_message(profile: InputProfile) -> dict[str, Any]:
     }
 
 
-def nominal_path(chained_map: Any, profile: InputProfile, q0: Array, c: Array, times: Array) -> tuple[Array, ...]:
-    """The nominal model's motion from ``q0`` (task frame) under ``c``, at ``times`` [s]: ``v1``,
-    ``v2`` (eqs. 15-17), the configurations (task frame) and the robot's inputs ``u = beta(q) v``
-    (eqs. 4-5). Eq. 1 is integrated by the cumulative Simpson rule, coordinate by coordinate
-    (``z_{i+1}' = z_i v1``), on ``times``: at :data:`SUBSTEPS` per control sample the end is
-    within 1e-6 of eq. 12's closed form (tested)."""
-    v1, v2 = profile.evaluate(c, times)
-    v1 = np.broadcast_to(np.asarray(v1, dtype=np.float64), times.shape)
-    v2 = np.broadcast_to(np.asarray(v2, dtype=np.float64), times.shape)
+def nominal_path(nominal: Any, profile: InputProfile, x0: Array, c: Array, step: float) -> tuple[Array, Array, Array]:
+    """The path the robot would drive were it its nominal model, with its known steering stop: the
+    nominal plant (``nominal``, the controller's robot with its true geometry the nominal one)
+    simulated from ``x0`` (task frame) under ``c`` by the library's integrator, steps at most
+    ``step`` [s] long. Its times [s], configurations (task frame) and the states the robot's
+    inputs are computed from (eqs. 4-5), each row a step. Without a steering stop it is eq. 12's
+    nominal motion, to the integrator's accuracy (tested)."""
+    trials = simulate(nominal, profile, nominal.initial_state(x0)[None], c[None], step, record=True)
+    assert trials.times is not None and trials.states is not None  # record=True
+    states = trials.states[0]
+    return trials.times, nominal.configuration(states), nominal.estimate(states)
 
-    def integral(f: Array) -> Array:
-        return np.asarray(cumulative_simpson(f, x=times, initial=0.0), dtype=np.float64)
 
-    z0 = np.asarray(chained_map.to_chained(q0), dtype=np.float64)
-    z = np.empty((times.size, z0.size))
-    z[:, 0] = z0[0] + integral(v1)
-    z[:, 1] = z0[1] + integral(v2)
-    for i in range(2, z0.size):
-        z[:, i] = z0[i] + integral(z[:, i - 1] * v1)
-    q = np.asarray(chained_map.from_chained(z), dtype=np.float64)
-    u1, u2 = chained_map.inputs(q, v1, v2)
-    return v1, v2, q, np.asarray(u1, dtype=np.float64), np.asarray(u2, dtype=np.float64)
+def sample(times: Array, values: Array, at: Array) -> Array:
+    """``values`` (a row per time of ``times``) at the times ``at`` [s], linear between rows."""
+    return np.stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])], axis=-1)
 
 
 class _Link:
@@ -265,24 +261,21 @@ class ProcessPlant(ExternalPlantBase):
         passed, before anything is sent)."""
         total = float(sum(profile.durations))
         steps = max(1, round(total * self.control_rate))
-        times = np.linspace(0.0, total, steps * SUBSTEPS + 1)
-        v1, v2, q, u1, u2 = nominal_path(self.chained_map, profile, x0, c, times)
-        world = self.to_world(q)
-        self._check_limits(k, times, world)
-        every = slice(None, None, SUBSTEPS)
+        t = np.linspace(0.0, total, steps + 1)
+        times, q, acted_on = nominal_path(self.nominal, profile, x0, c, total / steps / SUBSTEPS)
+        self._check_limits(k, times, self.to_world(q))
+        v1, v2 = profile.evaluate(c, t)
+        v1 = np.broadcast_to(np.asarray(v1, dtype=np.float64), t.shape)
+        v2 = np.broadcast_to(np.asarray(v2, dtype=np.float64), t.shape)
+        u1, u2 = (np.asarray(u, dtype=np.float64) for u in self.chained_map.inputs(sample(times, acted_on, t), v1, v2))
         return {
             "type": "trial",
             "trial": k,
             "start": self.to_world(x0).tolist(),
             "profile": profile_message(profile),
             "c": [float(v) for v in c],
-            "control": {
-                "dt": total / steps,
-                "t": times[every].tolist(),
-                "v1": v1[every].tolist(),
-                "v2": v2[every].tolist(),
-            },
-            "nominal": {"u1": u1[every].tolist(), "u2": u2[every].tolist(), "q": world[every].tolist()},
+            "control": {"dt": total / steps, "t": t.tolist(), "v1": v1.tolist(), "v2": v2.tolist()},
+            "nominal": {"u1": u1.tolist(), "u2": u2.tolist(), "q": self.to_world(sample(times, q, t)).tolist()},
             "limits": self.limits.to_json(),
             "record": bool(record),
         }
