@@ -24,7 +24,7 @@ import os
 import shutil
 import sys
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import isfinite, pi
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -164,7 +164,7 @@ class ProcessPlant(ExternalPlantBase):
     chained_map: Any
     nominal: Any
     """The nominal robot's plant: its chart and steering limit check configurations."""
-    kind: PlantKind  # the nested robot's kind, per instance
+    kind: PlantKind  # the nested robot's kind, named process
     dimension: int
     frame: float = 0.0
     _link: _Link = field(default_factory=_Link, compare=False, repr=False)
@@ -445,7 +445,8 @@ class ProcessPlantConfig:
 
     @property
     def kind(self) -> PlantKind:
-        return self.robot.kind
+        """The nested robot's kind (its pose, coordinates and inputs), named ``process``."""
+        return replace(self.robot.kind, name="process")
 
     @property
     def dimension(self) -> int:
@@ -467,7 +468,7 @@ class ProcessPlantConfig:
         """The program as the true plant (not started: it starts on the first trial)."""
         return ProcessPlant(
             self.command, str(self.folder), self.timeout, self.control_rate, self.limits, self.nominal_map(),
-            self.nominal(), self.robot.kind, self.robot.dimension,
+            self.nominal(), self.kind, self.robot.dimension,
         )  # fmt: skip
 
     def check_task(self, max_step: float, cyclic: bool) -> None:
