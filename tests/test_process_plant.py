@@ -13,6 +13,8 @@ import sys
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ilc_steering.cli import main
 from ilc_steering.config import load_config
@@ -313,3 +315,89 @@ def test_the_plant_and_limit_errors_survive_pickling():
     for error in (PlantError("plant process 'robot': died"), LimitError("plant.limits.speed: too fast")):
         back = pickle.loads(pickle.dumps(error))
         assert type(back) is type(error) and str(back) == str(error)
+
+
+class RecordingCable:
+    """A cable that records how the answer was judged, without a program."""
+
+    name = "plant process 'fake'"
+
+    def __init__(self):
+        self.closed = False
+
+    def fail(self, problem):
+        from ilc_steering.errors import PlantError
+
+        self.closed = True
+        return PlantError(f"{self.name}: {problem}")
+
+    def close(self, kill=False):
+        self.closed = True
+
+
+JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=True) | st.text(max_size=5),
+    lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=5), inner, max_size=4),
+    max_leaves=12,
+)
+ANSWERS = st.fixed_dictionaries(
+    {"type": st.sampled_from(["result", "error", "hello"]) | JSON, "trial": st.sampled_from([2, 1, 3, "2"]) | JSON},
+    optional={
+        "final": st.lists(st.floats(-5, 5) | JSON, min_size=0, max_size=6) | JSON,
+        "trajectory": JSON,
+        "log": JSON,
+        "left_chart": JSON,
+        "message": JSON,
+    },
+)
+
+
+@pytest.fixture(scope="module")
+def fake_plant(tmp_path_factory):
+    """The fake robot's plant (never started: its answers are judged without it)."""
+    return load_config(write_config(tmp_path_factory.mktemp("plant"))).plant.plant()
+
+
+@settings(max_examples=300, deadline=None)
+@given(answer=ANSWERS)
+def test_any_answer_is_a_trial_or_one_plant_error(fake_plant, answer):
+    """Whatever JSON the program answers trial 2 with, the library either takes a finite pose inside
+    the workspace (task frame, in the chart) or raises one PlantError naming the program: nothing else."""
+    from ilc_steering.errors import PlantError
+
+    plant = fake_plant
+    cable = RecordingCable()
+    try:
+        q, status, path, log = plant._result(cable, 2, answer, np.zeros(4))
+    except PlantError as error:
+        assert str(error).startswith("plant process 'fake': ") and "\n" not in str(error) and cable.closed
+        return
+    assert answer["type"] == "result" and answer["trial"] == 2 and q.shape == (4,) and np.all(np.isfinite(q))
+    assert -3 <= q[0] <= 3 and -3 <= q[1] <= 3 and np.all(np.abs(q[2:]) < np.pi / 2) and isinstance(log, dict)
+    assert path is None or (path[1].shape == (path[0].size, 4) and np.all(np.diff(path[0]) > 0))
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"simulation": {"parameter_jitter": 0.05}}, "an external plant has no true factors to jitter"),
+        (
+            {
+                "task": {
+                    "waypoints": [[0.0, 0.0, 0.0, 0.0], [1.0, 0.5, 0.0, 0.0]],
+                    "segments": [{"pieces": [5.0], "v1_fixed": [], "v2_terms": 3}],
+                }
+            },
+            r"plant\.model: process runs one-trial tasks",
+        ),
+    ],
+)
+def test_what_a_program_cannot_do_is_refused_before_it_starts(tmp_path, change, message):
+    from ilc_steering.envs.scenario import Scenario
+
+    config = write_config(tmp_path)
+    data = yaml.safe_load(config.read_text()) | change
+    config.write_text(yaml.safe_dump(data))
+    with pytest.raises(ValueError, match=message):
+        Scenario.from_config(load_config(config))
+    assert starts(tmp_path) == []
