@@ -35,6 +35,7 @@ import numpy.typing as npt
 from ilc_steering.core.cable import Cable, describe
 from ilc_steering.core.checks import require
 from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.grid import MAX_STEPS_PER_TRIAL
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantConfig, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
@@ -262,7 +263,8 @@ class ProcessPlant(ExternalPlantBase):
         total = float(sum(profile.durations))
         steps = max(1, round(total * self.control_rate))
         t = np.linspace(0.0, total, steps + 1)
-        times, q, acted_on = nominal_path(self.nominal, profile, x0, c, total / steps / SUBSTEPS)
+        step = max(total / steps / SUBSTEPS, 2 * total / MAX_STEPS_PER_TRIAL)  # a long trial: the integrator's cap
+        times, q, acted_on = nominal_path(self.nominal, profile, x0, c, step)
         self._check_limits(k, times, self.to_world(q))
         v1, v2 = profile.evaluate(c, t)
         v1 = np.broadcast_to(np.asarray(v1, dtype=np.float64), t.shape)
