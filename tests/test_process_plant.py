@@ -401,3 +401,20 @@ def test_what_a_program_cannot_do_is_refused_before_it_starts(tmp_path, change, 
     with pytest.raises(ValueError, match=message):
         Scenario.from_config(load_config(config))
     assert starts(tmp_path) == []
+
+
+def test_the_lab_robot_refuses_what_it_cannot_serve(capsys):
+    """Its own refusals (no simulation runs): a config it does not simulate, another robot, a bad request."""
+    import io
+
+    from ilc_steering.lab_robot import LabRobot
+    from ilc_steering.lab_robot import main as lab_main
+
+    assert lab_main(["experiment_forward_process"]) == 2
+    assert "plant.model process is not a plant the library simulates" in capsys.readouterr().err
+    robot, out = LabRobot(load_config("experiment_forward")), io.StringIO()
+    hello = {"type": "hello", "protocol": 1, "robot": "unicycle", "dimension": 3}
+    robot.serve(io.StringIO(json.dumps(hello) + "\n" + json.dumps({"type": "trial", "trial": 1}) + "\n"), out)
+    answers = [json.loads(line) for line in out.getvalue().splitlines()]
+    assert answers[0]["type"] == "error" and "the library's robot is 'unicycle'" in answers[0]["message"]
+    assert answers[1] == {"type": "error", "trial": 1, "message": "KeyError: 'profile'"}
