@@ -55,6 +55,9 @@ for line in sys.stdin:
             sys.stdout.write('{"type": "result", "tri')
             sys.stdout.flush()
             sys.exit(0)
+        elif mode == "closes_stdout":
+            os.close(1)
+            time.sleep(3600)
         elif mode == "stale":
             answer["trial"] = k - 1
         elif mode == "nan":
@@ -82,6 +85,7 @@ HOSTILE = {
     "dies": r"died before answering trial 2 \(exit status 3\)",
     "garbage": r"answered trial 2 with a line that is not JSON .*'moving\.\.\. done'",
     "half_line": r"wrote half a line \('\{\"type\": \"result\", \"tri', no newline\)",
+    "closes_stdout": r"closed its stdout before answering trial 2 \(it was still running; it is stopped\)",
     "stale": r"answered trial 1 to trial 2's request \(a stale or wrong answer\)",
     "nan": r"answered trial 2 with a line that is not JSON \(NaN is not a number JSON allows\)",
     "inf": r"answered trial 2 with a line that is not JSON \(Infinity is not a number JSON allows\)",
@@ -358,7 +362,7 @@ def fake_plant(tmp_path_factory):
     return load_config(write_config(tmp_path_factory.mktemp("plant"))).plant.plant()
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=120, deadline=None)
 @given(answer=ANSWERS)
 def test_any_answer_is_a_trial_or_one_plant_error(fake_plant, answer):
     """Whatever JSON the program answers trial 2 with, the library either takes a finite pose inside

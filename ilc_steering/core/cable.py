@@ -106,7 +106,10 @@ class Cable:
                         f"wrote half a line ({_show(self._buffer)}, no newline) and closed its stdout "
                         f"instead of answering {what} ({self._exit()})"
                     )
-                raise self.fail(f"died before answering {what} ({self._exit()})")
+                status = self._exit()
+                if status == "it is still running":
+                    raise self.fail(f"closed its stdout before answering {what} (it was still running; it is stopped)")
+                raise self.fail(f"died before answering {what} ({status})")
             self._buffer += chunk
             if len(self._buffer) > MAX_LINE:
                 raise self.fail(f"answered {what} with a line over {MAX_LINE} bytes")
