@@ -51,6 +51,7 @@ FAMILIES = ("model-based", "black-box", "RL", "yours")
 GROUP = "ilc_steering.learners"
 """The entry-point group in which an installed package names its learners (``id = "module:make"``)."""
 _RL = "ilc_steering.agents.rl"
+_RL_SETTINGS = "ilc_steering.agents.rl_settings"
 _BLACKBOX = "ilc_steering.agents.blackbox"
 
 
@@ -129,7 +130,7 @@ class LearnerSpec:
         """Its budget [trials] under ``budgets`` on the config named ``task`` (RL reads its
         hyperparameter file there when ``budgets.rl_trials`` is None; bayes_opt is capped at its own)."""
         if self.family == "RL" and budgets.rl_trials is None:
-            return int(load_entry(f"{_RL}:hyperparameters", self.id)(self.id, task, prior)["n_timesteps"])
+            return int(load_entry(f"{_RL_SETTINGS}:hyperparameters", self.id)(self.id, task, prior)["n_timesteps"])
         trials = int(getattr(budgets, self.budget_key))
         return trials if self.max_trials is None else min(trials, self.max_trials)
 
@@ -139,7 +140,7 @@ class LearnerSpec:
         from importlib import metadata
 
         if self.family == "RL":
-            return str(load_entry(f"{_RL}:implementation", self.id)(self.id))
+            return str(load_entry(f"{_RL_SETTINGS}:implementation", self.id)(self.id))
         if self.family == "yours":
             return self.id
         if self.package is not None:
@@ -157,10 +158,10 @@ class LearnerSpec:
         from ilc_steering.errors import LearnerError
 
         if self.family == "RL":
-            rl = f"{_RL}:%s"
-            backend = load_entry(rl % "rl_backend", self.id)()  # a bad ILC_STEERING_RL_BACKEND is bad input
-            params = load_entry(rl % "hyperparameters", self.id)(self.id, context.task, context.prior)
-            make_rl = load_entry(rl % "make_learner", self.id)
+            settings = f"{_RL_SETTINGS}:%s"
+            backend = load_entry(settings % "rl_backend", self.id)()  # a bad ILC_STEERING_RL_BACKEND is bad input
+            params = load_entry(settings % "hyperparameters", self.id)(self.id, context.task, context.prior)
+            make_rl = load_entry(f"{_RL}:make_learner", self.id)
             learner: Any = make_rl(self.id, params, budget, context.progress_bar, context, backend)
         elif self.family == "black-box":
             optimizer = load_entry(self.entry_point, f"learner {self.id}")

@@ -813,7 +813,7 @@ def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
     Path(tmp, "forward34.yaml").write_text((CONFIGS / "forward_parking.yaml").read_text())
     py("env34", "ILC_STEERING_RL_BACKEND=jax", """
         import os; os.environ["ILC_STEERING_RL_BACKEND"] = "jax"
-        from ilc_steering.agents.rl import rl_backend
+        from ilc_steering.agents.rl_settings import rl_backend
         try:
             rl_backend(); print("ACCEPTED")
         except ValueError as error:
@@ -865,7 +865,7 @@ def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
         """)  # fmt: skip
     for key, value in (("learning_rate", "-0.001"), ("batch_size", "256.5"), ("n_timesteps", "True")):
         py("rlyaml34", f"configs/rl/ppo.yaml {key}: {value}", f"""
-            from ilc_steering.agents.rl import check_hyperparameters, hyperparameters
+            from ilc_steering.agents.rl_settings import check_hyperparameters, hyperparameters
             params = {{**hyperparameters("ppo", "forward_parking"), {key!r}: {value}}}
             try:
                 check_hyperparameters("ppo", params, "configs/rl/ppo.yaml: nominal.default"); print("ACCEPTED")

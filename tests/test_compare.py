@@ -14,11 +14,11 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import rl
 from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
+from ilc_steering.agents.rl_settings import RL_ALGORITHMS, check_hyperparameters, hyperparameters
 from ilc_steering.boxes import RESIDUAL_SCALE
 from ilc_steering.compare import cells as compare_cells
 from ilc_steering.compare import command as compare
-from ilc_steering.compare import report as compare_report
+from ilc_steering.compare import stats as compare_report
 from ilc_steering.compare.args import Args
 from ilc_steering.compare.cells import TrialLog, run_cell
 from ilc_steering.compare.command import run_cells
@@ -90,7 +90,10 @@ def test_gauss_newton_reaches_the_tight_tolerance_without_a_prior():
 
 
 @pytest.mark.parametrize("prior", ["nominal", "none"])
-@pytest.mark.parametrize("method", ["newton", "nelder_mead", "cma_es", *RL_ALGORITHMS])
+@pytest.mark.parametrize(
+    "method",
+    ["newton", "nelder_mead", *(pytest.param(m, marks=pytest.mark.extra("rl")) for m in ("cma_es", *RL_ALGORITHMS))],
+)
 @pytest.mark.slow  # RL trainings
 def test_every_baseline_spends_exactly_its_budget(method, prior):
     cell = run_cell(Args(**TINY), prior, method, "parallel_parking", 1)
@@ -127,6 +130,7 @@ def test_the_residual_box_holds_every_packaged_solution():
         assert inside.max() < 0.75, (name, inside)  # the solution, with margin
 
 
+@pytest.mark.extra("rl")
 def test_rl_deterministic_trials_start_at_the_nominal_solution_and_are_counted():
     env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
     u = env.unwrapped
@@ -153,6 +157,7 @@ def test_an_off_chart_trial_costs_the_penalty_and_never_sets_the_best_error():
     assert compare_cells.first_within(log, 10.0) is None and compare_cells.best_so_far(log)[0][1] > OFF_CHART_PENALTY
 
 
+@pytest.mark.extra("rl")
 def test_rl_hyperparameter_files_load_and_unknown_keys_are_named():
     for algorithm in RL_ALGORITHMS:
         for prior in ("nominal", "none"):
@@ -213,6 +218,7 @@ def test_a_clone_without_cells_resumes_from_compare_json(tmp_path):
 
 
 @pytest.mark.slow  # worker processes
+@pytest.mark.extra("rl")  # td3
 def test_workers_give_the_cells_of_one_process(tmp_path):
     settings = dict(
         priors=("nominal", "none"), methods=("ilc", "least_squares", "td3"), scenarios=("forward_parking_noisy",)
@@ -293,6 +299,7 @@ def test_a_users_learner_and_a_yaml_scenario_from_outside_the_package(tmp_path, 
 
 
 @pytest.mark.slow  # a comparison with PPO
+@pytest.mark.extra("rl")
 def test_main_writes_well_formed_results(tmp_path):
     args = Args(
         out=tmp_path,

@@ -13,8 +13,9 @@ from scipy.stats import bootstrap, trim_mean
 
 from ilc_steering.compare import tables as compare_tables
 from ilc_steering.compare.args import Args
+from ilc_steering.compare.figures import profile
 from ilc_steering.compare.plan import plan
-from ilc_steering.compare.report import BOOTSTRAP_RESAMPLES, profile, statistic_ci
+from ilc_steering.compare.stats import BOOTSTRAP_RESAMPLES, statistic_ci
 from ilc_steering.engine.runs import Progress
 
 ROOT = Path(__file__).resolve().parent.parent

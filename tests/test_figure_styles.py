@@ -8,7 +8,7 @@ from matplotlib.colors import to_hex
 
 from ilc_steering.agents import registry
 from ilc_steering.compare import command as compare
-from ilc_steering.compare.report import scenario_figure
+from ilc_steering.compare.figures import scenario_figure
 from ilc_steering.figure_styles import FAMILY_COLOURS, MARKERS, method_styles
 
 

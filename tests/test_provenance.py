@@ -27,7 +27,7 @@ def test_the_code_hash_covers_the_simulator_the_envs_the_learners_and_the_rl_set
     assert "configs/rl/td3.yaml" in files
     assert "ilc_steering/loop.py" in files and "ilc_steering/compare/cells.py" in files
     # what only arranges results is not hashed: a table drawn otherwise does not make a run stale
-    assert not any(path.endswith(("compare_report.py", "cli.py", "plots.py", "engine.py")) for path in files)
+    assert not any(path.endswith(("compare/report.py", "cli.py", "plots.py", "engine.py")) for path in files)
 
 
 def test_changing_one_file_changes_its_hash_and_the_code_hash(tmp_path: Path) -> None:
@@ -53,7 +53,7 @@ def test_current_and_stale_are_told_apart(tmp_path: Path) -> None:
     current, lines = prov.freshness(tmp_path / "now")
     assert current and "current" in lines[0]
     files = {**made["files"], "core/plants.py": "0" * 16}
-    _fake_run(tmp_path / "then", {"provenance": {**made, "code": "0" * 16, "files": files}})
+    _fake_run(tmp_path / "then", {"provenance": {**made, "code": prov.code_hash(files), "files": files}})
     current, lines = prov.freshness(tmp_path / "then")
     assert not current and "STALE" in lines[0]
     assert any("core/plants.py" in line for line in lines)

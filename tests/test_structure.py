@@ -15,6 +15,7 @@ FOLDERS = {
     "ilc_steering": "ilc_steering",
     "ilc_steering/core": "ilc_steering.core",
     "ilc_steering/core/robots": "ilc_steering.core.robots",
+    "ilc_steering/config": "ilc_steering.config",
     "ilc_steering/engine": "ilc_steering.engine",
     "ilc_steering/compare": "ilc_steering.compare",
     "ilc_steering/sweep": "ilc_steering.sweep",
@@ -208,7 +209,13 @@ FLOORS = (
     ("base", ("ilc_steering.errors", "ilc_steering.entries")),
     ("core", ("ilc_steering.core",)),
     ("spaces", ("ilc_steering.boxes",)),
-    ("files", ("ilc_steering.readers", "ilc_steering.output", "ilc_steering.tables", "ilc_steering.figure_styles")),
+    (
+        "files",
+        (
+            *("ilc_steering.readers", "ilc_steering.yaml_reader", "ilc_steering.schema", "ilc_steering.output"),
+            *("ilc_steering.tables", "ilc_steering.figure_styles"),
+        ),
+    ),
     ("config", ("ilc_steering.config",)),
     ("envs", ("ilc_steering.envs", "ilc_steering.lab_robot")),
     ("agents", ("ilc_steering.agents",)),

@@ -427,18 +427,20 @@ def test_a_users_learner_error_crosses_processes_and_names_the_learner_and_the_c
     assert all(message in f["error"] and method in f["error"] for f in failed)
 
 
+@pytest.mark.slow  # runs out its time limit, which must be far above the ILC cell's time in a fresh worker
 def test_a_cell_that_never_returns_is_stopped_by_the_cell_timeout(learners):
     import time
 
     from ilc_steering.compare.args import Args
     from ilc_steering.compare.command import run_all
 
-    args = Args(out=learners / "run", methods=("ilc", "trust_learners:forever"), cell_timeout=2.0, **TINY)
+    # 2 s once failed here: the ILC cell's fresh worker (numba's cache, the env) took longer under load
+    args = Args(out=learners / "run", methods=("ilc", "trust_learners:forever"), cell_timeout=15.0, **TINY)
     start = time.perf_counter()
     cells, failed = run_all(args)
-    assert time.perf_counter() - start < 30
+    assert time.perf_counter() - start < 120  # a bound on a hang, not a speed
     assert [c["method"] for c in cells] == ["ilc"]
-    assert len(failed) == 1 and "took longer than the time limit of 2 s" in failed[0]["error"]
+    assert len(failed) == 1 and "took longer than the time limit of 15 s" in failed[0]["error"]
 
 
 def test_a_failed_sweep_row_is_recorded_and_its_map_left_out(learners, capsys):
@@ -612,6 +614,7 @@ def test_an_ill_posed_task_is_refused_before_any_trial_naming_what_to_change(tmp
     assert not (tmp_path / "c" / "cells").exists() or not any((tmp_path / "c" / "cells").iterdir())
 
 
+@pytest.mark.extra("highway")  # highway_parking is packaged
 def test_every_packaged_one_trial_task_is_well_posed():
     import gymnasium as gym
 

@@ -20,7 +20,7 @@ import numpy as np
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import Learner, LearnerContext, update_times
 from ilc_steering.agents.registry import Budgets
-from ilc_steering.compare.report import LADDER
+from ilc_steering.compare.stats import LADDER
 from ilc_steering.core.score import true_cost
 from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name

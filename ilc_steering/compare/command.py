@@ -61,8 +61,7 @@ from ilc_steering.compare.cells import (
 )
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
-from ilc_steering.engine.backends import MAX_WORKERS
-from ilc_steering.engine.runs import Grid, RunFolder, run_grid
+from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, run_grid
 from ilc_steering.output import write_json
 from ilc_steering.readers import is_file, read_json
 
@@ -327,21 +326,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help=f"prior=none, the ablation, runs the first K seeds (default: {Args.ablation_seeds})",
     )
-    parser.add_argument(
-        "--workers", type=int, default=0, help=f"worker processes (0: one per core; at most {MAX_WORKERS})"
-    )
-    parser.add_argument(
-        "--cell-timeout",
-        type=float,
-        default=None,
-        metavar="SECONDS",
-        help="stop a cell still running after this and record it as failed (default: no limit)",
-    )
-    parser.add_argument(
-        "--backend",
-        default="local",
-        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
-    )
+    add_grid_options(parser, "cell")
     bar = parser.add_mutually_exclusive_group()
     bar.add_argument("--progress-bar", action="store_true", help="SB3's progress bar on RL cells (one worker)")
     bar.add_argument("--no-progress-bar", action="store_true", help="no progress bar (the default)")
@@ -360,7 +345,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
     )
     return replace(args, **budgets)
 

@@ -22,8 +22,7 @@ from ilc_steering.compare.against import Cell, CommittedRun
 from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
 from ilc_steering.compare.cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
-from ilc_steering.engine.backends import check_backend, check_workers
-from ilc_steering.engine.runs import check_timeout
+from ilc_steering.engine.runs import check_grid_options
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -100,7 +99,7 @@ def check_options(args: Args) -> None:
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
     MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s."""
-    check_backend(args.backend)
+    check_grid_options(args.backend, args.workers, args.cell_timeout)
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:
@@ -112,7 +111,7 @@ def check_options(args: Args) -> None:
     if unknown_priors:
         raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
     if any(registry.lookup(method).family == "RL" for method in args.methods):
-        from ilc_steering.agents.rl import rl_backend
+        from ilc_steering.agents.rl_settings import rl_backend
 
         rl_backend()  # ILC_STEERING_RL_BACKEND checked before any cell, not in each RL cell
     bad = [s for s in args.seeds or () if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
@@ -126,8 +125,6 @@ def check_options(args: Args) -> None:
             raise ValueError(
                 f"--{option.replace('_', '-')}: the budget must be a whole number in [1, {MAX_BUDGET}], got {value!r}"
             )
-    check_workers(args.workers)
-    check_timeout(args.cell_timeout)
     k = args.ablation_seeds
     if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SEED:
         raise ValueError(f"--ablation-seeds: a whole number of seeds >= 1, got {k!r}")

@@ -37,8 +37,7 @@ from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine.backends import MAX_WORKERS, check_backend, check_workers
-from ilc_steering.engine.runs import Grid, RunFolder, check_timeout, run_grid
+from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, check_grid_options, run_grid
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
 from ilc_steering.readers import read_json
@@ -135,9 +134,7 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
             raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
-    check_workers(args.workers)
-    check_timeout(args.cell_timeout)
-    check_backend(args.backend)
+    check_grid_options(args.backend, args.workers, args.cell_timeout)
     if not args.methods:
         raise ValueError("--methods: give at least one")
     mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
@@ -310,21 +307,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--trials", type=int, default=SweepArgs.trials, help="budget per plant")
     parser.add_argument("--out", type=Path, default=SweepArgs.out, help="run folder; an existing one is resumed")
-    parser.add_argument(
-        "--backend",
-        default="local",
-        help="local worker processes, or Ray tasks (ray.init(): RAY_ADDRESS for a cluster)",
-    )
-    parser.add_argument(
-        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
-    )
-    parser.add_argument(
-        "--cell-timeout",
-        type=float,
-        default=None,
-        metavar="SECONDS",
-        help="stop a row still running after this and record it as failed (default: no limit)",
-    )
+    add_grid_options(parser, "row")
     parser.add_argument(
         "--axis",
         nargs=3,
@@ -361,5 +344,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         out=ns.out,
         backend=ns.backend,
         workers=ns.workers,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
     )

@@ -60,7 +60,7 @@ ROBOTS: dict[str, str] = {
     "process": "ilc_steering.core.robots.process:ProcessPlantConfig",
 }
 """``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys: the core's robots. The
-plants that live on a higher floor (highway-env's car in ``envs/highway.py``) are the library's own
+plants that live on a higher floor (highway-env's car in ``envs/highway_plant.py``) are the library's own
 entry points in :data:`GROUP`, like any installed package's, so the core names nothing above it."""
 
 PACKAGED = frozenset(ROBOTS)
