@@ -6,9 +6,11 @@ the benchmark of ILC against RL and black-box learners. ``list`` shows the packa
 
 Exit codes (:data:`EXIT_CODES`): 0 converged (or done), 1 not converged, 2 bad input (a config,
 an argument, a run file, an unusable output path: all checked before any trial runs), 3 an
-internal error (a bug of the library), 4 a learner failed: in ``run``, a learner raised or acted
-with an action the env refused (the message names it and the trial; the trials it completed are
-written to ``--json`` / ``--plots``); in ``compare`` and ``sweep``, some cells or rows failed (or
+internal error (a bug of the library), 4 the user's code failed: in ``run``, a learner raised or
+acted with an action the env refused, or a plant failed (``plant.model: process``: the program hung,
+died or answered junk; the message names it and the trial; the trials completed are written to
+``--json`` / ``--plots``, as they are when a trial's commands are refused for the robot's limits,
+exit 2); in ``compare`` and ``sweep``, some cells or rows failed (or
 outlived ``--cell-timeout``): each is recorded with its error under ``failed/``, the others are
 finished and reported, and the last line says how many failed. 130: interrupted. Errors are
 one line; ``--debug`` adds the traceback.
@@ -27,7 +29,7 @@ from pathlib import Path
 from ilc_steering.agents.registry import REGISTRY
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
-from ilc_steering.errors import ConfigError, LearnerError
+from ilc_steering.errors import ConfigError, LearnerError, LimitError, PlantError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
     DEFAULT_LEARNER,
@@ -49,8 +51,9 @@ EXIT_CODES = {
     1: "not converged",
     2: "bad input: a config, an argument, a run file or an output path, refused before any trial",
     3: "internal error: a bug of ilc-steering (please report it; --debug prints the traceback)",
-    4: "a learner failed: run wrote the trials before it; compare and sweep recorded each failed cell "
-    "or row (its error, or --cell-timeout) under failed/ and finished the others",
+    4: "the user's code failed (a learner, or a plant: a program that hung, died or answered junk): run wrote "
+    "the trials before it; compare and sweep recorded each failed cell or row (its error, or --cell-timeout) "
+    "under failed/ and finished the others",
     130: "interrupted",
 }
 """The CLI's exit codes, as its ``--help`` prints them."""
@@ -179,7 +182,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"ilc-steering: {warning}", file=sys.stderr)
     try:
         result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
-    except LearnerError as error:
+    except (LearnerError, PlantError, LimitError) as error:
         if isinstance(error.partial, RunResult) and error.partial.trials:
             _save(error.partial, args.json, args.plots)  # the trials it completed are kept
         raise
@@ -387,7 +390,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush does not fail again
         return 0
-    except LearnerError as error:  # the learner's fault, named: neither bad input nor a bug
+    except (LearnerError, PlantError) as error:  # the user's learner or plant, named: neither bad input nor a bug
         if args.debug:
             traceback.print_exc()
         print(f"ilc-steering: {_one_line(error)}", file=sys.stderr)

@@ -19,12 +19,17 @@ import os
 import re
 import sys
 from collections.abc import Iterable
+from contextvars import ContextVar
 from importlib import import_module, invalidate_caches
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-__all__ = ["ENTRY", "load_entry", "search_folders"]
+__all__ = ["CONFIG_FOLDERS", "ENTRY", "load_entry", "search_folders"]
+
+CONFIG_FOLDERS: ContextVar[tuple[str, ...]] = ContextVar("CONFIG_FOLDERS", default=())
+"""The folder of the config being loaded (empty for a packaged config or a mapping), set while it
+is built: a robot's module beside it is found there, and a program it names runs there."""
 
 ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_][\w.]*")
 """The form of an entry: ``module:attr``, both dotted names."""

@@ -22,7 +22,7 @@ import numpy as np
 
 from ilc_steering.agents.base import Closable, Learner
 from ilc_steering.core.score import TRUE_KEYS
-from ilc_steering.errors import LearnerError
+from ilc_steering.errors import LearnerError, LimitError
 
 __all__ = ["Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
 
@@ -84,6 +84,8 @@ def run_trials(
                 raise _fault(who, "act() raised", k, error) from error
             try:
                 observation, reward, terminated, truncated, info = env.step(action)
+            except LimitError:  # commands beyond the robot's limits, refused before they were sent: exit 2
+                raise
             except ValueError as error:  # the env checks the action: a NaN, a wrong shape
                 raise _fault(who, "the env refused its action", k, error) from error
             try:

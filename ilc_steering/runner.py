@@ -17,9 +17,10 @@ from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.external import is_external
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.errors import LearnerError
+from ilc_steering.errors import LearnerError, LimitError, PlantError
 from ilc_steering.loop import run_trials
 
 __all__ = [
@@ -94,7 +95,7 @@ def step_warning(config: SteeringConfig) -> str | None:
 
     from ilc_steering.envs.scenario import Scenario
 
-    if config.is_cyclic:
+    if config.is_cyclic or is_external(config.plant.plant()):  # no integrator step; never an uncounted trial
         return None
     step = config.simulation.max_step
     finer = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, max_step=step / 2))
@@ -205,7 +206,9 @@ def run_ilc(
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
 
     A learner that fails raises :class:`~ilc_steering.errors.LearnerError` naming it (``learner``),
-    its ``partial`` the :class:`RunResult` of the trials run before.
+    its ``partial`` the :class:`RunResult` of the trials run before; so do a plant that fails
+    (:class:`~ilc_steering.errors.PlantError`) and commands refused for the robot's limits
+    (:class:`~ilc_steering.errors.LimitError`).
     """
     config = load_config(config)
     spec = learner_spec(learner)
@@ -225,7 +228,7 @@ def run_ilc(
 
     try:
         run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
-    except LearnerError as error:
+    except (LearnerError, PlantError, LimitError) as error:  # the trials before it are kept
         error.partial = RunResult(config, records, converged[0] if converged else None)
         raise
     finally:

@@ -72,7 +72,8 @@ def test_every_packaged_config_loads():
         ({"plant__wheelbase": -0.2}, r"plant\.wheelbase: must be a length in \[0\.001, 1000\] m, got -0\.2"),
         (  # the packaged robots, then the installed packages' entry points (mujoco_car)
             {"plant__model": "truck"},
-            r"plant\.model: must be one of \['car', 'chained', 'unicycle', 'car_trailer', 'highway_parking'",
+            r"plant\.model: must be one of \['car', 'chained', 'unicycle', 'car_trailer', 'process', "
+            r"'highway_parking'",
         ),
         ({"plant__steering_limit": 2.0}, r"plant\.steering_limit"),
         ({"plant__steering_offset": 0.7}, r"plant\.steering_offset: must be within \+-0\.5 rad"),

@@ -217,7 +217,7 @@ FLOORS = (
         ),
     ),
     ("config", ("ilc_steering.config",)),
-    ("envs", ("ilc_steering.envs",)),
+    ("envs", ("ilc_steering.envs", "ilc_steering.lab_robot")),
     ("agents", ("ilc_steering.agents",)),
     ("trials", ("ilc_steering.loop", "ilc_steering.runner", "ilc_steering.oracle", "ilc_steering.plots")),
     ("engine", ("ilc_steering.engine",)),

@@ -490,7 +490,7 @@ def test_exit_codes_are_documented():
     from ilc_steering.cli import EXIT_CODES, _parser
 
     assert sorted(EXIT_CODES) == [0, 1, 2, 3, 4, 130]
-    assert "4 a learner failed" in (_parser().epilog or "")
+    assert "4 the user's code failed (a learner, or a plant" in (_parser().epilog or "")
 
 
 def test_the_librarys_errors_survive_pickling():

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from contextvars import ContextVar
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -17,6 +16,7 @@ from ilc_steering.config.sections import LearningConfig, SimulationConfig, Task,
 from ilc_steering.config.steering import SteeringConfig
 from ilc_steering.core import robots
 from ilc_steering.core.plants import PlantConfig
+from ilc_steering.entries import CONFIG_FOLDERS
 from ilc_steering.errors import ConfigError
 from ilc_steering.readers import check_depth, read_text
 from ilc_steering.schema import show, validate
@@ -27,7 +27,7 @@ __all__ = ["MAX_FILE_BYTES", "load_config", "packaged_configs", "plant_config"]
 MAX_FILE_BYTES = 1 << 20
 """Largest config file read [bytes]."""
 
-_FOLDERS: ContextVar[tuple[str, ...]] = ContextVar("_FOLDERS", default=())
+_FOLDERS = CONFIG_FOLDERS
 """The folder of the config being loaded, searched for a robot's module it names."""
 
 

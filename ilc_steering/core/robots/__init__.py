@@ -57,6 +57,7 @@ ROBOTS: dict[str, str] = {
     "chained": "ilc_steering.core.robots.chained:ChainedPlantConfig",
     "unicycle": "ilc_steering.core.robots.unicycle:UnicyclePlantConfig",
     "car_trailer": "ilc_steering.core.robots.car_trailer:TrailerPlantConfig",
+    "process": "ilc_steering.core.robots.process:ProcessPlantConfig",
 }
 """``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys: the core's robots. The
 plants that live on a higher floor (highway-env's car in ``envs/highway_plant.py``) are the library's own

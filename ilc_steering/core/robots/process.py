@@ -1,0 +1,480 @@
+r"""A plant that is another program (``plant.model: process``): your robot on the other end of a cable.
+
+The library starts the program once per run (``plant.command``, in the config's folder) and
+speaks JSON lines with it over its stdin and stdout (``docs/your_robot.md``, protocol 1): a
+``hello`` each way, then one ``trial`` request per counted trial, answered by a ``result`` (the
+measured final configuration, world frame) or an ``error`` (the trial failed). A request carries
+the trial's input profile and coefficients (eqs. 15-17), the chained inputs ``v1``, ``v2`` sampled
+at ``plant.control_rate`` (for a robot that steers closed-loop with eqs. 3-5 from its own state
+estimate), and the robot's own inputs and configurations along the nominal model's path (for a
+robot that can only replay inputs open-loop).
+
+The controller's model is the nested ``plant.robot`` (a ``car``, a ``unicycle``, ...: its
+*nominal* keys; its simulated-plant keys must equal them, for the program is the plant). Before a
+trial leaves the library its nominal path is checked against ``plant.limits`` (top speed, steering
+angle and rate, workspace): a trial beyond them is refused with a
+:class:`~ilc_steering.errors.LimitError`, never clipped. What the program does wrong is a
+:class:`~ilc_steering.errors.PlantError` naming it (:mod:`ilc_steering.core.cable`), and the trial
+is not counted.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import weakref
+from dataclasses import dataclass, field, replace
+from math import isfinite, pi
+from pathlib import Path
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.cable import Cable, describe
+from ilc_steering.core.checks import require
+from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.grid import MAX_STEPS_PER_TRIAL
+from ilc_steering.core.integrate import LEFT_CHART, OK
+from ilc_steering.core.plants import CHART_MARGIN, PlantConfig, PlantKind
+from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
+from ilc_steering.core.robots.car import rotate
+from ilc_steering.core.simulate import simulate
+from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.entries import CONFIG_FOLDERS
+from ilc_steering.errors import LimitError
+
+__all__ = [
+    "PROTOCOL", "ProcessLimits", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message", "sample",
+]  # fmt: skip
+
+Array = npt.NDArray[np.float64]
+
+PROTOCOL = 1
+"""The protocol's version, sent and expected in both ``hello`` messages."""
+SUBSTEPS = 10
+"""Integrator steps of the nominal path per control period, at each of which the limits are checked."""
+RESULT_KEYS = frozenset({"type", "trial", "final", "trajectory", "log", "left_chart"})
+"""The keys a ``result`` may hold."""
+
+
+@dataclass(frozen=True)
+class ProcessLimits:
+    """The robot's limits, checked on a trial's nominal path before it is sent (world frame)."""
+
+    workspace: tuple[float, ...]  # [x_min, x_max, y_min, y_max] [m]: the nominal path and every measured pose
+    speed: float  # top speed of the reference point (a car's rear axle) [m/s]
+    steering: float | None = None  # the largest |phi| [rad]; needed by a robot with a steering angle, else null
+    steering_rate: float | None = None  # the largest |dphi/dt| [rad/s]; as steering
+
+    def __post_init__(self) -> None:
+        w = self.workspace
+        require(
+            len(w) == 4 and all(isfinite(v) for v in w) and w[0] < w[1] and w[2] < w[3],
+            "workspace",
+            f"needs [x_min, x_max, y_min, y_max] [m], finite, each min below its max, got {list(w)}",
+        )
+        for name in ("speed", "steering", "steering_rate"):
+            value = getattr(self, name)
+            require(value is None or (isfinite(value) and value > 0), name, f"must be > 0, got {value}")
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "workspace": list(self.workspace),
+            "speed": self.speed,
+            "steering": self.steering,
+            "steering_rate": self.steering_rate,
+        }
+
+
+def steering_index(kind: PlantKind) -> int | None:
+    """The entry of the configuration that is a steering angle (labelled ``φ``), or ``None``."""
+    return next((i for i, label in enumerate(kind.coordinates) if label.startswith("φ")), None)
+
+
+def profile_message(profile: InputProfile) -> dict[str, Any]:
+    """The ``profile`` of a trial request: eqs. 15-17's pieces, fixed ``v1``, ``q``, and section 5's shape."""
+    if not isinstance(profile, PiecewiseProfile):
+        raise ValueError(f"a process plant sends eqs. 15-17's profiles, got {type(profile).__name__}")
+    trapezoid = isinstance(profile, TrapezoidProfile)
+    return {
+        "pieces": list(profile.durations),
+        "v1_fixed": list(profile.v1_fixed),
+        "v2_terms": profile.v2_terms,
+        "v1_shape": "trapezoid" if trapezoid else "constant",
+        "ramp": profile.ramp if isinstance(profile, TrapezoidProfile) else None,
+    }
+
+
+def nominal_path(nominal: Any, profile: InputProfile, x0: Array, c: Array, step: float) -> tuple[Array, Array, Array]:
+    """The path the robot would drive were it its nominal model, with its known steering stop: the
+    nominal plant (``nominal``, the controller's robot with its true geometry the nominal one)
+    simulated from ``x0`` (task frame) under ``c`` by the library's integrator, steps at most
+    ``step`` [s] long. Its times [s], configurations (task frame) and the states the robot's
+    inputs are computed from (eqs. 4-5), each row a step. Without a steering stop it is eq. 12's
+    nominal motion, to the integrator's accuracy (tested)."""
+    trials = simulate(nominal, profile, nominal.initial_state(x0)[None], c[None], step, record=True)
+    assert trials.times is not None and trials.states is not None  # record=True
+    states = trials.states[0]
+    return trials.times, nominal.configuration(states), nominal.estimate(states)
+
+
+def sample(times: Array, values: Array, at: Array) -> Array:
+    """``values`` (a row per time of ``times``) at the times ``at`` [s], linear between rows."""
+    return np.stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])], axis=-1)
+
+
+class _Link:
+    """The running program of a run, shared by the plant's copies (``with_frame``): started on the
+    first trial, stopped when the last copy is gone (or at exit)."""
+
+    def __init__(self) -> None:
+        self.cables: list[Cable] = []
+        self.sent = 0  # trial requests sent, each answered by a result (a failure ends the run)
+        weakref.finalize(self, _stop, self.cables)
+
+
+def _stop(cables: list[Cable]) -> None:
+    for cable in cables:
+        cable.close()
+
+
+def _number_list(value: Any, size: int | None) -> list[float] | None:
+    """``value`` as finite floats (``size`` of them, when given), or ``None``."""
+    if not isinstance(value, list) or (size is not None and len(value) != size):
+        return None
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and isfinite(v) for v in value):
+        return None
+    return [float(v) for v in value]
+
+
+@dataclass(frozen=True)
+class ProcessPlant(ExternalPlantBase):
+    """The program of ``command`` as the true plant, the nested robot's nominal model as the
+    controller's (see the module). Configurations are the robot's, in the task frame (the world
+    rotated by ``frame`` [rad]); the program sees the world frame."""
+
+    factor_names: ClassVar[tuple[str, str]] = ("none", "none")
+    name: ClassVar[str] = "a process plant (another program)"
+    command: tuple[str, ...]
+    folder: str
+    timeout: float
+    control_rate: float
+    limits: ProcessLimits
+    chained_map: Any
+    nominal: Any
+    """The nominal robot's plant: its chart and steering limit check configurations."""
+    kind: PlantKind  # the nested robot's kind, named process
+    dimension: int
+    frame: float = 0.0
+    _link: _Link = field(default_factory=_Link, compare=False, repr=False)
+
+    @property
+    def state_dim(self) -> int:
+        return self.dimension
+
+    @property
+    def steering_limit(self) -> float | None:
+        limit: float | None = self.nominal.steering_limit
+        return limit
+
+    @property
+    def trials_sent(self) -> int:
+        """Trial requests sent to the program so far (each one a counted trial)."""
+        return self._link.sent
+
+    def with_frame(self, angle: float) -> ProcessPlant:
+        return ProcessPlant(
+            self.command, self.folder, self.timeout, self.control_rate, self.limits, self.chained_map,
+            self.nominal, self.kind, self.dimension, float(angle), self._link,
+        )  # fmt: skip
+
+    def configuration(self, x: Array) -> Array:
+        return np.array(x, dtype=np.float64)
+
+    def estimate(self, x: Array) -> Array:
+        return np.array(x, dtype=np.float64)
+
+    def initial_state(self, q: Array) -> Array:
+        return np.array(q, dtype=np.float64)
+
+    def check_configuration(self, q: Array) -> None:
+        self.nominal.check_configuration(q)
+
+    def to_world(self, q: Array) -> Array:
+        return rotate(q, -self.frame) if self.frame else np.array(q, dtype=np.float64)
+
+    def to_task(self, q: Array) -> Array:
+        return rotate(q, self.frame) if self.frame else np.array(q, dtype=np.float64)
+
+    @property
+    def who(self) -> str:
+        return describe(self.command)
+
+    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
+        """One request per trial, each checked against the limits before any is sent; one answer each."""
+        first = self._link.sent + 1
+        requests = [self.request(first + b, profile, x0[b], c[b], record) for b in range(c.shape[0])]
+        cable = self._cable()
+        outcomes = []
+        for b, request in enumerate(requests):
+            k = request["trial"]
+            cable.send(request, f"trial {k}")
+            self._link.sent = k
+            outcomes.append(self._result(cable, k, cable.receive(self.timeout, f"trial {k}"), x0[b]))
+        final = np.array([o[0] for o in outcomes])
+        status = np.array([o[1] for o in outcomes], dtype=np.int64)
+        logs = [o[3] for o in outcomes]
+        if not record:
+            return ExternalTrials(final, status, logs=logs)
+        total = float(sum(profile.durations))
+        paths = [o[2] for o in outcomes]
+        if any(p is None for p in paths) or len({p[0].tobytes() for p in paths if p is not None}) > 1:
+            # no trajectory (or trajectories of different samples): the start and the end
+            times = np.array([0.0, total])
+            states = np.stack([np.stack([x0[b], outcomes[b][0]]) for b in range(len(outcomes))])
+        else:
+            times = paths[0][0]  # type: ignore[index]
+            states = np.stack([p[1] for p in paths])  # type: ignore[index]
+        return ExternalTrials(final, status, times, states, logs=logs)
+
+    def _cable(self) -> Cable:
+        """The running program, started and greeted on the first trial."""
+        if self._link.cables:
+            return self._link.cables[0]
+        command = [sys.executable if self.command[0] == "python" else self.command[0], *self.command[1:]]
+        cable = Cable(command, self.folder)
+        cable.name = self.who
+        self._link.cables.append(cable)
+        hello = {"type": "hello", "protocol": PROTOCOL, "robot": self.chained_map.robot, "dimension": self.dimension}
+        cable.send(hello, "the hello")
+        answer = cable.receive(self.timeout, "the hello")
+        greeted = answer.get("type") == "hello" and answer.get("protocol") == PROTOCOL
+        if not greeted or not isinstance(answer.get("name"), str):
+            wanted = f'{{"type": "hello", "protocol": {PROTOCOL}, "name": "..."}}'
+            raise cable.fail(f"answered the hello with {_brief(answer)}, not {wanted}")
+        return cable
+
+    def request(self, k: int, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> dict[str, Any]:
+        """Trial ``k``'s request from the start ``x0`` (task frame) with coefficients ``c``, checked
+        against :attr:`limits` (a :class:`~ilc_steering.errors.LimitError` names the first limit
+        passed, before anything is sent)."""
+        total = float(sum(profile.durations))
+        steps = max(1, round(total * self.control_rate))
+        t = np.linspace(0.0, total, steps + 1)
+        step = max(total / steps / SUBSTEPS, 2 * total / MAX_STEPS_PER_TRIAL)  # a long trial: the integrator's cap
+        times, q, acted_on = nominal_path(self.nominal, profile, x0, c, step)
+        self._check_limits(k, times, self.to_world(q))
+        v1, v2 = profile.evaluate(c, t)
+        v1 = np.broadcast_to(np.asarray(v1, dtype=np.float64), t.shape)
+        v2 = np.broadcast_to(np.asarray(v2, dtype=np.float64), t.shape)
+        u1, u2 = (np.asarray(u, dtype=np.float64) for u in self.chained_map.inputs(sample(times, acted_on, t), v1, v2))
+        return {
+            "type": "trial",
+            "trial": k,
+            "start": self.to_world(x0).tolist(),
+            "profile": profile_message(profile),
+            "c": [float(v) for v in c],
+            "control": {"dt": total / steps, "t": t.tolist(), "v1": v1.tolist(), "v2": v2.tolist()},
+            "nominal": {"u1": u1.tolist(), "u2": u2.tolist(), "q": self.to_world(sample(times, q, t)).tolist()},
+            "limits": self.limits.to_json(),
+            "record": bool(record),
+        }
+
+    def _check_limits(self, k: int, times: Array, world: Array) -> None:
+        limits, h = self.limits, np.diff(times)
+        x_min, x_max, y_min, y_max = limits.workspace
+
+        def refuse(key: str, needs: str, where: int, limit: str) -> None:
+            raise LimitError(
+                f"plant.limits.{key}: trial {k}'s nominal path needs {needs} at t = {times[where]:.3g} s, beyond the "
+                f"robot's {limit}; refused before sending it to {self.who} (a learner's step too large, or limits too "
+                "tight for the task)"
+            )
+
+        outside = np.flatnonzero(
+            (world[:, 0] < x_min) | (world[:, 0] > x_max) | (world[:, 1] < y_min) | (world[:, 1] > y_max)
+        )
+        if outside.size:
+            i = int(outside[0])
+            refuse(
+                "workspace", f"(x, y) = ({world[i, 0]:.4g}, {world[i, 1]:.4g}) m", i,
+                f"workspace x in [{x_min:g}, {x_max:g}] m, y in [{y_min:g}, {y_max:g}] m",
+            )  # fmt: skip
+        speed = np.hypot(np.diff(world[:, 0]), np.diff(world[:, 1])) / h
+        if speed.size and float(speed.max()) > limits.speed:
+            i = int(np.argmax(speed))
+            refuse("speed", f"{speed[i]:.4g} m/s", i, f"top speed {limits.speed:g} m/s")
+        index = steering_index(self.kind)
+        if index is None or limits.steering is None or limits.steering_rate is None:
+            return
+        phi = world[:, index]
+        if float(np.abs(phi).max()) > limits.steering:
+            i = int(np.argmax(np.abs(phi)))
+            refuse("steering", f"|phi| = {abs(phi[i]):.4g} rad", i, f"steering angle {limits.steering:g} rad")
+        rate = np.abs(np.diff(phi)) / h
+        if rate.size and float(rate.max()) > limits.steering_rate:
+            i = int(np.argmax(rate))
+            refuse("steering_rate", f"{rate[i]:.4g} rad/s", i, f"steering rate {limits.steering_rate:g} rad/s")
+
+    def _result(
+        self, cable: Cable, k: int, answer: dict[str, Any], x0: Array
+    ) -> tuple[Array, int, tuple[Array, Array] | None, dict[str, Any]]:
+        """Trial ``k``'s answer checked: the final configuration (task frame), its status, the
+        trajectory ``(t, q)`` (task frame) if sent, and the program's log."""
+        kind = answer.get("type")
+        if kind == "error":
+            message = answer.get("message")
+            cable.close()
+            raise cable.fail(f"says trial {k} failed: {message if isinstance(message, str) else _brief(answer)}")
+        if kind != "result":
+            raise cable.fail(f'answered trial {k} with {_brief(answer)}, not a "result" or an "error"')
+        if answer.get("trial") != k:
+            raise cable.fail(
+                f"answered trial {_brief(answer.get('trial'))} to trial {k}'s request (a stale or wrong answer)"
+            )
+        unknown = sorted(set(answer) - RESULT_KEYS)
+        if unknown:
+            raise cable.fail(f"answered trial {k} with unknown keys {unknown}; a result has {sorted(RESULT_KEYS)}")
+        n = self.dimension
+        final = _number_list(answer.get("final"), n)
+        if final is None:
+            raise cable.fail(
+                f"answered trial {k} with final = {_brief(answer.get('final'))}: it needs {n} finite numbers "
+                f"({', '.join(self.kind.coordinates)}; world frame)"
+            )
+        x_min, x_max, y_min, y_max = self.limits.workspace
+        if not (x_min <= final[0] <= x_max and y_min <= final[1] <= y_max):
+            raise cable.fail(
+                f"reported trial {k}'s final pose at (x, y) = ({final[0]:.6g}, {final[1]:.6g}) m, outside "
+                f"plant.limits.workspace x in [{x_min:g}, {x_max:g}], y in [{y_min:g}, {y_max:g}] m"
+            )
+        log = answer.get("log", {})
+        if not isinstance(log, dict):
+            raise cable.fail(f"answered trial {k} with log = {_brief(log)}: it needs a JSON object")
+        left = answer.get("left_chart", False)
+        if not isinstance(left, bool):
+            raise cable.fail(f"answered trial {k} with left_chart = {_brief(left)}: it needs true or false")
+        q, status = self.to_task(np.array(final)), LEFT_CHART if left else OK
+        edge = pi / 2 - CHART_MARGIN
+        if np.any(np.abs(q[2:]) > edge):  # stopped out of the chart of eqs. 4-5: measured at its edge
+            q[2:], status = np.clip(q[2:], -edge, edge), LEFT_CHART
+        return q, status, self._trajectory(cable, k, answer.get("trajectory")), log
+
+    def _trajectory(self, cable: Cable, k: int, value: Any) -> tuple[Array, Array] | None:
+        if value is None:
+            return None
+        bad = f"answered trial {k} with a trajectory that is not {{'t': [...], 'q': [[...], ...]}}"
+        if not isinstance(value, dict) or set(value) != {"t", "q"}:
+            raise cable.fail(bad)
+        t = _number_list(value["t"], None)
+        rows = value["q"] if isinstance(value["q"], list) else None
+        if t is None or rows is None or len(rows) != len(t) or len(t) < 2 or np.any(np.diff(t) <= 0):
+            raise cable.fail(bad + " (t increasing, as many q as t)")
+        q = [_number_list(row, self.dimension) for row in rows]
+        if any(row is None for row in q):
+            raise cable.fail(bad + f" ({self.dimension} finite numbers per q)")
+        return np.array(t), self.to_task(np.array(q))
+
+
+def _brief(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:80] + "..."
+
+
+@dataclass(frozen=True)
+class ProcessPlantConfig:
+    model: Literal["process"]
+    command: tuple[str, ...]  # the program and its arguments (argv); "python" is the library's own interpreter
+    robot: PlantConfig  # the nominal robot: plant.model car, unicycle, ... with its nominal keys
+    limits: ProcessLimits  # checked before a trial is sent: workspace [m], speed [m/s], steering [rad], rate [rad/s]
+    timeout: float = 60.0  # [s] the longest wait for the program's answer to one trial (and to the hello)
+    control_rate: float = 50.0  # [Hz] the samples of the inputs sent with a trial
+    folder: str | None = None  # the program's working directory; None: the config's folder (absolute once loaded)
+
+    plant_class: ClassVar[type[ProcessPlant]] = ProcessPlant
+
+    def __post_init__(self) -> None:
+        require(not isinstance(self.robot, ProcessPlantConfig), "robot", "must be a robot's config, not a process")
+        require(self.robot.kind.has_pose, "robot", f"must be a robot with a pose (x, y, theta), got {self.robot.model}")
+        require(
+            self.robot.plant() == self.nominal(),
+            "robot",
+            "describes a simulated plant other than its nominal model (true_* keys, servo lags, backlash, ...): "
+            "with a process plant the program is the plant; give the nominal values only",
+        )
+        require(
+            isfinite(self.timeout) and 0 < self.timeout <= 86400,
+            "timeout",
+            f"must be in (0, 86400] s, got {self.timeout}",
+        )
+        require(
+            isfinite(self.control_rate) and 0 < self.control_rate <= 10000,
+            "control_rate",
+            f"must be in (0, 10000] Hz, got {self.control_rate}",
+        )
+        if steering_index(self.robot.kind) is not None:
+            require(
+                self.limits.steering is not None and self.limits.steering_rate is not None,
+                "limits",
+                f"a {self.robot.model} steers: give limits.steering [rad] and limits.steering_rate [rad/s]",
+            )
+        folder = self.folder
+        if folder is None:
+            folders = CONFIG_FOLDERS.get()
+            folder = folders[0] if folders else os.getcwd()
+        object.__setattr__(self, "folder", str(Path(folder).resolve()))
+        self._check_command()
+
+    def _check_command(self) -> None:
+        command = self.command
+        require(
+            len(command) >= 1 and all(command), "command", f"needs a program and its arguments, got {list(command)}"
+        )
+        program = command[0]
+        if program == "python":
+            return
+        if os.sep in program or (os.altsep and os.altsep in program):
+            path = Path(str(self.folder), program)
+            require(
+                path.is_file() and os.access(path, os.X_OK),
+                "command",
+                f"{program!r} is not an executable file (relative to {self.folder})",
+            )
+        else:
+            require(shutil.which(program) is not None, "command", f"no program {program!r} on the PATH")
+
+    @property
+    def kind(self) -> PlantKind:
+        """The nested robot's kind (its pose, coordinates and inputs), named ``process``."""
+        return replace(self.robot.kind, name="process")
+
+    @property
+    def dimension(self) -> int:
+        return self.robot.dimension
+
+    @property
+    def steering_limit(self) -> float | None:
+        return self.robot.steering_limit
+
+    def nominal_map(self) -> Any:
+        return self.robot.nominal_map()
+
+    def nominal(self) -> Any:
+        """The plant the controller assumes: the nested robot with its nominal geometry."""
+        robot: Any = self.robot
+        return robot.plant_class.nominal_plant(robot.nominal_map(), robot.dimension, robot.steering_limit)
+
+    def plant(self) -> ProcessPlant:
+        """The program as the true plant (not started: it starts on the first trial)."""
+        return ProcessPlant(
+            self.command, str(self.folder), self.timeout, self.control_rate, self.limits, self.nominal_map(),
+            self.nominal(), self.kind, self.robot.dimension,
+        )  # fmt: skip
+
+    def check_task(self, max_step: float, cyclic: bool) -> None:
+        """One-trial tasks only (a cycle's trials would start where the robot stopped, which is for
+        a later protocol); the nested robot's own rules."""
+        require(not cyclic, "model", "process runs one-trial tasks (task.start, task.goal), not cycles")
+        self.robot.check_task(max_step, cyclic)
