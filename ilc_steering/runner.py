@@ -85,12 +85,18 @@ when ``simulation.max_step`` is halved, for the step to be fine enough (:func:`s
 
 def step_warning(config: SteeringConfig) -> str | None:
     """A warning when ``simulation.max_step`` is too coarse for the task (None when it is fine):
-    the step-halving test. The nominal solution is simulated on the true plant at the step and
-    at half of it; a final configuration that moves by more than :data:`MAX_STEP_MISS` of the
-    tightest tolerance means the counts would be the integrator's, not the plant's. (A warning,
-    not an error: a coarse step is a legitimate way to provoke a trial that leaves the chart.)"""
+    the step-halving test. The nominal solution is simulated at the step and at half of it; a
+    final configuration that moves by more than :data:`MAX_STEP_MISS` of the tightest tolerance
+    means the counts would be the integrator's, not the plant's. (A warning, not an error: a
+    coarse step is a legitimate way to provoke a trial that leaves the chart.)
+
+    It simulates the library's own plant (a simulation: no robot moves), and for an external
+    plant (someone else's simulator, or a robot) the nominal model only: such a plant is driven
+    once per counted trial and never by a check (``tests/test_scatter.py`` counts its drives)."""
     import numpy as np
 
+    from ilc_steering.core.external import is_external
+    from ilc_steering.core.family import ModelFamily
     from ilc_steering.envs.scenario import Scenario
 
     if config.is_cyclic:
@@ -98,8 +104,13 @@ def step_warning(config: SteeringConfig) -> str | None:
     step = config.simulation.max_step
     finer = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, max_step=step / 2))
     coarse, fine = Scenario.from_config(config), Scenario.from_config(finer)
-    c = coarse.nominals[0].solve()[None]
-    configurations = [s.plant.configuration(s.run(c).final)[0] for s in (coarse, fine)]
+    model = coarse.nominals[0]
+    c = model.solve()[None]
+    if is_external(coarse.plant):
+        families = [ModelFamily(model, max_step) for max_step in (step, step / 2)]
+        configurations = [family.configurations(family.origin, c)[0][0] for family in families]
+    else:
+        configurations = [s.plant.configuration(s.run(c).final)[0] for s in (coarse, fine)]
     miss = float(np.max(np.abs(configurations[0] - configurations[1])))
     tolerance = config.learning.tolerance
     tightest = min(v for v in (tolerance.cartesian, tolerance.orientation, tolerance.error) if v is not None)
