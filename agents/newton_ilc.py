@@ -34,8 +34,13 @@ after each one:
    action scales of :math:`c_k`, projected onto the action box.
 4. **Fall-back.** When a trial did not reduce the measured error below the best so far, the
    next trial is eqs. 33-34 from the best trial (:class:`~ilc_steering.agents.ilc.ILCAgent`),
-   and :math:`D` is reset. When a trial left the chart, the next one halves its step from the
-   best trial (eqs. 33-34 from it if there is no best yet).
+   and :math:`D` is reset. When that fails too, the step from the best trial is halved, up to
+   :data:`FALLBACK_HALVINGS` times (unless the best trial is within :data:`REACHED`, where no
+   tolerance fails it); when the smallest step fails as well, the best trial's error was likely
+   a lucky draw of the plant's scatter, and the best trial itself is run again (a repeat it asks
+   for and counts, ``NewtonILC.repeats``): its measurements are averaged, and the learner goes
+   on from the mean. So no failed trial is sent again as it was. When a trial left the chart,
+   the next one halves its step from the best trial (eqs. 33-34 from it if there is no best yet).
 
 On the nominal plant :math:`\hat\theta = 0`, :math:`d = 0` and step 3 is an exact inversion:
 one update lands on the goal to the integrator's accuracy (``tests/test_newton_ilc.py``).
@@ -64,7 +69,7 @@ from ilc_steering.agents.model_based import (
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["TRUST_RADIUS", "NewtonILC", "make_newton_ilc"]
+__all__ = ["FALLBACK_HALVINGS", "TRUST_RADIUS", "NewtonILC", "make_newton_ilc"]
 
 Array = npt.NDArray[np.float64]
 
@@ -72,6 +77,11 @@ TRUST_RADIUS = 2.0
 """The largest step of one update, in units of ``NominalModel.action_scale()`` per coefficient."""
 RIDGE = 1e-4
 """[m or rad per unit of theta] the weight that pulls ``theta`` to 0 where the trials say nothing."""
+FALLBACK_HALVINGS = 3
+"""Failed fall-backs in a row, each with half the last one's step, before the best trial is run again."""
+REACHED = 1e-10
+"""[m and rad] a best trial this near the goal is at the integrator's accuracy: no tolerance fails it,
+and its fall-back is run as it is, however often."""
 _FIT_ITERATIONS = 20
 _SOLVE_ITERATIONS = 20
 
@@ -125,6 +135,10 @@ class NewtonILC:
         self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
         self._previous: Trial | None = None  # the last trial of the secant, None after a fall-back
+        self._failures = 0  # trials in a row not better than the best
+        self._measured: list[Trial] = []  # the best trial's measurements, when it was run again
+        self.repeats = 0
+        """Trials that ran the best trial's coefficients again, by the learner's choice (see the module)."""
         self._next = self.start.copy()
 
     def act(self, observation: Any = None) -> Array:
@@ -147,16 +161,38 @@ class NewtonILC:
         q = self.family.to_configuration(z)
         trial = Trial(c, z, q, float(np.linalg.norm(q - self._goal_q)))
         self._trials.append(trial)
-        if self._best is not None and trial.error >= self._best.error:
-            self._next = self._fallback(self._best)
+        best = self._best
+        if best is not None and self._measured and np.array_equal(c, best.c):
+            trial = self._mean(trial)  # the repeat it asked for: the best trial, measured once more
+        elif best is not None and trial.error >= best.error:
+            self._failures += 1
             self._D[:] = 0.0
             self._previous = None
+            if self._failures == 1 or best.error < REACHED:
+                self._next = self._fallback(best)
+            elif self._failures <= FALLBACK_HALVINGS + 1:
+                self._next = best.c + 0.5 ** (self._failures - 1) * (self._fallback(best) - best.c)
+            else:  # the smallest step failed too: the best trial's error may be the scatter's luck
+                self._measured = self._measured or [best]
+                self._failures = 0
+                self.repeats += 1
+                self._next = best.c.copy()
             return
+        else:
+            self._measured = []
+        self._failures = 0
         self._best = trial
         if self.identify:
             self.theta = self._fit(self.theta)
         self._next = self._newton(trial)
         self.update_seconds.append(time.perf_counter() - began)
+
+    def _mean(self, trial: Trial) -> Trial:
+        """The best trial with ``trial``, a repeat of it, among its measurements: their mean."""
+        self._measured.append(trial)
+        z = np.mean([t.z for t in self._measured], axis=0)
+        q = self.family.to_configuration(z)
+        return Trial(trial.c, z, q, float(np.linalg.norm(q - self._goal_q)))
 
     def _fallback(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``."""

@@ -88,3 +88,51 @@ def test_the_env_drives_an_external_plant_once_per_step(counted):
     rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), 4, seed=0)
     assert len(rollout) == 4 and counted.drives == [1, 1, 1, 1]
     assert rollout.infos[-1]["cartesian_error"] == pytest.approx(1e-4, rel=0.01)  # eqs. 33-34: tenfold a trial
+
+
+# 3. No learner repeats a failing trial ------------------------------------------------------------
+
+EXTRAS = {"RL": "stable_baselines3", "cma_es": "cma", "bayes_opt": "botorch"}
+"""The module each optional learner needs (its extra), by family or id."""
+SLOW = {"RL", "bayes_opt"}  # an SB3 model's or a GP's set-up and updates take seconds per trial
+
+
+def _every_learner():
+    from ilc_steering.agents.registry import REGISTRY
+
+    for name, spec in REGISTRY.items():
+        marks = [pytest.mark.slow] if SLOW & {name, spec.family} else []
+        yield pytest.param(name, marks=marks, id=name)
+
+
+@pytest.mark.parametrize("name", _every_learner())
+def test_no_learner_sends_a_failed_trial_again(name):
+    """On a noisy plant whose tolerance no learner can reach (0.5 µm against 0.2 mm of measurement
+    noise), no trial is followed by the same coefficients: each learner changes something."""
+    import dataclasses
+    import importlib.util
+
+    import numpy as np
+
+    from ilc_steering.agents.base import LearnerContext
+    from ilc_steering.agents.registry import REGISTRY
+    from ilc_steering.config import load_config
+    from ilc_steering.core.score import within_tolerance
+
+    spec = REGISTRY[name]
+    needed = EXTRAS.get(name) or EXTRAS.get(spec.family)
+    if needed is not None and importlib.util.find_spec(needed) is None:
+        pytest.skip(f"{name} needs {needed} (its extra is not installed)")
+    base = load_config("forward_parking_noisy")
+    tolerance = dataclasses.replace(base.learning.tolerance, cartesian=5e-7, orientation=5e-7)
+    config = dataclasses.replace(base, learning=dataclasses.replace(base.learning, tolerance=tolerance))
+    trials = 12
+    for seed in (0, 1):
+        env = gym.make(ENV, config=config)
+        learner = spec.make(LearnerContext.from_env(env, seed=seed), trials)
+        rollout = run_trials(env, learner, trials, seed=seed, name=name)
+        actions = [np.asarray(info["action"]) for info in rollout.infos]
+        failed = [not within_tolerance(tolerance, info) for info in rollout.infos]
+        assert all(failed)
+        resent = [k + 2 for k in range(len(actions) - 1) if failed[k] and np.array_equal(actions[k], actions[k + 1])]
+        assert resent == [], f"{name}, seed {seed}: trials {resent} resend the failed trial before them"
