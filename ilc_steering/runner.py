@@ -1,6 +1,14 @@
 """Runs of the paper's learners on a config, as records for the CLI, JSON and figures.
 
 Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`.
+
+A run has converged when its last trials *hold* the tolerance: the last
+:data:`~ilc_steering.core.scatter.HOLD` trials (or cycles) in a row, by default, within it
+(:class:`Verdict`). A stretch within the tolerance that ended before the run did is a relapse,
+reported with its trials. A one-trial run also estimates the plant's scatter from its own trials
+(:func:`ilc_steering.core.scatter.estimate`); when the tolerance is below the repeatability that
+scatter allows, the run says so, and a run whose last trials are within that repeatability has
+converged to the plant's floor.
 """
 
 from __future__ import annotations
@@ -17,6 +25,9 @@ from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core import scatter as scatter_
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.loop import LearnerError, run_trials
@@ -27,6 +38,7 @@ __all__ = [
     "CyclicRunResult",
     "RunResult",
     "TrialRecord",
+    "Verdict",
     "check_task",
     "learner_spec",
     "run_cyclic_ilc",
@@ -155,14 +167,113 @@ class TrialRecord:
         return {k: v for k, v in record.items() if v is not None}
 
 
-def _run_json(config: SteeringConfig, kind: str, records: list[Any], converged_at: int | None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Verdict:
+    """What a run's trials (or cycles) say: whether it converged, and how well it could.
+
+    ``converged_at`` is the first trial of the stretch within the tolerance that the run ends
+    with, when that stretch is at least ``hold`` trials long (None otherwise): one trial within it
+    may be the scatter's luck, and a learner that chases the scatter leaves again (see
+    :data:`~ilc_steering.core.scatter.HOLD`)."""
+
+    converged_at: int | None
+    hold: int
+    """Trials in a row within the tolerance, at the end, that convergence needs."""
+    held: int
+    """Trials in a row within the tolerance at the end of the run."""
+    relapses: list[list[int]] = dataclasses.field(default_factory=list)
+    """``[first, last]`` trial of each stretch within the tolerance that the run left again."""
+    scatter: dict[str, float] | None = None
+    """The plant's scatter estimated from the run's trials, per coordinate (``cartesian`` [m] of
+    x and y, ``orientation`` [rad]; ``error`` for a plant without a pose) and ``dof``, the
+    residual degrees of freedom; None when too few trials qualify (a cyclic run: never)."""
+    below: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    """Each bound of the tolerance that is below the plant's repeatability
+    (:data:`~ilc_steering.core.scatter.FLOOR` times its scatter): ``[bound, repeatability]``."""
+    floor: bool = False
+    """Not converged, but the tolerance is below the repeatability and the last ``hold`` trials
+    are within the repeatability: converged to the plant's floor."""
+
+    def to_json(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+def _stretches(met: list[bool]) -> list[list[int]]:
+    """``[first, last]`` (1-based) of each run of ``True`` in ``met``."""
+    out: list[list[int]] = []
+    for k, inside in enumerate(met, start=1):
+        if inside and out and out[-1][1] == k - 1:
+            out[-1][1] = k
+        elif inside:
+            out.append([k, k])
+    return out
+
+
+def verdict(met: list[bool], hold: int = scatter_.HOLD) -> Verdict:
+    """The :class:`Verdict` of a run whose trial ``k`` met the tolerance when ``met[k - 1]``
+    (before any scatter is estimated)."""
+    stretches = _stretches(met)
+    held = stretches[-1][1] - stretches[-1][0] + 1 if stretches and stretches[-1][1] == len(met) else 0
+    relapses = stretches[:-1] if held else stretches
+    converged_at = stretches[-1][0] if held >= hold else None
+    return Verdict(converged_at, hold, held, relapses)
+
+
+def _scatter(config: SteeringConfig, model: NominalModel, records: list[TrialRecord], result: Verdict) -> Verdict:
+    """``result`` with the plant's scatter estimated from ``records`` (their residuals against
+    ``model``, the nominal model's eq. 23, in the world frame), the bounds of the tolerance
+    below its repeatability and whether the run converged to the plant's floor."""
+    import numpy as np
+
+    if len(records) < 2:
+        return result
+    errors = np.array([np.inf if r.left_chart else float(np.linalg.norm(r.error)) for r in records])
+    tolerance = config.learning.tolerance
+    predicted = np.array([model.final_state(np.asarray(r.action)) for r in records])
+    groups: tuple[tuple[int, ...], ...]
+    names: tuple[str, ...]
+    bounds: tuple[float | None, ...]
+    if config.plant.kind.has_pose:
+        predicted = model.chained_map.from_chained(predicted)
+        if config.frame():
+            predicted = rotate(predicted, -config.frame())
+        outcomes = np.array([r.final_state[:3] for r in records]) - predicted[:, :3]
+        groups, names = ((0, 1), (2,)), ("cartesian", "orientation")
+        bounds = (tolerance.cartesian, tolerance.orientation)
+        true = np.array([[r.cartesian_error or 0.0, r.orientation_error or 0.0] for r in records])
+    else:
+        outcomes = np.array([r.error for r in records]) - (model.z_goal - predicted)
+        groups, names = (tuple(range(outcomes.shape[1])),), ("error",)
+        bounds = (tolerance.error,)
+        true = np.array([[r.error_norm] for r in records])
+    found = scatter_.estimate(outcomes, errors, groups)
+    if found is None:
+        return result
+    sigma, dof = found
+    estimate = {name: float(value) for name, value in zip(names, sigma)}
+    reach = [scatter_.repeatability(value) for value in sigma]
+    below = {
+        name: [bound, r]
+        for name, bound, r in zip(names, bounds, reach)
+        if bound is not None and r is not None and bound < r
+    }
+    floor = False
+    if below and result.converged_at is None and len(records) >= result.hold:
+        ceiling = np.array([max(b or np.inf, r or 0.0) for b, r in zip(bounds, reach)])
+        last = records[-result.hold :]
+        floor = not any(r.left_chart for r in last) and bool(np.all(true[-result.hold :] <= ceiling))
+    return dataclasses.replace(result, scatter={**estimate, "dof": dof}, below=below, floor=floor)
+
+
+def _run_json(config: SteeringConfig, kind: str, records: list[Any], result: Verdict) -> dict[str, Any]:
     """A run as plain data: ``kind`` (``"trials"`` or ``"cycles"``) names the list of records,
-    and the config comes along whole (``load_config`` builds it back; tested)."""
+    the verdict's fields come at the top level, and the config comes along whole (``load_config``
+    builds it back; tested)."""
     return {
         "name": config.name,
         "kind": kind,
         kind: [r.to_json() for r in records],
-        "converged_at": converged_at,
+        **result.to_json(),
         "config": dataclasses.asdict(config),
     }
 
@@ -173,14 +284,19 @@ class RunResult:
 
     config: SteeringConfig
     trials: list[TrialRecord]
-    converged_at: int | None
+    verdict: Verdict
 
     @property
     def name(self) -> str:
         return self.config.name
 
+    @property
+    def converged_at(self) -> int | None:
+        """The first trial of the stretch within the tolerance the run ends with, if it held (:class:`Verdict`)."""
+        return self.verdict.converged_at
+
     def to_json(self) -> dict[str, Any]:
-        return _run_json(self.config, "trials", self.trials, self.converged_at)
+        return _run_json(self.config, "trials", self.trials, self.verdict)
 
 
 def _record(index: int, info: dict[str, Any]) -> TrialRecord:
@@ -206,10 +322,12 @@ def run_ilc(
     trajectories: bool = False,
     learner: str = DEFAULT_LEARNER,
     seed: int = 1,
+    hold: int = scatter_.HOLD,
 ) -> RunResult:
     """Run a learner (default: the paper's eqs. 33-34; any id of the registry or ``module:attr``,
     :func:`learner_spec`) for ``trials`` trials (default: the config's), with ``seed`` for the
-    env's noise and the learner.
+    env's noise and the learner. It has converged when its last ``hold`` trials are within the
+    tolerance (:class:`Verdict`).
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
@@ -223,24 +341,24 @@ def run_ilc(
     env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
     check_task(env, config.name)
     agent = spec.make(LearnerContext.from_env(env, seed=seed), count)
+    model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
     records: list[TrialRecord] = []
-    converged: list[int] = []
+    met: list[bool] = []
 
     def keep(k: int, info: dict[str, Any]) -> None:
         records.append(_record(k, info))
+        met.append(within_tolerance(config.learning.tolerance, info))
         if on_trial is not None:
             on_trial(records[-1])
-        if not converged and within_tolerance(config.learning.tolerance, info):
-            converged.append(k)
 
     try:
         run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
     except LearnerError as error:
-        error.partial = RunResult(config, records, converged[0] if converged else None)
+        error.partial = RunResult(config, records, _scatter(config, model, records, verdict(met, hold)))
         raise
     finally:
         env.close()
-    return RunResult(config, records, converged[0] if converged else None)
+    return RunResult(config, records, _scatter(config, model, records, verdict(met, hold)))
 
 
 @dataclass(frozen=True)
@@ -261,14 +379,19 @@ class CyclicRunResult:
 
     config: SteeringConfig
     cycles: list[CycleRecord]
-    converged_at: int | None
+    verdict: Verdict
 
     @property
     def name(self) -> str:
         return self.config.name
 
+    @property
+    def converged_at(self) -> int | None:
+        """The first cycle of the stretch of cycles within the tolerance the run ends with, if it held."""
+        return self.verdict.converged_at
+
     def to_json(self) -> dict[str, Any]:
-        return _run_json(self.config, "cycles", self.cycles, self.converged_at)
+        return _run_json(self.config, "cycles", self.cycles, self.verdict)
 
 
 def run_cyclic_ilc(
@@ -277,19 +400,21 @@ def run_cyclic_ilc(
     on_cycle: Callable[[CycleRecord], None] | None = None,
     start: list[float] | None = None,
     trajectories: bool = False,
+    hold: int = scatter_.HOLD,
 ) -> CyclicRunResult:
     """Run the cyclic ILC agent (eqs. 39-40) for ``cycles`` cycles (default: ``learning.trials``),
     never resetting the robot; ``start`` puts it off home at the beginning. ``trajectories``
     keeps every segment's trajectory in its record.
 
-    A cycle has converged when every waypoint met the tolerance in it.
+    A cycle met the tolerance when every waypoint met it in that cycle; the run has converged
+    when its last ``hold`` cycles met it (:class:`Verdict`).
     """
     config = load_config(config)
     env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles, record_trajectory=trajectories)
     models = env.unwrapped.nominal_models  # type: ignore[attr-defined]
     agent = CyclicILCAgent(models, config.learning.nu_a, config.learning.nu_b)
     records: list[CycleRecord] = []
-    converged: list[int] = []
+    cycles_met: list[bool] = []
     waypoints: list[TrialRecord] = []
     met: list[bool] = []
 
@@ -302,12 +427,11 @@ def run_cyclic_ilc(
         records.append(record)
         if on_cycle is not None:
             on_cycle(record)
-        if not converged and all(met):
-            converged.append(record.cycle)
+        cycles_met.append(all(met))
         waypoints.clear()
         met.clear()
 
     steps = (config.learning.trials if cycles is None else cycles) * len(models)
     run_trials(env, agent, steps, seed=0, options=None if start is None else {"start": start}, callbacks=[keep])
     env.close()
-    return CyclicRunResult(config, records, converged[0] if converged else None)
+    return CyclicRunResult(config, records, verdict(cycles_met, hold))

@@ -136,3 +136,90 @@ def test_no_learner_sends_a_failed_trial_again(name):
         assert all(failed)
         resent = [k + 2 for k in range(len(actions) - 1) if failed[k] and np.array_equal(actions[k], actions[k + 1])]
         assert resent == [], f"{name}, seed {seed}: trials {resent} resend the failed trial before them"
+
+
+# 2. "Converged" means it stays -------------------------------------------------------------------
+
+
+def test_a_run_has_converged_when_its_last_trials_hold_the_tolerance():
+    from ilc_steering.runner import verdict
+
+    v = verdict([False, True, True, False, True, True, True])
+    assert (v.converged_at, v.held, v.relapses) == (5, 3, [[2, 3]])
+    v = verdict([False, True, False, True, True])  # two at the end: not yet
+    assert (v.converged_at, v.held, v.relapses) == (None, 2, [[2, 2]])
+    v = verdict([True, True, True, True, False])  # entered at once, and left at the last trial
+    assert (v.converged_at, v.held, v.relapses) == (None, 0, [[1, 4]])
+    assert verdict([False, True, True], hold=2).converged_at == 2
+    assert verdict([]).converged_at is None
+
+
+def test_the_scatter_estimate_is_unbiased_and_leaves_out_the_far_trials():
+    import numpy as np
+
+    from ilc_steering.core.scatter import MIN_TRIALS, estimate
+
+    rng = np.random.default_rng(0)
+    sigma = np.array([2e-3, 5e-4])  # [m] x and y, [rad] theta
+    squares = []
+    for _ in range(400):
+        residuals = np.array([0.3, -0.1, 0.02]) + rng.standard_normal((12, 3)) * sigma[[0, 0, 1]]
+        found = estimate(residuals, np.full(12, 1e-3), [(0, 1), (2,)])
+        assert found is not None and found[1] == 11
+        squares.append(found[0] ** 2)
+    np.testing.assert_allclose(np.sqrt(np.mean(squares, axis=0)), sigma, rtol=0.04)
+    # the first trials of a run, far from the goal, are not the scatter's
+    residuals = np.vstack([[[0.5, 0.5, 0.2]], [[0.05, 0.01, 0.02]], rng.standard_normal((10, 3)) * 1e-3])
+    errors = np.concatenate([[1.0, 0.1], np.full(10, 2e-3)])
+    kept, dof = estimate(residuals, errors, [(0, 1), (2,)])
+    assert dof == 9 and np.all(kept < 2e-3)
+    assert estimate(residuals[: MIN_TRIALS - 1], errors[: MIN_TRIALS - 1], [(0, 1), (2,)]) is None
+    with pytest.raises(ValueError, match=r"residuals \(m, nq\) and errors \(m,\) of one m"):
+        estimate(residuals, errors[:3], [(0, 1)])
+
+
+def test_run_says_a_tolerance_below_the_plant_s_scatter_is_its_floor(counted, capsys, tmp_path):
+    """The counted car scattered by 1 mm / 1 mrad, a tolerance of 0.5 mm / 0.5 mrad, the paper's law:
+    one trial within it (11), out again; the estimated scatter and the floor are reported, exit 5."""
+    import json
+
+    from ilc_steering.cli import main
+
+    path, out = counted(scatter=1e-3, trials=15, tolerance=5e-4), tmp_path / "run.json"
+    assert main(["run", str(path), "--json", str(out)]) == 5
+    lines = capsys.readouterr().out.splitlines()
+    assert "relapsed: within the tolerance at trial 11, out again at trial 12" in lines
+    floor = [line for line in lines if "below this plant's repeatability" in line]
+    assert len(floor) == 1 and floor[0].startswith("tolerance 0.0005 m / 0.0005 rad is below")
+    assert floor[0].endswith(": converged to the plant's floor")
+    assert not any(line.startswith(("converged at", "not converged")) for line in lines)
+    run = json.loads(out.read_text())
+    assert run["converged_at"] is None and run["hold"] == 3 and run["floor"] is True
+    assert 1e-3 / 1.5 < run["scatter"]["cartesian"] < 1.5e-3 and run["scatter"]["dof"] == 13
+    assert run["below"]["cartesian"][1] == pytest.approx(3 * run["scatter"]["cartesian"])
+    assert counted.drives == [1] * 15
+
+
+def test_run_without_scatter_converges_and_holds(counted, capsys, tmp_path):
+    import json
+
+    from ilc_steering.cli import main
+
+    assert main(["run", str(counted(trials=6)), "--json", str(tmp_path / "run.json")]) == 0
+    out = capsys.readouterr().out
+    assert "converged at trial 4 (held for the last 3 trials)" in out and "repeatability" not in out
+    run = json.loads((tmp_path / "run.json").read_text())
+    assert run["converged_at"] == 4 and run["held"] == 3 and run["relapses"] == [] and run["below"] == {}
+    print(run["scatter"])
+    assert main(["run", str(counted(trials=5))]) == 1  # trials 4 and 5 within it: not yet held
+    assert "not converged within 5 trials (the last 2 within the tolerance, 3 needed)" in capsys.readouterr().out
+    assert main(["run", str(counted(trials=5)), "--hold", "2"]) == 0
+
+
+@pytest.mark.parametrize("hold", ["0", "-1", "1000000000"])
+def test_a_bad_hold_is_refused_in_one_line(hold, capsys):
+    from ilc_steering.cli import main
+
+    assert main(["run", "forward_parking", "--hold", hold]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--hold must be a whole number in [1, " in err
