@@ -210,7 +210,6 @@ def test_run_without_scatter_converges_and_holds(counted, capsys, tmp_path):
     assert "converged at trial 4 (held for the last 3 trials)" in out and "repeatability" not in out
     run = json.loads((tmp_path / "run.json").read_text())
     assert run["converged_at"] == 4 and run["held"] == 3 and run["relapses"] == [] and run["below"] == {}
-    print(run["scatter"])
     assert main(["run", str(counted(trials=5))]) == 1  # trials 4 and 5 within it: not yet held
     assert "not converged within 5 trials (the last 2 within the tolerance, 3 needed)" in capsys.readouterr().out
     assert main(["run", str(counted(trials=5)), "--hold", "2"]) == 0
@@ -223,3 +222,36 @@ def test_a_bad_hold_is_refused_in_one_line(hold, capsys):
     assert main(["run", "forward_parking", "--hold", hold]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--hold must be a whole number in [1, " in err
+
+
+# 1. Learners that know the scatter -------------------------------------------------------------
+
+SIGMA = 2e-4
+"""[m, rad] forward_parking_noisy's measurement noise, per coordinate."""
+SEEDS = (0, 1, 2, 3, 5)
+"""Seed 4 is left out: its draws of the heading's noise over trials 3-15 have a sample standard
+deviation of 0.50 sigma, so no estimate from them could be within a factor 1.5 of sigma."""
+
+
+@pytest.mark.parametrize("learner", ["newton_ilc", "robust_ilc"])
+def test_learners_that_know_the_scatter_stop_chasing_it(learner):
+    """Forward parking measured with 0.2 mm / 0.2 mrad of noise, 15 trials: the last five hold 4 sigma,
+    the run's scatter estimate is within a factor 1.5 of sigma, and averaging brings the true error of
+    the last five trials to 0.75 sigma (RMS over them, mean over the seeds). Measured: 0.52 sigma for
+    both; eqs. 33-34, which pass every draw on whole, 1.5 sigma; on main newton_ilc (frozen at its
+    luckiest trial) 1.1 sigma and robust_ilc 1.1 sigma."""
+    import numpy as np
+
+    from ilc_steering.runner import run_ilc
+
+    rms = []
+    for seed in SEEDS:
+        result = run_ilc("forward_parking_noisy", trials=15, learner=learner, seed=seed)
+        last = result.trials[-5:]
+        assert max(t.cartesian_error for t in last) <= 4 * SIGMA and max(t.orientation_error for t in last) <= 4 * SIGMA
+        scatter = result.verdict.scatter
+        assert scatter is not None and result.converged_at is not None
+        for key in ("cartesian", "orientation"):
+            assert SIGMA / 1.5 < scatter[key] < 1.5 * SIGMA, (seed, key, scatter[key] / SIGMA)
+        rms.append(np.sqrt(np.mean([t.cartesian_error**2 for t in last])))
+    assert np.mean(rms) < 0.75 * SIGMA, np.array(rms) / SIGMA
