@@ -200,6 +200,18 @@ def test_run_says_a_tolerance_below_the_plant_s_scatter_is_its_floor(counted, ca
     assert counted.drives == [1] * 15
 
 
+def test_a_tolerance_below_the_scatter_is_said_also_when_the_run_ends_outside_it(counted, capsys):
+    """Asked to hold for all 15 trials, the first of them 10 cm off: not converged (exit 1), the
+    tolerance still named as below the plant's repeatability, and no floor claimed."""
+    from ilc_steering.cli import main
+
+    assert main(["run", str(counted(scatter=1e-3, trials=15, tolerance=5e-4)), "--hold", "15"]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    floor = [line for line in lines if "below this plant's repeatability" in line]
+    assert len(floor) == 1 and "converged to the plant's floor" not in floor[0]
+    assert lines[-1] == "not converged within 15 trials"
+
+
 def test_run_without_scatter_converges_and_holds(counted, capsys, tmp_path):
     import json
 
