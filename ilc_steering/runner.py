@@ -237,12 +237,15 @@ def _scatter(config: SteeringConfig, model: NominalModel, records: list[TrialRec
         predicted = model.chained_map.from_chained(predicted)
         if config.frame():
             predicted = rotate(predicted, -config.frame())
+        goal = np.asarray(config.points()[1][1], dtype=np.float64)[:3]
+        deviations = np.array([r.final_state[:3] for r in records]) - goal
         outcomes = np.array([r.final_state[:3] for r in records]) - predicted[:, :3]
         groups, names = ((0, 1), (2,)), ("cartesian", "orientation")
         bounds = (tolerance.cartesian, tolerance.orientation)
         true = np.array([[r.cartesian_error or 0.0, r.orientation_error or 0.0] for r in records])
     else:
-        outcomes = np.array([r.error for r in records]) - (model.z_goal - predicted)
+        deviations = np.array([r.error for r in records])
+        outcomes = deviations - (model.z_goal - predicted)
         groups, names = (tuple(range(outcomes.shape[1])),), ("error",)
         bounds = (tolerance.error,)
         true = np.array([[r.error_norm] for r in records])
@@ -252,6 +255,8 @@ def _scatter(config: SteeringConfig, model: NominalModel, records: list[TrialRec
     sigma, dof = found
     estimate = {name: float(value) for name, value in zip(names, sigma)}
     reach = [scatter_.repeatability(value) for value in sigma]
+    if not scatter_.consistent(deviations[-result.hold :], sigma, groups):
+        reach = [None for _ in sigma]  # the last trials land well inside it: the learner's moves, not the plant's
     below = {
         name: [bound, r]
         for name, bound, r in zip(names, bounds, reach)

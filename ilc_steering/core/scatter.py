@@ -64,6 +64,13 @@ CONVERGING = 0.7
 still converging: no estimate. A scattered plant's errors do not fall (the slope's standard error
 over 13 trials is about 0.05, against 0.36 for this bound); eqs. 33-34 contracting by 0.47 a trial
 on the saturated car do (0.75)."""
+CONSISTENT = 0.25
+"""The least mean square of the last trials' measured deviations from the goal, in units of the
+estimated scatter's square, for the estimate to be the plant's (:func:`consistent`): a learner at a
+plant's floor cannot keep landing nearer than its scatter (a mean square below a quarter of it
+over three trials of a pose, nine numbers, has a probability of about 1 %), while an estimate
+polluted by the learner's own moves (a model error that changes as the learner travels) is often
+far above what the last trials measure."""
 MIN_TRIALS = 4
 """Trials that must qualify for an estimate (three degrees of freedom per coordinate)."""
 MIN_SCATTER = 1e-7
@@ -103,3 +110,12 @@ def repeatability(sigma: float | None) -> float | None:
     if sigma is None or not np.isfinite(sigma) or sigma < MIN_SCATTER:
         return None
     return FLOOR * float(sigma)
+
+
+def consistent(deviations: Array, sigma: Array, groups: Sequence[Sequence[int]]) -> bool:
+    """Whether the measured deviations from the goal ``(h, nq)`` of the last trials are of the size
+    of the scatter ``sigma`` (one per group): their mean square over the groups' coordinates, in
+    units of ``sigma**2``, at least :data:`CONSISTENT`."""
+    deviations = np.asarray(deviations, dtype=np.float64)
+    scaled = [deviations[:, list(g)] / max(float(s), MIN_SCATTER) for s, g in zip(sigma, groups)]
+    return float(np.mean(np.concatenate([x.ravel() for x in scaled]) ** 2)) >= CONSISTENT
