@@ -178,6 +178,16 @@ def test_the_scatter_estimate_is_unbiased_and_leaves_out_the_far_trials():
         estimate(residuals, errors[:3], [(0, 1)])
 
 
+def test_an_estimate_far_above_what_the_last_trials_measure_is_not_the_plant_s():
+    import numpy as np
+
+    from ilc_steering.core.scatter import consistent
+
+    sigma, groups = np.array([1e-3, 2e-3]), [(0, 1), (2,)]
+    assert consistent(np.array([[1e-3, -5e-4, 2e-3]] * 3), sigma, groups)  # mean square 0.75 sigma^2
+    assert not consistent(np.array([[4e-4, -4e-4, 8e-4]] * 3), sigma, groups)  # 0.16: the learner's moves
+
+
 def test_run_says_a_tolerance_below_the_plant_s_scatter_is_its_floor(counted, capsys, tmp_path):
     """The counted car scattered by 1 mm / 1 mrad, a tolerance of 0.5 mm / 0.5 mrad, the paper's law:
     one trial within it (11), out again; the estimated scatter and the floor are reported, exit 5."""
