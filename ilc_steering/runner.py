@@ -44,6 +44,7 @@ __all__ = [
     "run_cyclic_ilc",
     "run_ilc",
     "step_warning",
+    "verdict",
 ]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
