@@ -135,9 +135,14 @@ def _bounds(below: dict[str, list[float]], index: int) -> str:
 def _verdict(result: RunResult | CyclicRunResult, unit: str, done: int) -> None:
     """The lines that end a run: converged or not, its relapses, and a tolerance below the plant's scatter."""
     verdict = result.verdict
-    for first, last in verdict.relapses:
-        within = f"{unit[:-1]} {first}" if first == last else f"{unit} {first}-{last}"
-        print(f"relapsed: within the tolerance at {within}, out again at {unit[:-1]} {last + 1}")
+    spans = [f"{unit[:-1]} {first}" if first == last else f"{unit} {first}-{last}" for first, last in verdict.relapses]
+    if spans:  # one line, however many: "...at trial 5, out again at trial 6; at trials 9-13, ... 14"
+        print(
+            "relapsed: within the tolerance "
+            + "; ".join(
+                f"at {span}, out again at {unit[:-1]} {last + 1}" for span, (_, last) in zip(spans, verdict.relapses)
+            )
+        )
     if verdict.below and verdict.scatter is not None:
         sigma = ", ".join(f"{k} {v:.2g}" for k, v in verdict.scatter.items() if k != "dof")
         print(

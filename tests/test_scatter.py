@@ -222,6 +222,17 @@ def test_a_tolerance_below_the_scatter_is_said_also_when_the_run_ends_outside_it
     assert lines[-1] == "not converged within 15 trials"
 
 
+def test_every_relapse_is_reported_on_one_line(counted, capsys):
+    from ilc_steering.cli import main
+
+    assert main(["run", str(counted(scatter=3e-3, trials=15, tolerance=5e-3))]) == 5
+    relapses = [line for line in capsys.readouterr().out.splitlines() if line.startswith("relapsed")]
+    assert relapses == [
+        "relapsed: within the tolerance at trial 5, out again at trial 6; at trial 9, out again at trial 10; "
+        "at trials 11-13, out again at trial 14"
+    ]
+
+
 def test_run_without_scatter_converges_and_holds(counted, capsys, tmp_path):
     import json
 
