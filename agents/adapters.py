@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from ilc_steering.core.score import trial_cost
 
-__all__ = ["PullLearner", "SearchBox", "TrialPort"]
+__all__ = ["PullLearner", "TrialPort"]
 
 Array = npt.NDArray[np.float64]
 
@@ -115,18 +115,3 @@ class PullLearner:
             self._port.infos.put(None)
             self._thread.join()
         self._thread = None
-
-
-class SearchBox(gym.ActionWrapper[Any, Any, Any]):
-    """Actions ``a`` in ``[-1, 1]`` for coefficients ``c = centre + half * a`` [physical units]:
-    the residual box around the nominal solution, or the whole action box
-    (:meth:`~ilc_steering.agents.base.LearnerContext.search_box`)."""
-
-    def __init__(self, env: gym.Env[Any, Any], centre: Array, half: Array) -> None:
-        super().__init__(env)
-        self.centre = np.asarray(centre, dtype=np.float64)
-        self.half = np.asarray(half, dtype=np.float64)
-        self.action_space = gym.spaces.Box(np.float32(-1), np.float32(1), shape=self.centre.shape, dtype=np.float32)
-
-    def action(self, action: Any) -> Array:
-        return self.centre + self.half * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)

@@ -14,24 +14,20 @@ the comparison runs, users' own included, is made by a :data:`LearnerFactory` fr
 
 from __future__ import annotations
 
-import os
-import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from importlib import import_module, invalidate_caches
-from pathlib import Path
-from types import ModuleType
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 
+from ilc_steering.boxes import residual_box
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.entries import load_entry
 
 __all__ = [
     "PRIORS",
-    "RESIDUAL_SCALE",
     "START_SPREAD",
     "BaseLearner",
     "Closable",
@@ -41,9 +37,7 @@ __all__ = [
     "TimedUpdates",
     "close_learner",
     "load_factory",
-    "residual_box",
     "update_times",
-    "working_directory_importable",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -120,11 +114,6 @@ def update_times(learner: Learner) -> list[float]:
 
 PRIORS = ("nominal", "none")
 """The conditions of a comparison: what every learner may start from (see :class:`LearnerContext`)."""
-
-RESIDUAL_SCALE = 0.3
-"""Half-width of the residual search box under ``prior="nominal"``, in units of
-``NominalModel.action_scale()``: the true solution of every packaged task lies within 0.21 of it
-(forward parking 0.10, the saturated task 0.21, parallel parking 0.09, the chained plant 0.09)."""
 
 START_SPREAD = 0.02
 """A seeded start point lies within this fraction of the search box's half-widths of its centre."""
@@ -236,76 +225,11 @@ LearnerFactory = Callable[[LearnerContext], Learner]
 """Builds a learner: ``make(context) -> Learner``; ``compare --methods pkg.module:make`` takes one."""
 
 
-def residual_box(model: NominalModel, action_space: spaces.Box) -> tuple[Array, Array]:
-    """Centre and half-widths [physical units] of the residual box under ``prior="nominal"``: the
-    nominal solution (clipped to ``action_space``) and :data:`RESIDUAL_SCALE` times its action scale."""
-    low = np.asarray(action_space.low, dtype=np.float64)
-    high = np.asarray(action_space.high, dtype=np.float64)
-    return np.clip(model.solve(), low, high), RESIDUAL_SCALE * model.action_scale()
-
-
-def working_directory_importable() -> None:
-    """Put the working directory on ``sys.path`` (last, so it shadows nothing installed): a user's
-    learner module sits there (``my_learners.py``), where ``python -m ilc_steering`` finds it and
-    the ``ilc-steering`` script would not. Spawned workers inherit the path."""
-    cwd = os.getcwd()
-    if cwd not in sys.path and "" not in sys.path:
-        sys.path.append(cwd)
-
-
 def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:
     """The learner factory named ``module:attr`` (``option`` names where it was given, for the
-    message): ``module`` an import name (``my_learners``, ``mypkg.mod``), ``attr`` a name in it,
-    dotted for a nested one (``module:Class.make``, as in an entry point). ``ValueError``, naming
-    what to give instead, if it is not of that form, cannot be imported (the module importing
-    raised included: the user's code, not ilc-steering, failed), has no such attribute (a module
-    of the same name found before the working directory's is named) or is not callable."""
-    module_name, colon, attr = spec.partition(":")
-    if module_name.endswith(".py") or "/" in module_name or "\\" in module_name:
-        stem = module_name.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".py")
-        raise ValueError(
-            f"{option} {spec}: give the module's import name, not its file: {stem}:{attr or 'make'} "
-            f"for {stem}.py in the working directory (or a package's dotted name)"
-        )
-    dotted = (module_name, attr)
-    if not colon or not all(part.isidentifier() for name in dotted for part in name.split(".")):
-        raise ValueError(
-            f"{option} {spec}: give module:attr, a module's import name and a factory in it, e.g. my_learners:make"
-        )
-    invalidate_caches()  # a module written since this process started is found
-    try:
-        target: Any = import_module(module_name)
-    except ModuleNotFoundError as error:
-        if error.name is not None and (module_name + ".").startswith(error.name + "."):
-            raise ValueError(
-                f"{option} {spec}: cannot import it: no module {error.name!r} in the working directory "
-                f"({os.getcwd()}) or on the path"
-            ) from None
-        raise ValueError(
-            f"{option} {spec}: cannot import it: importing it raised ModuleNotFoundError: {error}"
-        ) from None
-    except Exception as error:
-        raise ValueError(
-            f"{option} {spec}: cannot import it: importing it raised {type(error).__name__}: {error}"
-        ) from None
-    module = target
-    for part in attr.split("."):
-        if not hasattr(target, part):
-            raise ValueError(f"{option} {spec}: cannot import it: {_missing(module, attr)}")
-        target = getattr(target, part)
+    message), loaded by :func:`~ilc_steering.entries.load_entry` (the working directory searched
+    last); ``ValueError`` if it cannot be, or is not callable."""
+    target = load_entry(spec, option)
     if not callable(target):
         raise ValueError(f"{option} {spec}: not callable; give a factory make(context) -> Learner")
     return target  # type: ignore[no-any-return]
-
-
-def _missing(module: ModuleType, attr: str) -> str:
-    """That ``module`` (and its file) has no ``attr``, and, when an installed module of the same
-    top-level name came before the working directory's file of that name (the working directory is
-    searched last, so that it shadows nothing installed), so."""
-    text = f"module {module.__name__} ({getattr(module, '__file__', None) or 'built in'}) has no attribute {attr!r}"
-    top = module.__name__.split(".")[0]
-    found = getattr(sys.modules.get(top), "__file__", None)
-    for mine in (Path(top + ".py"), Path(top, "__init__.py")):
-        if mine.is_file() and (found is None or Path(found).resolve() != mine.resolve()):
-            return f"{text}; it is an installed module, found before your {mine} of the working directory: rename yours"
-    return text

@@ -5,7 +5,7 @@ coefficient, its hyperparameters fitted by maximum marginal likelihood every ``r
 and after every change of the trust region, and kept in between, the GP conditioned on every new
 trial) models
 ``-log10(cost)`` over the ``[-1, 1]`` units of
-:class:`~ilc_steering.agents.adapters.SearchBox`; the cost spans ten decades, and a GP on the raw
+:class:`~ilc_steering.boxes.SearchBox`; the cost spans ten decades, and a GP on the raw
 cost sees only its largest trials. Each trial maximizes the log expected improvement
 (``LogExpectedImprovement``) within a trust region around the best trial so far, as TuRBO does
 (Eriksson et al., *Scalable Global Optimization via Local Bayesian Optimization*, NeurIPS 2019):
@@ -39,13 +39,9 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
 
-__all__ = ["MAX_TRIALS", "bayes_opt"]
+__all__ = ["bayes_opt"]
 
 Array = npt.NDArray[np.float64]
-MAX_TRIALS = 300
-"""The budget ``compare`` gives ``bayes_opt`` at most [trials]: BO is the method for a few hundred
-expensive trials, and its GP costs about 0.05-0.2 s a trial here (2 cores, ``max_points`` = 64),
-against under 2 ms for every other black-box method."""
 REFIT_EVERY = 8
 """Trials between two fits of the GP's hyperparameters (a change of the trust region refits too)."""
 COST_FLOOR = 1e-12

@@ -4,7 +4,7 @@ Each one drives a one-trial env through ``env.step`` until it is stopped; as lea
 (:func:`make_learner`) they drive the :class:`~ilc_steering.agents.adapters.TrialPort` of a
 :class:`~ilc_steering.agents.adapters.PullLearner`, so the trial loop runs and counts every
 trial they ask for, probes included. They search the ``[-1, 1]`` units of
-:class:`~ilc_steering.agents.adapters.SearchBox`: the residual box around the nominal solution
+:class:`~ilc_steering.boxes.SearchBox`: the residual box around the nominal solution
 under ``prior="nominal"``, the env's whole action box under ``prior="none"``
 (:meth:`~ilc_steering.agents.base.LearnerContext.search_box`). Their first trial is the
 context's start (under the nominal prior, the nominal solution itself), and when one stalls it
@@ -40,13 +40,12 @@ import numpy as np
 import numpy.typing as npt
 import scipy.optimize
 
-from ilc_steering.agents.adapters import PullLearner, SearchBox
+from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import LearnerContext
+from ilc_steering.boxes import SearchBox
 from ilc_steering.core.score import OFF_CHART_PENALTY
 
 __all__ = [
-    "BLACKBOX_METHODS",
-    "bayes_opt",
     "cma_es",
     "gauss_newton",
     "least_squares",
@@ -227,27 +226,9 @@ def noisy_least_squares(
                 inverse = np.linalg.pinv(jacobian(x, r))
 
 
-def bayes_opt(env: gym.Env[Any, Any], context: LearnerContext) -> None:
-    """TuRBO-1 with BoTorch on the log cost: :func:`ilc_steering.agents.bayes_opt.bayes_opt`."""
-    from ilc_steering.agents.bayes_opt import bayes_opt as turbo
-
-    turbo(env, context)
-
-
-BLACKBOX_METHODS: dict[str, Optimizer] = {
-    "least_squares": least_squares,
-    "noisy_least_squares": noisy_least_squares,
-    "bayes_opt": bayes_opt,
-    "gauss_newton": gauss_newton,
-    "nelder_mead": nelder_mead,
-    "cma_es": cma_es,
-}
-
-
-def make_learner(method: str, context: LearnerContext) -> PullLearner:
-    """Black-box ``method`` (a key of :data:`BLACKBOX_METHODS`) as a learner, seeded with
-    ``context.seed``, in the search box of the context's prior."""
-    optimizer = BLACKBOX_METHODS[method]
+def make_learner(optimizer: Optimizer, context: LearnerContext) -> PullLearner:
+    """A black-box ``optimizer(env, context)`` (a spec's entry in the registry) as a learner,
+    seeded with ``context.seed``, in the search box of the context's prior."""
 
     def run(env: gym.Env[Any, Any]) -> None:
         optimizer(SearchBox(env, *context.search_box()), context)

@@ -11,29 +11,35 @@ Adding a learner to the library is one line of :data:`REGISTRY` (and its module)
 
     LearnerSpec("my_method", "model-based", "ilc_steering.agents.my_module:make_my_method", "model_trials", "...")
 
-The factory of a model-based learner, and a user's, is ``make(context) -> Learner``; the
-black-box and RL families are built by :func:`ilc_steering.agents.blackbox.make_learner` and
-:func:`ilc_steering.agents.rl.make_learner` from the id. :meth:`LearnerSpec.make` attaches the
-config's ``learning.cost`` (:func:`ilc_steering.agents.costs.with_cost`) to every learner it
-builds, so no command can drop it.
+The factory of a model-based learner, and a user's, is ``make(context) -> Learner``; a black-box
+spec names its optimizer ``optimizer(env, context)``, which
+:func:`ilc_steering.agents.blackbox.make_learner` runs as a learner; an RL spec holds its
+algorithm (:class:`RLAlgorithm`: the class and module that implement it, the shape of its actor),
+which :mod:`ilc_steering.agents.rl` builds. The family modules read the spec; the registry names
+them by their entry strings only, so that they may import it. Installed packages add learners as
+entry points of the group :data:`GROUP`, as robots are added (``docs/learners.md``).
+:meth:`LearnerSpec.make` attaches the config's ``learning.cost``
+(:func:`ilc_steering.agents.costs.with_cost`) to every learner it builds, so no command can drop it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from importlib import import_module
 from typing import Any
 
-from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory, working_directory_importable
+from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
+from ilc_steering.entries import load_entry
 
 __all__ = [
     "DEFAULT_METHODS",
     "FAMILIES",
+    "GROUP",
     "METHODS",
     "REGISTRY",
     "Budgets",
     "LearnerSpec",
+    "RLAlgorithm",
     "families",
     "ids",
     "is_custom",
@@ -42,6 +48,27 @@ __all__ = [
 
 FAMILIES = ("model-based", "black-box", "RL", "yours")
 """The families the comparison's figures colour by; ``yours``: a user's ``module:attr``."""
+GROUP = "ilc_steering.learners"
+"""The entry-point group in which an installed package names its learners (``id = "module:make"``)."""
+_RL = "ilc_steering.agents.rl"
+_RL_SETTINGS = "ilc_steering.agents.rl_settings"
+_BLACKBOX = "ilc_steering.agents.blackbox"
+
+
+@dataclass(frozen=True)
+class RLAlgorithm:
+    """What the RL family needs to know of one algorithm."""
+
+    class_name: str
+    """Its class in SB3, sb3-contrib and SBX (``"TQC"``)."""
+    sb3_module: str
+    """The PyTorch package that has it: ``stable_baselines3`` or ``sb3_contrib`` (SBX has them all)."""
+    actor: str
+    """``"deterministic"`` (an action layer and a target actor: TD3), ``"squashed"`` (a
+    squashed-Gaussian actor, mean then log-std layers: SAC, CrossQ, TQC) or ``"gaussian"`` (an action
+    layer and a state-independent std: PPO)."""
+    on_policy: bool = False
+    """Collects rollouts of ``n_steps`` trials before each update (PPO)."""
 
 
 @dataclass(frozen=True)
@@ -81,28 +108,31 @@ class LearnerSpec:
     """Where a user's learner was named (for messages)."""
     reproduce: bool = False
     """Reported by ``reproduce``'s table over the seeds of the lab experiments' noise."""
+    trial_seconds: float = 0.01
+    """A rough cost of one of its trials [s], for the progress bar's estimate and the order of cells
+    (measured on the packaged tasks: model-based 0.03, black-box 7e-4, RL 5e-3, bayes_opt 0.1)."""
+    max_trials: int | None = None
+    """Its own cap on the family's budget [trials] (``bayes_opt``: a GP's trial is costly)."""
+    rl: RLAlgorithm | None = None
+    """The algorithm of an RL spec."""
 
     def factory(self) -> LearnerFactory:
         """The factory ``make(context)`` of a model-based or user's learner (imported now)."""
         if self.family == "yours":
-            working_directory_importable()
             return load_factory(self.id, self.option)
-        module, _, attr = self.entry_point.partition(":")
-        return getattr(import_module(module), attr)  # type: ignore[no-any-return]
+        return load_entry(self.entry_point, f"learner {self.id}")  # type: ignore[no-any-return]
+
+    def expected_seconds(self, budget: int) -> float:
+        """A cell's rough cost [s]: its budget times :attr:`trial_seconds`."""
+        return self.trial_seconds * budget
 
     def budget(self, budgets: Budgets, task: str = "", prior: str = "nominal") -> int:
         """Its budget [trials] under ``budgets`` on the config named ``task`` (RL reads its
         hyperparameter file there when ``budgets.rl_trials`` is None; bayes_opt is capped at its own)."""
         if self.family == "RL" and budgets.rl_trials is None:
-            from ilc_steering.agents.rl import hyperparameters
-
-            return int(hyperparameters(self.id, task, prior)["n_timesteps"])
-        trials = getattr(budgets, self.budget_key)
-        if self.id == "bayes_opt":  # a GP's trial costs about 0.25 s: BO's budget is its own
-            from ilc_steering.agents.bayes_opt import MAX_TRIALS
-
-            return min(int(trials), MAX_TRIALS)
-        return int(trials)
+            return int(load_entry(f"{_RL_SETTINGS}:hyperparameters", self.id)(self.id, task, prior)["n_timesteps"])
+        trials = int(getattr(budgets, self.budget_key))
+        return trials if self.max_trials is None else min(trials, self.max_trials)
 
     def implementation(self) -> str:
         """What made its results: for RL the backend's package and version (SBX or SB3), for a
@@ -110,9 +140,7 @@ class LearnerSpec:
         from importlib import metadata
 
         if self.family == "RL":
-            from ilc_steering.agents.rl import implementation
-
-            return implementation(self.id)
+            return str(load_entry(f"{_RL_SETTINGS}:implementation", self.id)(self.id))
         if self.family == "yours":
             return self.id
         if self.package is not None:
@@ -124,21 +152,20 @@ class LearnerSpec:
     def make(self, context: LearnerContext, budget: int) -> Learner:
         """The learner for ``context`` and a budget of ``budget`` trials, with the context's
         ``learning.cost`` attached. A factory that raises is a
-        :class:`~ilc_steering.loop.LearnerError` naming the learner; one that makes something
+        :class:`~ilc_steering.errors.LearnerError` naming the learner; one that makes something
         without ``act``, ``learn`` and ``reset`` is a ``ValueError``."""
         from ilc_steering.agents.costs import with_cost
-        from ilc_steering.loop import LearnerError
+        from ilc_steering.errors import LearnerError
 
         if self.family == "RL":
-            from ilc_steering.agents import rl
-
-            backend = rl.rl_backend()  # a bad ILC_STEERING_RL_BACKEND is bad input, not the learner's fault
-            params = rl.hyperparameters(self.id, context.task, context.prior)
-            learner: Any = rl.make_learner(self.id, params, budget, context.progress_bar, context, backend)
+            settings = f"{_RL_SETTINGS}:%s"
+            backend = load_entry(settings % "rl_backend", self.id)()  # a bad ILC_STEERING_RL_BACKEND is bad input
+            params = load_entry(settings % "hyperparameters", self.id)(self.id, context.task, context.prior)
+            make_rl = load_entry(f"{_RL}:make_learner", self.id)
+            learner: Any = make_rl(self.id, params, budget, context.progress_bar, context, backend)
         elif self.family == "black-box":
-            from ilc_steering.agents import blackbox
-
-            learner = blackbox.make_learner(self.id, context)
+            optimizer = load_entry(self.entry_point, f"learner {self.id}")
+            learner = load_entry(f"{_BLACKBOX}:make_learner", self.id)(optimizer, context)
         else:
             factory = self.factory()
             try:
@@ -152,74 +179,74 @@ class LearnerSpec:
         return with_cost(learner, context)
 
 
-def _spec(id: str, family: str, entry: str, budget: str, summary: str, **extra: Any) -> LearnerSpec:
-    return LearnerSpec(id, family, entry, budget, summary, **extra)
+def _model(id: str, entry: str, summary: str, **extra: Any) -> LearnerSpec:
+    return LearnerSpec(
+        id, "model-based", f"ilc_steering.agents.{entry}", "model_trials", summary, trial_seconds=0.03, **extra
+    )
 
 
-_BLACKBOX = "ilc_steering.agents.blackbox:make_learner"
-_RL = "ilc_steering.agents.rl:make_learner"
+def _blackbox(id: str, optimizer: str, summary: str, package: str, **extra: Any) -> LearnerSpec:
+    entry = optimizer if ":" in optimizer else f"{_BLACKBOX}:{optimizer}"
+    extra.setdefault("trial_seconds", 7e-4)
+    return LearnerSpec(id, "black-box", entry, "blackbox_trials", summary, package=package, **extra)
+
+
+def _rl(id: str, algorithm: RLAlgorithm, **extra: Any) -> LearnerSpec:
+    return LearnerSpec(
+        id, "RL", f"{_RL}:make_learner", "rl_trials", algorithm.class_name, trial_seconds=5e-3, rl=algorithm, **extra
+    )
+
+
 REGISTRY: dict[str, LearnerSpec] = {
     spec.id: spec
     for spec in (
-        _spec(
+        _model(
             "ilc",
-            "model-based",
-            "ilc_steering.agents.ilc:make_ilc",
-            "model_trials",
+            "ilc:make_ilc",
             "eqs. 33-34 from the context's first trial (under the nominal prior, the nominal solution)",
         ),
-        _spec(
+        _model(
             "ilc_paper",
-            "model-based",
-            "ilc_steering.agents.ilc:make_ilc_paper",
-            "model_trials",
+            "ilc:make_ilc_paper",
             "the paper's eqs. 33-34 exactly, its fictitious zero iteration first (run's default)",
             reproduce=True,
         ),
-        _spec(
-            "newton",
-            "model-based",
-            "ilc_steering.agents.newton:make_newton",
-            "model_trials",
-            "Newton on the nominal model",
-        ),
-        _spec(
+        _model("newton", "newton:make_newton", "Newton on the nominal model"),
+        _model(
             "newton_ilc",
-            "model-based",
-            "ilc_steering.agents.newton_ilc:make_newton_ilc",
-            "model_trials",
+            "newton_ilc:make_newton_ilc",
             "re-identify the model's family from the trials, then Newton on the refit model",
             reproduce=True,
         ),
-        _spec(
+        _model(
             "robust_ilc",
-            "model-based",
-            "ilc_steering.agents.robust_ilc:make_robust_ilc",
-            "model_trials",
+            "robust_ilc:make_robust_ilc",
             "global identification, continuation and a trust region",
             reproduce=True,
         ),
-        _spec("least_squares", "black-box", _BLACKBOX, "blackbox_trials", "scipy least_squares (LM)", package="scipy"),
-        _spec(
-            "noisy_least_squares",
-            "black-box",
-            _BLACKBOX,
-            "blackbox_trials",
-            "TRF on averaged residuals",
-            package="scipy",
+        _blackbox("least_squares", "least_squares", "scipy least_squares (LM)", "scipy"),
+        _blackbox("noisy_least_squares", "noisy_least_squares", "TRF on averaged residuals", "scipy"),
+        _blackbox("gauss_newton", "gauss_newton", "Gauss-Newton, step halving", "scipy"),
+        _blackbox("nelder_mead", "nelder_mead", "scipy Nelder-Mead", "scipy"),
+        _blackbox("cma_es", "cma_es", "CMA-ES (cma)", "cma"),
+        # BO is the method for a few hundred expensive trials: its GP costs about 0.05-0.2 s a
+        # trial here (2 cores, max_points = 64), against under 2 ms for every other black-box method.
+        _blackbox(
+            "bayes_opt",
+            "ilc_steering.agents.bayes_opt:bayes_opt",
+            "TuRBO-1 (BoTorch)",
+            "botorch",
+            trial_seconds=0.1,
+            max_trials=300,
         ),
-        _spec("gauss_newton", "black-box", _BLACKBOX, "blackbox_trials", "Gauss-Newton, step halving", package="scipy"),
-        _spec("nelder_mead", "black-box", _BLACKBOX, "blackbox_trials", "scipy Nelder-Mead", package="scipy"),
-        _spec("cma_es", "black-box", _BLACKBOX, "blackbox_trials", "CMA-ES (cma)", package="cma"),
-        _spec("bayes_opt", "black-box", _BLACKBOX, "blackbox_trials", "TuRBO-1 (BoTorch)", package="botorch"),
-        _spec("ppo", "RL", _RL, "rl_trials", "PPO"),
-        _spec("sac", "RL", _RL, "rl_trials", "SAC"),
-        _spec("td3", "RL", _RL, "rl_trials", "TD3"),
+        _rl("ppo", RLAlgorithm("PPO", "stable_baselines3", "gaussian", on_policy=True)),
+        _rl("sac", RLAlgorithm("SAC", "stable_baselines3", "squashed")),
+        _rl("td3", RLAlgorithm("TD3", "stable_baselines3", "deterministic")),
         # CrossQ gives NaN actions at trial 5 on unicycle_parking and trailer_bay under prior=nominal,
         # and at trial 110 (10 trials after it starts learning) under prior=none, measured at full
         # budget (docs/tuning/sweep2/crossq.md): run only when named.
-        _spec("crossq", "RL", _RL, "rl_trials", "CrossQ", by_default=False),
-        _spec("tqc", "RL", _RL, "rl_trials", "TQC"),
+        _rl("crossq", RLAlgorithm("CrossQ", "sb3_contrib", "squashed"), by_default=False),
+        _rl("tqc", RLAlgorithm("TQC", "sb3_contrib", "squashed")),
     )
 }
 """Every method id of the library, once."""

@@ -394,7 +394,7 @@ LEARNERS = """
 import time
 import numpy as np
 from ilc_steering.agents.ilc import make_ilc
-from ilc_steering.core.checks import ParameterError
+from ilc_steering.errors import ParameterError
 
 
 class Wrapped:
@@ -739,7 +739,7 @@ def issue26_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
             PRE
             + textwrap.dedent(
                 """
-                from ilc_steering.compare import TrialLog, first_within
+                from ilc_steering.compare.command import TrialLog, first_within
                 log = TrialLog()
                 log.cartesian, log.orientation, log.left_chart = [0.01 * (1 + 1e-12)], [0.0], [False]
                 print("ACCEPTED" if first_within(log, 0.01) == 1 else "CLEAR")
@@ -813,7 +813,7 @@ def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
     Path(tmp, "forward34.yaml").write_text((CONFIGS / "forward_parking.yaml").read_text())
     py("env34", "ILC_STEERING_RL_BACKEND=jax", """
         import os; os.environ["ILC_STEERING_RL_BACKEND"] = "jax"
-        from ilc_steering.agents.rl import rl_backend
+        from ilc_steering.agents.rl_settings import rl_backend
         try:
             rl_backend(); print("ACCEPTED")
         except ValueError as error:
@@ -865,7 +865,7 @@ def issue34_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
         """)  # fmt: skip
     for key, value in (("learning_rate", "-0.001"), ("batch_size", "256.5"), ("n_timesteps", "True")):
         py("rlyaml34", f"configs/rl/ppo.yaml {key}: {value}", f"""
-            from ilc_steering.agents.rl import check_hyperparameters, hyperparameters
+            from ilc_steering.agents.rl_settings import check_hyperparameters, hyperparameters
             params = {{**hyperparameters("ppo", "forward_parking"), {key!r}: {value}}}
             try:
                 check_hyperparameters("ppo", params, "configs/rl/ppo.yaml: nominal.default"); print("ACCEPTED")

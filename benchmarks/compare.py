@@ -1,6 +1,6 @@
 """Trials to tolerance of ILC, RL (PPO, SAC, TD3), black-box and users' learners, across seeds and priors.
 
-The benchmark lives in the package (:mod:`ilc_steering.compare`) so that the installed command
+The benchmark lives in the package (:mod:`ilc_steering.compare.command`) so that the installed command
 ``ilc-steering compare`` runs it too; this script is the same entry point:
 
     python benchmarks/compare.py [--quick] [--out DIR] [--methods ...] [--scenarios ...] [--seeds ...]
@@ -11,7 +11,8 @@ The benchmark lives in the package (:mod:`ilc_steering.compare`) so that the ins
 
 from __future__ import annotations
 
-from ilc_steering.compare import Args, main, parse
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.command import main, parse
 
 __all__ = ["Args", "main"]
 

@@ -88,7 +88,7 @@ def _model(env: gym.Env[Any, Any], seed: int, quick: bool) -> Any:
 
 
 def _rear_axle(vehicle_position: Any, heading: float) -> np.ndarray:
-    from ilc_steering.envs.highway import LENGTH
+    from ilc_steering.envs.highway_plant import LENGTH
 
     return np.asarray(vehicle_position, dtype=np.float64) - 0.5 * LENGTH * np.array([np.cos(heading), np.sin(heading)])
 

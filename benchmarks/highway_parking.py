@@ -26,8 +26,9 @@ from statistics import median
 from typing import Any
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.envs.highway import highway_config
+from ilc_steering.errors import ConfigError
 from ilc_steering.output import write_atomic
 from ilc_steering.runner import run_ilc
 from ilc_steering.tables import markdown_table, write_results

@@ -1,7 +1,7 @@
 """Per-trial cost of the RL baselines: SB3 (torch's default threads and one thread) against SBX (JAX).
 
 In one run, for each algorithm, each implementation runs the comparison's own learner
-(:func:`ilc_steering.agents.rl.make_learner` through :func:`ilc_steering.compare.measure`:
+(:func:`ilc_steering.agents.rl.make_learner` through :func:`ilc_steering.compare.cells.measure`:
 every trial counted, deterministic trials included) on forward parking under
 ``prior=nominal`` with its packaged hyperparameters, for ``short`` and for ``long`` trials:
 
@@ -68,16 +68,16 @@ def _cell_seconds(algorithm: str, mode: str, scenario: str, trials: int, seed: i
     import gymnasium as gym
     import torch
 
-    from ilc_steering.agents import rl
+    from ilc_steering.agents import rl, rl_settings
     from ilc_steering.agents.base import LearnerContext
-    from ilc_steering.compare import ENV_ID, measure
+    from ilc_steering.compare.cells import ENV_ID, measure
 
     backend = "sbx" if mode == "sbx" else "sb3"
     rl.TORCH_THREADS = 1 if mode == "sb3, 1 thread" else DEFAULT_THREADS
     env = gym.make(ENV_ID, config=scenario)
     unwrapped: Any = env.unwrapped
     context = LearnerContext.from_env(env, seed=seed)
-    params = rl.hyperparameters(algorithm, unwrapped.config.name, "nominal")
+    params = rl_settings.hyperparameters(algorithm, unwrapped.config.name, "nominal")
     start = time.perf_counter()
     learner = rl.make_learner(algorithm, params, trials, False, context, backend)
     result = measure(env, learner, trials, seed)
@@ -96,7 +96,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     global DEFAULT_THREADS
     import torch
 
-    from ilc_steering.agents import rl
+    from ilc_steering.agents import rl_settings
 
     if not 0 < args.short < args.long or args.repeats < 1:
         raise ValueError(f"need 0 < short < long and repeats >= 1, got {args.short}, {args.long}, {args.repeats}")
@@ -107,7 +107,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     unknown = [m for m in args.modes if m not in MODES]
     if unknown:
         raise ValueError(f"--modes: unknown {unknown[0]!r}; choose from {list(MODES)}")
-    installed = [m for m in args.modes if m != "sbx" or "sbx" in rl._installed_backends()]
+    installed = [m for m in args.modes if m != "sbx" or "sbx" in rl_settings.installed_backends()]
     rows: list[dict[str, Any]] = []
     for algorithm in algorithms:
         for mode in installed:
@@ -125,7 +125,7 @@ def main(args: Args) -> list[dict[str, Any]]:
                 {
                     "algorithm": algorithm,
                     "implementation": mode,
-                    "package": rl.implementation(algorithm, "sbx" if mode == "sbx" else "sb3"),
+                    "package": rl_settings.implementation(algorithm, "sbx" if mode == "sbx" else "sb3"),
                     "per_trial_ms": 1000 * per_trial,
                     "fixed_s": fixed,
                     "cell_s": fixed + args.budget * per_trial,

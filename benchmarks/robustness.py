@@ -18,10 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.inputs import read_json
 from ilc_steering.output import MAX_RESULT_BYTES
-from ilc_steering.sweep import SweepArgs
-from ilc_steering.sweep import main as sweep
+from ilc_steering.readers import read_json
+from ilc_steering.sweep.command import main as sweep
+from ilc_steering.sweep.rows import SweepArgs
 from ilc_steering.tables import markdown_table, write_results
 
 __all__ = ["MAPS", "METHODS", "Args", "main"]

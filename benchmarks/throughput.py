@@ -302,8 +302,8 @@ def compile_times() -> dict[str, float]:
 
 def sweep_seconds(grid: int) -> float:
     """Wall time of ``ilc-steering sweep forward_parking --grid grid`` (the paper's law), compiled."""
-    from ilc_steering.sweep import SweepArgs
-    from ilc_steering.sweep import main as sweep
+    from ilc_steering.sweep.command import main as sweep
+    from ilc_steering.sweep.rows import SweepArgs
 
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()

@@ -2,7 +2,7 @@
 
 A small grid per algorithm around the packaged values, each candidate run on forward parking
 under ``prior=nominal`` for a few seeds with the comparison's own counting
-(:func:`ilc_steering.compare.measure`: every trial counts, deterministic trials included). A
+(:func:`ilc_steering.compare.cells.measure`: every trial counts, deterministic trials included). A
 candidate is ranked by how many seeds reach 1 cm / 0.01 rad, then by its median trials to 1 cm, then
 by its median best error. The
 sweep's own cost in trials is reported beside its table: the RL rows of the comparison stand on
@@ -87,23 +87,23 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
     import gymnasium as gym
     import torch
 
-    from ilc_steering.agents import rl
+    from ilc_steering.agents import rl, rl_settings
     from ilc_steering.agents.base import LearnerContext
-    from ilc_steering.compare import ENV_ID, measure
+    from ilc_steering.compare.cells import ENV_ID, measure
 
     torch.set_num_threads(1)
     env = gym.make(ENV_ID, config=scenario)
     unwrapped: Any = env.unwrapped
     context = LearnerContext.from_env(env, seed=seed)
-    params = with_overrides(rl.hyperparameters(algorithm, unwrapped.config.name, "nominal"), overrides)
+    params = with_overrides(rl_settings.hyperparameters(algorithm, unwrapped.config.name, "nominal"), overrides)
     result = measure(env, rl.make_learner(algorithm, params, trials, False, context), trials, seed)
     return {k: v for k, v in result.items() if k != "curve"}
 
 
 def main(args: Args) -> list[dict[str, Any]]:
 
-    from ilc_steering.agents import rl
-    from ilc_steering.backends import run_calls
+    from ilc_steering.agents import rl_settings
+    from ilc_steering.engine.backends import run_calls
 
     unknown = [a for a in args.algorithms if a not in GRID]
     if unknown:
@@ -170,7 +170,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     header = ["algorithm", "candidate", "median trials to 1 cm", "reached", "median best error", "median wall [s]", ""]
     text = (
         f"Tuning sweep on {args.scenario}, prior=nominal, seeds {list(seeds)}, {trials} trials per run "
-        f"(python benchmarks/tune_rl.py, {rl.rl_backend()}, {args.workers or 'one per core'} workers). "
+        f"(python benchmarks/tune_rl.py, {rl_settings.rl_backend()}, {args.workers or 'one per core'} workers). "
         f"The sweep itself cost {spent} trials. Ranked by seeds reaching 1 cm, then median trials to it.\n\n"
         + markdown_table(header, lines, [False, False, True, True, True, True, False])
     )

@@ -10,8 +10,7 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.agents.adapters import SearchBox
-from ilc_steering.agents.base import RESIDUAL_SCALE, residual_box
+from ilc_steering.boxes import RESIDUAL_SCALE, SearchBox, residual_box
 from ilc_steering.envs.steering_env import check_action
 
 __all__ = ["MAX_SCALE", "ResidualAction"]
@@ -29,7 +28,7 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
 
     ``c0`` is the nominal model's open-loop solution ``model.solve()`` (clipped to the env's action
     box) and ``s = scale * model.action_scale()`` [physical units of ``c``]. With the default
-    ``scale`` (:data:`~ilc_steering.agents.base.RESIDUAL_SCALE`, 0.3) this is exactly the box the
+    ``scale`` (:data:`~ilc_steering.boxes.RESIDUAL_SCALE`, 0.3) this is exactly the box the
     comparison's black-box and RL methods search under ``prior="nominal"``
     (:meth:`~ilc_steering.agents.base.LearnerContext.search_box`), so ``a = 0`` is the nominal
     solution, the first trial of every learner there, and the true solution of every packaged task
@@ -52,7 +51,7 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
         their classes, under wrappers that keep its physical action box (``ValueError`` otherwise).
     scale
         Half-width of the box per coefficient, in units of ``NominalModel.action_scale()``: a
-        number in ``(0, MAX_SCALE]``. The default, :data:`~ilc_steering.agents.base.RESIDUAL_SCALE`, is the
+        number in ``(0, MAX_SCALE]``. The default, :data:`~ilc_steering.boxes.RESIDUAL_SCALE`, is the
         comparison's box.
 
     Attributes

@@ -27,10 +27,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ilc_steering.agents.registry import REGISTRY
-from ilc_steering.compare import add_arguments as add_compare_arguments
-from ilc_steering.config import MAX_TRIALS, ConfigError, SteeringConfig, load_config, packaged_configs
+from ilc_steering.compare.command import add_arguments as add_compare_arguments
+from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
 from ilc_steering.core.scatter import FLOOR, HOLD
-from ilc_steering.loop import LearnerError
+from ilc_steering.errors import ConfigError, LearnerError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
     DEFAULT_LEARNER,
@@ -43,7 +43,7 @@ from ilc_steering.runner import (
     run_ilc,
     step_warning,
 )
-from ilc_steering.sweep import add_arguments as add_sweep_arguments
+from ilc_steering.sweep.command import add_arguments as add_sweep_arguments
 
 __all__ = ["EXIT_CODES", "main"]
 
@@ -373,7 +373,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _current(args: argparse.Namespace) -> int:
-    from ilc_steering.provenance import freshness
+    from ilc_steering.engine.provenance import freshness
 
     stale = 0
     for folder in args.folders:
@@ -384,7 +384,7 @@ def _current(args: argparse.Namespace) -> int:
 
 
 def _tables(args: argparse.Namespace) -> int:
-    from ilc_steering import compare_tables
+    from ilc_steering.compare import tables as compare_tables
 
     if args.check:
         stale = compare_tables.check(args.folder, args.into)
@@ -399,14 +399,14 @@ def _tables(args: argparse.Namespace) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from ilc_steering.compare import from_namespace, main_with_failures
+    from ilc_steering.compare.command import from_namespace, main_with_failures
 
     _, failed = main_with_failures(from_namespace(args))
     return 4 if failed else 0
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from ilc_steering.sweep import from_namespace, main_with_failures
+    from ilc_steering.sweep.command import from_namespace, main_with_failures
 
     _, failed = main_with_failures(from_namespace(args))
     return 4 if failed else 0

@@ -22,20 +22,9 @@ import numpy as np
 
 from ilc_steering.agents.base import Closable, Learner
 from ilc_steering.core.score import TRUE_KEYS
+from ilc_steering.errors import LearnerError
 
-__all__ = ["LearnerError", "Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
-
-
-class LearnerError(Exception):
-    """A learner failed: it raised, or acted with an action the env refused. The message names
-    the learner and the trial; ``partial``, where the caller sets it, holds what was run before.
-
-    One string argument, so it crosses process boundaries (pickling) intact."""
-
-    partial: Any = None
-
-    def __init__(self, message: str) -> None:
-        super().__init__(message)
+__all__ = ["Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
 
 
 def _fault(name: str, what: str, trial: int, error: BaseException) -> LearnerError:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.inputs import describe, is_file, kind_of, read_json
+from ilc_steering.readers import describe, is_file, kind_of, read_json
 
 __all__ = [
     "check_output_dir",
@@ -248,7 +248,7 @@ def check_run_settings(
     written with other settings or another config of one of these names, or holds results
     (``results/*.json``) but no record of their settings. Returns whether the folder was a run
     already (a resume). Configs of new names are added: a resume may add scenarios. ``made_now``:
-    what made the results (:func:`~ilc_steering.provenance.provenance`), recorded; ``check_code``
+    what made the results (:func:`~ilc_steering.engine.provenance.provenance`), recorded; ``check_code``
     checks the recorded one before a resume of a folder that holds results: ``results/*.json`` or
     any of ``reports`` (a report's results may be restored from it), ``ValueError``."""
     stored_path = folder / "run.json"

@@ -25,12 +25,13 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from ilc_steering.config import ConfigError, SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
-from ilc_steering.inputs import read_json
+from ilc_steering.errors import ConfigError
 from ilc_steering.output import safe_name, write_figure
+from ilc_steering.readers import read_json
 
 __all__ = ["Run", "load_run", "write_plots"]
 

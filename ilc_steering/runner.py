@@ -30,7 +30,8 @@ from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.loop import LearnerError, run_trials
+from ilc_steering.errors import LearnerError
+from ilc_steering.loop import run_trials
 
 __all__ = [
     "DEFAULT_LEARNER",
@@ -338,7 +339,7 @@ def run_ilc(
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
 
-    A learner that fails raises :class:`~ilc_steering.loop.LearnerError` naming it (``learner``),
+    A learner that fails raises :class:`~ilc_steering.errors.LearnerError` naming it (``learner``),
     its ``partial`` the :class:`RunResult` of the trials run before.
     """
     config = load_config(config)

@@ -12,7 +12,9 @@ from pathlib import Path
 import pytest
 
 from ilc_steering.cli import main
-from ilc_steering.compare import Args, run_cell, run_cells
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.cells import run_cell
+from ilc_steering.compare.command import run_cells
 
 ROOT = Path(__file__).resolve().parents[1]
 LEARNERS = (ROOT / "docs" / "learners.md").read_text()  # "Your own learner", its last section

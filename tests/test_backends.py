@@ -2,18 +2,21 @@
 
 import json
 import math
+import os
 
 import pytest
-import ray
 
-from ilc_steering import compare, sweep
-from ilc_steering.backends import run_calls
+from ilc_steering.compare import command as compare
+from ilc_steering.engine.backends import run_calls
+from ilc_steering.sweep import command as sweep
 
-pytestmark = pytest.mark.slow  # a local Ray, and the quick comparison on it
+pytestmark = [pytest.mark.slow, pytest.mark.extra("ray")]  # a local Ray, and the quick comparison on it
 
 
 @pytest.fixture(scope="module")
 def local_ray():
+    import ray
+
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
     yield
     ray.shutdown()
@@ -29,6 +32,7 @@ def cells(folder):
     return found
 
 
+@pytest.mark.extra("rl", "bo")  # every default method: the RL ones and bayes_opt
 def test_the_quick_comparison_on_ray_writes_the_local_cells(tmp_path, local_ray, quick_comparison):
     # the local run: `compare --quick` (seeds QUICK_SEEDS), computed once per session (conftest.py)
     local = sorted((quick_comparison / "cells").glob("*.json"))
@@ -54,3 +58,17 @@ def test_a_sweep_on_ray_gives_the_local_map(tmp_path, local_ray):
 def test_an_error_in_a_ray_task_is_raised(local_ray):
     with pytest.raises(Exception, match="math domain error"):
         run_calls(math.sqrt, {0: (-1.0,)}, lambda key, value: None, "ray")
+
+
+def test_a_ray_task_whose_worker_dies_is_its_calls_failure_and_the_run_goes_on(local_ray):
+    outcomes = {}
+
+    def finish(key, value):
+        outcomes[key] = ("done", value)
+
+    def failed(key, message):
+        outcomes[key] = ("failed", message.split(":")[0])
+
+    run_calls(os._exit, {0: (3,)}, finish, "ray", failed=failed, timeout=60.0)
+    run_calls(math.sqrt, {1: (4.0,), 2: (-1.0,)}, finish, "ray", failed=failed, timeout=60.0)
+    assert outcomes == {0: ("failed", "WorkerDied"), 1: ("done", 2.0), 2: ("failed", "ValueError")}

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core.chained_form import chained_rhs
 from ilc_steering.core.robots.car import CarModel, car_velocity, chained_inputs, frame_angle, rotate
 from ilc_steering.core.robots.car_fields import closed_loop_velocity
+from ilc_steering.errors import ConfigError
 
 CAR = CarModel(wheelbase=0.2, wheel_radius=0.02)
 

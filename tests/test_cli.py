@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from ilc_steering import compare
 from ilc_steering.cli import main
+from ilc_steering.compare import command as compare
 
 
 def test_run_writes_json_and_exits_0_when_converged(tmp_path, capsys):
@@ -90,6 +90,7 @@ def test_python_dash_m_entry_point(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.extra("rl", "bo")  # every default method: the RL ones and bayes_opt
 def test_compare_quick_runs_every_method(quick_comparison):
     tmp_path = quick_comparison  # main(["compare", "--quick", "--out", ...]) == 0, once per session (conftest.py)
     table = (tmp_path / "compare.md").read_text()

@@ -11,14 +11,19 @@ import numpy as np
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering import compare, compare_report
 from ilc_steering.agents import rl
 from ilc_steering.agents.adapters import PullLearner
-from ilc_steering.agents.base import RESIDUAL_SCALE, LearnerContext
-from ilc_steering.agents.rl import RL_ALGORITHMS, check_hyperparameters, hyperparameters
-from ilc_steering.compare import Args, TrialLog, run_cell, run_cells
-from ilc_steering.config import ConfigError
+from ilc_steering.agents.base import LearnerContext
+from ilc_steering.agents.rl_settings import RL_ALGORITHMS, check_hyperparameters, hyperparameters
+from ilc_steering.boxes import RESIDUAL_SCALE
+from ilc_steering.compare import cells as compare_cells
+from ilc_steering.compare import command as compare
+from ilc_steering.compare import stats as compare_report
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.cells import TrialLog, run_cell
+from ilc_steering.compare.command import run_cells
 from ilc_steering.core.score import OFF_CHART_PENALTY
+from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -41,7 +46,7 @@ def test_trial_log_counts_every_trial_and_refuses_one_past_the_budget():
     assert len(rollout) == 3 and len(asked) == 3  # the fourth step was stopped inside the optimizer
     assert len(log.cartesian) == 3
     np.testing.assert_allclose(log.cartesian, 0.1, rtol=1e-6)  # the 10% perturbation
-    assert compare.first_within(log, 0.2) == 1 and compare.first_within(log, 0.01) is None
+    assert compare_cells.first_within(log, 0.2) == 1 and compare_cells.first_within(log, 0.01) is None
 
 
 def test_ilc_cells_count_the_papers_trials_and_the_nominal_start():
@@ -66,10 +71,10 @@ def test_a_level_is_met_at_most_at_the_level_and_a_count_on_the_level_is_flagged
         log.cartesian.append(error)
         log.orientation.append(0.0)
         log.left_chart.append(False)
-    assert compare.first_within(log, 0.01) == 3  # no slack: 1e-12 above the level is not within it
-    assert "1cm" in compare.fragile_levels(log)  # and a change of 1e-6 would move the count to trial 1
+    assert compare_cells.first_within(log, 0.01) == 3  # no slack: 1e-12 above the level is not within it
+    assert "1cm" in compare_cells.fragile_levels(log)  # and a change of 1e-6 would move the count to trial 1
     log.cartesian[:] = [0.01 * (1 + 1e-5), 0.01 * (1 - 1e-5), 0.0]
-    assert compare.first_within(log, 0.01) == 2 and compare.fragile_levels(log) == []
+    assert compare_cells.first_within(log, 0.01) == 2 and compare_cells.fragile_levels(log) == []
 
 
 def test_least_squares_counts_every_jacobian_probe():
@@ -85,7 +90,10 @@ def test_gauss_newton_reaches_the_tight_tolerance_without_a_prior():
 
 
 @pytest.mark.parametrize("prior", ["nominal", "none"])
-@pytest.mark.parametrize("method", ["newton", "nelder_mead", "cma_es", *RL_ALGORITHMS])
+@pytest.mark.parametrize(
+    "method",
+    ["newton", "nelder_mead", *(pytest.param(m, marks=pytest.mark.extra("rl")) for m in ("cma_es", *RL_ALGORITHMS))],
+)
 @pytest.mark.slow  # RL trainings
 def test_every_baseline_spends_exactly_its_budget(method, prior):
     cell = run_cell(Args(**TINY), prior, method, "parallel_parking", 1)
@@ -101,7 +109,7 @@ def test_every_methods_first_trial_is_the_conditions_start(method):
     u = env.unwrapped
     for prior in ("nominal", "none"):
         context = LearnerContext(u.nominal_model, u.action_space, u.observation_space, 3, prior=prior)
-        learner = compare.make_learner(Args(**TINY), method, "forward_parking", context)
+        learner = compare_cells.make_learner(Args(**TINY), method, "forward_parking", context)
         first = run_trials(env, learner, 2, seed=3).infos[0]["action"]
         expected = u.nominal_model.solve() if prior == "nominal" else context.first_action()
         np.testing.assert_allclose(first, expected, rtol=1e-12, atol=1e-12)
@@ -115,13 +123,14 @@ def test_the_residual_box_holds_every_packaged_solution():
         env = gym.make("ilc_steering/ChainedSteering-v0", config=name)
         u = env.unwrapped
         context = LearnerContext(u.nominal_model, u.action_space, u.observation_space)
-        rollout = run_trials(env, compare.make_learner(Args(), "ilc", name, context), 12)
+        rollout = run_trials(env, compare_cells.make_learner(Args(), "ilc", name, context), 12)
         centre, half = context.search_box()
         np.testing.assert_array_equal(half, RESIDUAL_SCALE * u.nominal_model.action_scale())
         inside = np.abs(rollout.infos[-1]["action"] - centre) / half
         assert inside.max() < 0.75, (name, inside)  # the solution, with margin
 
 
+@pytest.mark.extra("rl")
 def test_rl_deterministic_trials_start_at_the_nominal_solution_and_are_counted():
     env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
     u = env.unwrapped
@@ -145,9 +154,10 @@ def test_an_off_chart_trial_costs_the_penalty_and_never_sets_the_best_error():
     assert reward == pytest.approx(-(info["cartesian_error"] + info["orientation_error"] + OFF_CHART_PENALTY))
     log = TrialLog()
     log(1, info)
-    assert compare.first_within(log, 10.0) is None and compare.best_so_far(log)[0][1] > OFF_CHART_PENALTY
+    assert compare_cells.first_within(log, 10.0) is None and compare_cells.best_so_far(log)[0][1] > OFF_CHART_PENALTY
 
 
+@pytest.mark.extra("rl")
 def test_rl_hyperparameter_files_load_and_unknown_keys_are_named():
     for algorithm in RL_ALGORITHMS:
         for prior in ("nominal", "none"):
@@ -208,6 +218,7 @@ def test_a_clone_without_cells_resumes_from_compare_json(tmp_path):
 
 
 @pytest.mark.slow  # worker processes
+@pytest.mark.extra("rl")  # td3
 def test_workers_give_the_cells_of_one_process(tmp_path):
     settings = dict(
         priors=("nominal", "none"), methods=("ilc", "least_squares", "td3"), scenarios=("forward_parking_noisy",)
@@ -288,6 +299,7 @@ def test_a_users_learner_and_a_yaml_scenario_from_outside_the_package(tmp_path, 
 
 
 @pytest.mark.slow  # a comparison with PPO
+@pytest.mark.extra("rl")
 def test_main_writes_well_formed_results(tmp_path):
     args = Args(
         out=tmp_path,
@@ -322,14 +334,14 @@ def test_bootstrap_interval_and_quartiles_keep_not_reached_as_infinite():
 
 def test_ratios_name_the_best_of_each_family():
     def cell(method, reached):
-        trials_to = {level: reached for level in compare.LADDER}
+        trials_to = {level: reached for level in compare_report.LADDER}
         return {"prior": "nominal", "scenario": "s", "method": method, "budget": 100, "trials_to": trials_to,
                 "best_error": 1e-3, "off_chart_fraction": 0.0, "wall_s": 1.0}  # fmt: skip
 
     cells = [cell("ilc", 4), cell("least_squares", 12), cell("cma_es", 80), cell("td3", None), cell("ppo", 400)]
     families = {"black-box": compare.BLACKBOX, "RL": compare.RL}
     entries = compare_report.ratios(compare_report.summarize(cells), families)
-    assert len(entries) == len(compare.LADDER)
+    assert len(entries) == len(compare_report.LADDER)
     first = entries[0]
     assert first["black-box"] == {"method": "least_squares", "median": 12.0, "ratio": 3.0}
     assert first["RL"] == {"method": "ppo", "median": 400.0, "ratio": 100.0}

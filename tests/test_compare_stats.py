@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from scipy.stats import bootstrap, trim_mean
 
-from ilc_steering import compare_tables
-from ilc_steering.compare_plan import Args, plan
-from ilc_steering.compare_report import BOOTSTRAP_RESAMPLES, profile, statistic_ci
-from ilc_steering.engine import Progress
+from ilc_steering.compare import tables as compare_tables
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.figures import profile
+from ilc_steering.compare.plan import plan
+from ilc_steering.compare.stats import BOOTSTRAP_RESAMPLES, statistic_ci
+from ilc_steering.engine.runs import Progress
 
 ROOT = Path(__file__).resolve().parent.parent
 

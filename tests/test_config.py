@@ -3,7 +3,8 @@
 import pytest
 import yaml
 
-from ilc_steering.config import ConfigError, load_config, packaged_configs
+from ilc_steering.config import load_config, packaged_configs
+from ilc_steering.errors import ConfigError
 
 ISSUE_EXAMPLE = """
 name: forward_parking
@@ -69,9 +70,9 @@ def test_every_packaged_config_loads():
         ({"learning__nu_b": KeyError}, r"learning\.nu_b: missing required key"),
         ({"learning__nu_a": 2.5}, r"learning\.nu_a: must be in \(0, 2\)"),
         ({"plant__wheelbase": -0.2}, r"plant\.wheelbase: must be a length in \[0\.001, 1000\] m, got -0\.2"),
-        (
+        (  # the packaged robots, then the installed packages' entry points (mujoco_car)
             {"plant__model": "truck"},
-            r"plant\.model: must be one of \['car', 'chained', 'unicycle', 'car_trailer', 'highway_parking'\]",
+            r"plant\.model: must be one of \['car', 'chained', 'unicycle', 'car_trailer', 'highway_parking'",
         ),
         ({"plant__steering_limit": 2.0}, r"plant\.steering_limit"),
         ({"plant__steering_offset": 0.7}, r"plant\.steering_offset: must be within \+-0\.5 rad"),
@@ -101,7 +102,7 @@ def test_bad_configs_name_the_key_and_the_file(tmp_path, changes, message):
 
 def test_nan_in_yaml_is_rejected(tmp_path):
     text = ISSUE_EXAMPLE.replace("start: [-1.0,", "start: [.nan,")
-    with pytest.raises(ConfigError, match=r"task\.start: values must be finite"):
+    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a finite number"):
         load_config(write(tmp_path, text))
 
 
@@ -121,5 +122,5 @@ def test_unknown_names_and_files():
 
 def test_an_integer_too_large_for_a_float_is_a_config_error(tmp_path):
     path = write(tmp_path, ISSUE_EXAMPLE.replace("start: [-1.0,", "start: [" + "9" * 400 + ","))
-    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a number a float can hold"):
+    with pytest.raises(ConfigError, match=r"task\.start\[0\]: must be a finite number"):
         load_config(path)

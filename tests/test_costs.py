@@ -9,11 +9,12 @@ import pytest
 
 from ilc_steering.agents.costs import NullSpaceCost
 from ilc_steering.agents.ilc import ILCAgent
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.robots.chained import ChainedPlant
 from ilc_steering.core.simulate import simulate
+from ilc_steering.errors import ConfigError
 from ilc_steering.runner import run_ilc
 
 N = 4

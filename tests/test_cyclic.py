@@ -13,8 +13,9 @@ from gymnasium.utils.env_checker import check_env
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import CyclicILCAgent
 from ilc_steering.cli import main
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.envs import cyclic_env
+from ilc_steering.errors import ConfigError
 from ilc_steering.runner import run_cyclic_ilc
 
 ENV_ID = "ilc_steering/CyclicSteering-v0"

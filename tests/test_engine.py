@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_steering.backends import run_calls
-from ilc_steering.engine import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
+from ilc_steering.engine.backends import run_calls
+from ilc_steering.engine.runs import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
 
 # Calls a worker can run, as (function, args) importable in a spawned process, and what each must give.
 KINDS = {
@@ -63,7 +63,7 @@ def test_a_killable_worker_ends_each_cell_as_returned_failed_died_or_timed_out(k
 
     for function in {f for f, _ in calls.values()}:  # run_calls maps one function over its calls
         mine = {k: args for k, (f, args) in calls.items() if f is function}
-        run_calls(function, mine, finish, workers=workers, failed=failed, timeout=4.0, isolate=True)
+        run_calls(function, mine, finish, workers=workers, failed=failed, timeout=4.0)
     assert outcomes == {index: KINDS[kind][1] for index, kind in enumerate(kinds)}
 
 
@@ -124,7 +124,7 @@ def _server(behaviour):
 @settings(max_examples=6, deadline=None)
 @given(st.sampled_from(["silent", "garbage", "close"]), st.sampled_from(["", "ray://"]))
 def test_a_port_that_is_no_ray_cluster_is_refused_within_the_promised_time(behaviour, scheme):
-    from ilc_steering import backends
+    from ilc_steering.engine import backends
 
     listener, held = _server(behaviour)
     address = f"{scheme}127.0.0.1:{listener.getsockname()[1]}"
@@ -150,8 +150,8 @@ def test_a_port_that_is_no_ray_cluster_is_refused_within_the_promised_time(behav
 def test_a_cell_whose_trials_to_contradicts_itself_or_its_curve_is_refused(reached, costs):
     """A resumed or committed cell is checked by value: its levels in order, each met where its
     best-so-far curve allows it (both errors within a level: a cost of at most twice it)."""
-    from ilc_steering.compare_cells import _contradictions
-    from ilc_steering.compare_report import LADDER
+    from ilc_steering.compare.cells import _contradictions
+    from ilc_steering.compare.stats import LADDER
 
     best = [min(costs[: i + 1]) for i in range(len(costs))]
     curve = [[i + 1, c] for i, c in enumerate(best) if i == 0 or c < best[i - 1]]
@@ -176,10 +176,26 @@ def test_a_report_path_that_is_a_folder_is_refused_before_any_cell(tmp_path, cap
 def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
     import json
 
-    from ilc_steering.against import read_committed
+    from ilc_steering.compare.against import read_committed
 
     (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
     cell = {"prior": "nominal", "method": "ilc", "scenario": "forward_parking", "seed": 0}
     (tmp_path / "compare.json").write_text(json.dumps({"cells": [cell, {**cell, "best_error": 1.0}]}))
     with pytest.raises(ValueError, match="holds the cell .* twice"):
         read_committed(tmp_path)
+
+
+@pytest.mark.parametrize("command", [["compare"], ["sweep", "forward_parking"]])
+def test_the_help_of_cell_timeout_states_the_engines_default_bound(command, capsys, monkeypatch):
+    """``--cell-timeout``'s help reads :data:`DEFAULT_CELL_TIMEOUT` (it once said "no limit" while
+    six hours applied): a changed default changes the help."""
+    from ilc_steering import cli
+    from ilc_steering.engine import runs as engine
+
+    for seconds, shown in ((DEFAULT_CELL_TIMEOUT, f"default: {DEFAULT_CELL_TIMEOUT / 3600:g} h"), (5400.0, "1.5 h")):
+        monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", seconds)
+        with pytest.raises(SystemExit) as done:
+            cli._parser().parse_args([*command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())  # argparse wraps at the terminal's width
+        option = text.split("--cell-timeout SECONDS ")[-1].split(" --")[0]  # its help, after the usage line
+        assert done.value.code == 0 and shown in option and "no limit" not in option, option

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.wrappers import RescaleAction
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.config import load_config
@@ -38,7 +37,10 @@ def test_gymnasium_check_env_passes_with_only_documented_warnings(config):
     assert unexpected == []
 
 
+@pytest.mark.extra("rl")
 def test_sb3_check_env_passes_through_rescale_action_without_warnings():
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         sb3_check_env(RescaleAction(make().unwrapped, np.float32(-1.0), np.float32(1.0)))

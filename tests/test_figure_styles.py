@@ -6,9 +6,9 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_hex
 
-from ilc_steering import compare
 from ilc_steering.agents import registry
-from ilc_steering.compare_report import scenario_figure
+from ilc_steering.compare import command as compare
+from ilc_steering.compare.figures import scenario_figure
 from ilc_steering.figure_styles import FAMILY_COLOURS, MARKERS, method_styles
 
 

@@ -12,10 +12,14 @@ import pytest
 import yaml
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering import compare
 from ilc_steering.cli import main
-from ilc_steering.compare import Args, run_cell, run_cells
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.compare import command as compare
+from ilc_steering.compare import plan as compare_plan
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.cells import run_cell
+from ilc_steering.compare.command import run_cells
+from ilc_steering.config import load_config
+from ilc_steering.errors import ConfigError
 from ilc_steering.output import safe_name, write_json
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -217,9 +221,9 @@ def test_compare_refuses_bad_arguments_before_any_cell(tmp_path, capsys):
 
 
 def test_quick_keeps_explicit_seeds_and_budgets():
-    assert compare.resolve(compare.parse(["--quick", "--seeds", "3"])).seeds == (3,)
-    assert compare.resolve(compare.parse(["--quick"])).seeds == (0, 1)
-    assert compare.resolve(compare.parse(["--quick", "--model-trials", "9"])).model_trials == 9
+    assert compare_plan.resolve(compare.parse(["--quick", "--seeds", "3"])).seeds == (3,)
+    assert compare_plan.resolve(compare.parse(["--quick"])).seeds == (0, 1)
+    assert compare_plan.resolve(compare.parse(["--quick", "--model-trials", "9"])).model_trials == 9
 
 
 @pytest.mark.slow  # a comparison

@@ -10,14 +10,15 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-pytest.importorskip("highway_env", reason='the [highway] extra: pip install "ilc-steering[highway]"')
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.config import load_config
 from ilc_steering.core.external import ExternalPlant, is_external
-from ilc_steering.envs import highway
+from ilc_steering.envs import highway, highway_plant
 from ilc_steering.envs.scenario import Scenario
+
+pytestmark = pytest.mark.extra("highway")
 
 ENV = "ilc_steering/ChainedSteering-v0"
 
@@ -35,12 +36,12 @@ def test_constants_are_highway_envs() -> None:
     from highway_env.envs.common.action import ContinuousAction
     from highway_env.vehicle.kinematics import Vehicle
 
-    assert highway.LENGTH == Vehicle.LENGTH
-    assert (-highway.ACCELERATION, highway.ACCELERATION) == ContinuousAction.ACCELERATION_RANGE
-    assert (-highway.STEERING, highway.STEERING) == ContinuousAction.STEERING_RANGE
+    assert highway_plant.LENGTH == Vehicle.LENGTH
+    assert (-highway_plant.ACCELERATION, highway_plant.ACCELERATION) == ContinuousAction.ACCELERATION_RANGE
+    assert (-highway_plant.STEERING, highway_plant.STEERING) == ContinuousAction.STEERING_RANGE
     config = gym.make("parking-v0").unwrapped.config
-    assert config["simulation_frequency"] // config["policy_frequency"] == highway.FRAMES
-    assert 1 / config["policy_frequency"] == highway.ACTION_STEP
+    assert config["simulation_frequency"] // config["policy_frequency"] == highway_plant.FRAMES
+    assert 1 / config["policy_frequency"] == highway_plant.ACTION_STEP
 
 
 def test_the_plant_is_external(trial: tuple[Any, dict[str, Any]]) -> None:
@@ -51,14 +52,14 @@ def test_the_plant_is_external(trial: tuple[Any, dict[str, Any]]) -> None:
     # the nominal solution of the library's car lands within 10 cm on highway-env's car
     assert info["cartesian_error"] < 0.1 and info["orientation_error"] < 0.05
     assert not info["plant"]["crashed"] and info["plant"]["is_success"]
-    assert len(info["plant"]["actions"]) == round(15.0 / highway.ACTION_STEP)
+    assert len(info["plant"]["actions"]) == round(15.0 / highway_plant.ACTION_STEP)
     assert info["trajectory"].q.shape == (76, 4)
 
 
 def test_replay_is_bit_for_bit(trial: tuple[Any, dict[str, Any]]) -> None:
     """The logged actions, run through parking-v0's public step in a fresh env, give the same car."""
     env, info = trial
-    pose, crashed, fresh = highway.replay(4, info["plant"]["actions"])
+    pose, crashed, fresh = highway_plant.replay(4, info["plant"]["actions"])
     mine = env.unwrapped._scenario.plant.env.unwrapped.vehicle
     theirs = fresh.unwrapped.vehicle
     assert np.array_equal(mine.position, theirs.position) and mine.heading == theirs.heading
@@ -69,22 +70,22 @@ def test_replay_is_bit_for_bit(trial: tuple[Any, dict[str, Any]]) -> None:
 
 def test_highway_env_clips_the_actions() -> None:
     """An action beyond [-1, 1] is highway-env's to clip: the car steers at 45° and accelerates at 5 m/s²."""
-    beyond, _, env = highway.replay(4, [[3.0, -2.5]] * 3)
-    edge, _, _ = highway.replay(4, [[1.0, -1.0]] * 3)
+    beyond, _, env = highway_plant.replay(4, [[3.0, -2.5]] * 3)
+    edge, _, _ = highway_plant.replay(4, [[1.0, -1.0]] * 3)
     assert np.array_equal(beyond, edge)
-    assert beyond[3] == -pi / 4 and env.unwrapped.vehicle.speed == pytest.approx(3 * 5.0 * highway.ACTION_STEP)
+    assert beyond[3] == -pi / 4 and env.unwrapped.vehicle.speed == pytest.approx(3 * 5.0 * highway_plant.ACTION_STEP)
 
 
 def test_a_goal_it_cannot_serve_is_refused_by_name() -> None:
     with pytest.raises(ValueError, match=r"parking-v0 seed 12: the goal's heading is 180° from the start's"):
-        highway.parking_task(12)
+        highway_plant.parking_task(12)
     with pytest.raises(ValueError, match=r"parking-v0 seed 11: this task cannot serve it in one chart: its nominal"):
         highway.highway_config(11)
 
 
 def test_a_task_for_any_seed_loads() -> None:
     config = load_config(highway.highway_config(13))
-    start, goal = highway.parking_task(13)
+    start, goal = highway_plant.parking_task(13)
     assert config.plant.seed == 13 and np.allclose(config.task.start, start) and np.allclose(config.task.goal, goal)
 
 
@@ -140,7 +141,7 @@ def test_robust_ilc_parks_to_a_centimetre_within_8_trials() -> None:
     result = run_ilc("highway_parking", trials=8, learner="robust_ilc")
     assert result.converged_at is not None and result.converged_at <= 8
     assert not any(record.plant and record.plant["crashed"] for record in result.trials)
-    replayed, _, _ = highway.replay(4, result.trials[-1].plant["actions"])  # type: ignore[index]
+    replayed, _, _ = highway_plant.replay(4, result.trials[-1].plant["actions"])  # type: ignore[index]
     final = np.array(result.trials[-1].final_state)
     turn = np.angle(np.exp(1j * (replayed[2] - final[2])))
     np.testing.assert_allclose([*replayed[[0, 1, 3]], turn], [*final[[0, 1, 3]], 0.0], atol=1e-12)

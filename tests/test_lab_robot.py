@@ -6,11 +6,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.reference import lab_car_trial
 from ilc_steering.core.robots.car_fields import LAB_KERNEL
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.errors import ConfigError
 
 LAB = [
     {"encoder_pulses": 40},

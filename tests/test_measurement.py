@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core.score import TRUE_KEYS
+from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 from ilc_steering.runner import run_ilc
 
@@ -155,7 +156,8 @@ def test_disturbances_are_refused_where_they_cannot_be_drawn(tmp_path):
     import gymnasium as gym
     import pytest
 
-    from ilc_steering.config import ConfigError, load_config
+    from ilc_steering.config import load_config
+    from ilc_steering.errors import ConfigError
 
     config = load_config("forward_parking")
     jittered = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, parameter_jitter=0.01))

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.cli import main
-from ilc_steering.compare import Args, validate
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.command import validate
 from ilc_steering.config import load_config
 from ilc_steering.envs.scenario import Scenario
 

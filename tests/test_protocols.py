@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContext, blackbox, rl
+from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContext, blackbox, rl, rl_settings
 from ilc_steering.agents.newton import make_newton
 from ilc_steering.agents.newton_ilc import make_newton_ilc
 from ilc_steering.config import load_config, packaged_configs
@@ -127,15 +127,19 @@ LEARNERS = {
     "ilc_nominal": lambda ctx: ILCAgent(ctx.model, start=ctx.first_action()),
     "newton": make_newton,
     "newton_ilc": make_newton_ilc,
-    "least_squares": lambda ctx: blackbox.make_learner("least_squares", ctx),
-    "gauss_newton": lambda ctx: blackbox.make_learner("gauss_newton", ctx),
-    "nelder_mead": lambda ctx: blackbox.make_learner("nelder_mead", ctx),
-    "cma_es": lambda ctx: blackbox.make_learner("cma_es", ctx),
-    "ppo": lambda ctx: rl.make_learner("ppo", rl.hyperparameters("ppo", "forward_parking"), 12, False, ctx),
+    "least_squares": lambda ctx: blackbox.make_learner(blackbox.least_squares, ctx),
+    "gauss_newton": lambda ctx: blackbox.make_learner(blackbox.gauss_newton, ctx),
+    "nelder_mead": lambda ctx: blackbox.make_learner(blackbox.nelder_mead, ctx),
+    "cma_es": lambda ctx: blackbox.make_learner(blackbox.cma_es, ctx),
+    "ppo": lambda ctx: rl.make_learner("ppo", rl_settings.hyperparameters("ppo", "forward_parking"), 12, False, ctx),
 }
+EXTRA = {"cma_es": "rl", "ppo": "rl"}
+"""The learners whose packages come with an extra (cma with rl)."""
 
 
-@pytest.mark.parametrize("method", sorted(LEARNERS))
+@pytest.mark.parametrize(
+    "method", [pytest.param(m, marks=pytest.mark.extra(EXTRA[m])) if m in EXTRA else m for m in sorted(LEARNERS)]
+)
 def test_learner_contract(method):
     env, ctx = context()
     learner = LEARNERS[method](ctx)

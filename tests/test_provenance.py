@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 import ilc_steering
-from ilc_steering import provenance as prov
-from ilc_steering.engine import RunFolder
+from ilc_steering.engine import provenance as prov
+from ilc_steering.engine.runs import RunFolder
 from ilc_steering.output import write_json
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -25,9 +25,9 @@ def test_the_code_hash_covers_the_simulator_the_envs_the_learners_and_the_rl_set
     for path in ("core/plants.py", "core/simulate.py", "envs/steering_env.py", "agents/ilc.py", "agents/rl.py"):
         assert path in files
     assert "configs/rl/td3.yaml" in files
-    assert "ilc_steering/loop.py" in files and "ilc_steering/compare_cells.py" in files
+    assert "ilc_steering/loop.py" in files and "ilc_steering/compare/cells.py" in files
     # what only arranges results is not hashed: a table drawn otherwise does not make a run stale
-    assert not any(path.endswith(("compare_report.py", "cli.py", "plots.py", "engine.py")) for path in files)
+    assert not any(path.endswith(("compare/report.py", "cli.py", "plots.py", "engine.py")) for path in files)
 
 
 def test_changing_one_file_changes_its_hash_and_the_code_hash(tmp_path: Path) -> None:
@@ -53,7 +53,7 @@ def test_current_and_stale_are_told_apart(tmp_path: Path) -> None:
     current, lines = prov.freshness(tmp_path / "now")
     assert current and "current" in lines[0]
     files = {**made["files"], "core/plants.py": "0" * 16}
-    _fake_run(tmp_path / "then", {"provenance": {**made, "code": "0" * 16, "files": files}})
+    _fake_run(tmp_path / "then", {"provenance": {**made, "code": prov.code_hash(files), "files": files}})
     current, lines = prov.freshness(tmp_path / "then")
     assert not current and "STALE" in lines[0]
     assert any("core/plants.py" in line for line in lines)
@@ -102,7 +102,7 @@ def test_the_current_command_reports_a_run_stale_after_a_learner_or_the_simulato
     run = tmp_path / "run"
     made = python(
         "-c",
-        "import ilc_steering, json, sys; from ilc_steering.provenance import provenance; "
+        "import ilc_steering, json, sys; from ilc_steering.engine.provenance import provenance; "
         "assert ilc_steering.__file__.startswith(sys.argv[1]), ilc_steering.__file__; "
         "print(json.dumps({'quick': True, 'version': ilc_steering.__version__, 'configs': {}, "
         "'provenance': provenance()}))",

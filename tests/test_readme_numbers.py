@@ -106,21 +106,38 @@ def test_the_robustness_table_is_the_committed_maps():
 
 
 def test_the_test_tiers_times_are_the_logged_runs():
-    text = (ROOT / "docs/tests.md").read_text()
+    text = " ".join((ROOT / "docs/tests.md").read_text().split())  # wherever the page's lines wrap
     log = (ROOT / "docs/benchmarks/test_tiers/fast.txt").read_text()
     passed, seconds = re.search(r"(\d+) passed, \d+ deselected, .* in ([\d.]+)s", log).groups()
     user, sys_ = re.search(r"user ([\d.]+) s, sys ([\d.]+) s", log).groups()
     loads = re.findall(r"load average: ([\d.]+),", log)
     assert f"ran {passed} tests in {seconds} s" in text
-    assert f"{float(user) + float(sys_):.1f} s\nof CPU time (user {user} s, sys {sys_} s)" in text
+    assert f"{float(user) + float(sys_):.1f} s of CPU time (user {user} s, sys {sys_} s)" in text
     assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text
 
 
 def test_the_slow_tiers_time_is_the_logged_run():
-    text = (ROOT / "docs/tests.md").read_text()
+    text = " ".join((ROOT / "docs/tests.md").read_text().split())
     log = (ROOT / "docs/benchmarks/test_tiers/slow.txt").read_text()
     failed, passed, seconds = re.search(r"(\d+) failed, (\d+) passed, \d+ deselected, .* in ([\d.]+)s", log).groups()
     user, sys_ = re.search(r"user ([\d.]+) s, sys ([\d.]+) s", log).groups()
     loads = re.findall(r"load average: ([\d.]+),", log)
     assert f"{int(failed) + int(passed)} tests in {seconds} s, on {float(user) + float(sys_):.1f} s of CPU time" in text
     assert f"(load average {loads[0]} at the start, {loads[-1]} at the end)" in text and failed == "1"
+
+
+def test_the_mujoco_page_quotes_its_artifacts():
+    # benchmarks/mujoco_car.py's tables, as written; and the page's words match their numbers.
+    page = (ROOT / "docs/mujoco.md").read_text()
+    for stem in ("mujoco_repeatability", "mujoco_learners", "mujoco_spread"):
+        assert (ROOT / f"docs/mujoco/{stem}.md").read_text().strip() in page, stem
+    runs = json.loads((ROOT / "docs/mujoco/mujoco_learners.json").read_text())["rows"]
+    smooth = [r for r in runs if not r["config"].endswith("_scatter")]
+    assert all(r["trials_to_1cm"] <= 2 and r["last_inside"] for r in smooth)
+    scattered = [r["last_worst_m"] for r in runs if r["config"].endswith("_scatter")]
+    assert f"{1e3 * min(scattered):.0f}-{1e3 * max(scattered):.0f} mm" in page
+    speed = [
+        r["simulated_per_wall"]
+        for r in json.loads((ROOT / "docs/mujoco/mujoco_repeatability.json").read_text())["rows"]
+    ]
+    assert f"{min(speed):.0f}-{max(speed):.0f} simulated seconds per wall second" in page

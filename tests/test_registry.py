@@ -6,13 +6,18 @@ import gymnasium as gym
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering import cli, compare, runner, sweep, sweep_rows
+from ilc_steering import cli, runner
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import BaseLearner, Closable, LearnerContext, TimedUpdates, close_learner, update_times
 from ilc_steering.agents.costs import NullSpaceCost
 from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.compare import cells as compare_cells
+from ilc_steering.compare import command as compare
+from ilc_steering.compare import plan as compare_plan
 from ilc_steering.config import load_config
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.sweep import command as sweep
+from ilc_steering.sweep import rows as sweep_rows
 
 
 def with_cost(name="forward_parking", cost="path_length"):
@@ -37,7 +42,7 @@ def test_an_id_means_one_learner_in_run_and_in_compare():
     context = LearnerContext.from_env(env)
     for method in ("ilc", "ilc_paper"):
         a = runner.learner_spec(method).make(context, 5)
-        b = compare.make_learner(compare.Args(), method, "forward_parking", context)
+        b = compare_cells.make_learner(compare.Args(), method, "forward_parking", context)
         assert type(a) is type(b) and (a.act() == b.act()).all()
     assert runner.learner_spec("ilc").entry_point.endswith(":make_ilc")  # as in compare, not make_ilc_paper
     assert runner.learner_spec(runner.DEFAULT_LEARNER).entry_point.endswith(":make_ilc_paper")
@@ -177,11 +182,11 @@ def test_sweep_and_compare_run_the_same_trials_for_the_same_learner_cost_and_pla
 
 def test_quick_is_resolved_in_one_place():
     """compare.main(Args(quick=True)) used to run 10 seeds: the plan resolves quick once."""
-    resolved = compare.resolve(compare.Args(quick=True))
+    resolved = compare_plan.resolve(compare.Args(quick=True))
     assert resolved.seeds == compare.QUICK_SEEDS and resolved.model_trials == compare.QUICK["model_trials"]
-    assert compare.resolve(compare.Args(quick=True, seeds=(5,), model_trials=9)).seeds == (5,)
-    assert compare.resolve(compare.Args(quick=True, model_trials=9)).model_trials == 9
-    assert compare.resolve(compare.Args()).seeds == compare.SEEDS
+    assert compare_plan.resolve(compare.Args(quick=True, seeds=(5,), model_trials=9)).seeds == (5,)
+    assert compare_plan.resolve(compare.Args(quick=True, model_trials=9)).model_trials == 9
+    assert compare_plan.resolve(compare.Args()).seeds == compare_plan.SEEDS
     the_plan = compare.plan(compare.Args(quick=True, methods=("ilc", "ppo"), scenarios=("forward_parking",)))
     assert {cell[3] for cell in the_plan.grid} == set(compare.QUICK_SEEDS)
     assert the_plan.budgets["nominal", "ppo", "forward_parking"] == compare.QUICK["rl_trials"]

@@ -14,11 +14,12 @@ import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core import robots
 from ilc_steering.core.reference import trial
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 
 HERE = Path(__file__).parent
@@ -144,3 +145,24 @@ def test_a_robot_from_module_colon_class_runs_through_run_compare_and_sweep(tmp_
         assert done.returncode in (0, 1), f"{name}: exit {done.returncode}: {done.stderr[-400:]}"
         assert "Traceback" not in done.stderr, f"{name}: {done.stderr[-400:]}"
     assert (tmp_path / "compare" / "compare.json").is_file() and (tmp_path / "sweep" / "sweep.json").is_file()
+
+
+@pytest.mark.slow  # two fresh processes, the skate's kernel compiled
+@pytest.mark.parametrize("where", ["beside", "elsewhere"])
+def test_a_robot_module_beside_its_config_runs_through_the_installed_script(tmp_path, where):
+
+    folder = tmp_path / "robot"
+    folder.mkdir()
+    shutil.copy(HERE / "toy_robot.py", folder / "toy_robot.py")
+    text = (HERE / "toy_robot.py").read_text().split('CONFIG = """\\\n')[1].split('"""')[0]
+    (folder / "skate.yaml").write_text(text.replace("model: skate", "model: toy_robot:SkatePlantConfig"))
+    cwd = folder if where == "beside" else tmp_path
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    script = Path(sys.executable).parent / "ilc-steering"
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "ilc_steering"]
+    result = subprocess.run(
+        [*command, "run", str(folder / "skate.yaml"), "--trials", "2"], capture_output=True, text=True, cwd=cwd, env=env
+    )
+    assert result.returncode in (0, 1), result.stderr[-2000:]  # converged or not: it ran, the module was found
+    assert "skate_parking: 2 trials" in result.stdout, result.stdout[-2000:]
+    assert [line.split()[0] for line in result.stdout.splitlines() if line[:5].strip().isdigit()] == ["1", "2"]

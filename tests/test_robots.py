@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.reference import trial
@@ -19,6 +19,7 @@ from ilc_steering.core.robots.car_trailer import TrailerModel, TrailerPlant, _to
 from ilc_steering.core.robots.unicycle import UnicycleModel, UnicyclePlant, unicycle_velocity
 from ilc_steering.core.simulate import simulate
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 from ilc_steering.runner import run_ilc
 

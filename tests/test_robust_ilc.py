@@ -15,7 +15,7 @@ from ilc_steering.core.family import ModelFamily
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 from ilc_steering.oracle import SOLVED, final_errors, oracle_map, solve_plants
-from ilc_steering.sweep import SweepArgs, lockstep, row_plants
+from ilc_steering.sweep.rows import SweepArgs, lockstep, row_plants
 
 
 def learn(config, plants, make, trials):

@@ -26,6 +26,7 @@ def counted(tmp_path, monkeypatch):
     """A function ``(scatter, trials, tolerance) -> YAML path`` of forward parking on the counted
     car, registered in this process, its drive log emptied."""
     monkeypatch.syspath_prepend(str(HERE))
+    robots.names()  # the installed packages' robots are read into the table this test copies
     monkeypatch.setattr(robots, "ROBOTS", dict(robots.ROBOTS))
     monkeypatch.setattr(robots, "_LOADED", dict(robots._LOADED))
     robots.register("counted_car", "counted_car:CountedCarConfig")
@@ -68,9 +69,9 @@ def test_the_step_size_check_of_an_external_plant_runs_the_nominal_model(counted
 
 
 def test_compare_drives_an_external_plant_once_per_counted_trial(counted, tmp_path):
-    from ilc_steering.compare import Args
-    from ilc_steering.compare_cells import run_cell
-    from ilc_steering.compare_plan import plan
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.cells import run_cell
+    from ilc_steering.compare.plan import plan
 
     path = str(counted())
     args = Args(methods=("ilc", "newton_ilc"), scenarios=(path,), seeds=(0,), model_trials=4, out=tmp_path / "c")

@@ -15,6 +15,10 @@ FOLDERS = {
     "ilc_steering": "ilc_steering",
     "ilc_steering/core": "ilc_steering.core",
     "ilc_steering/core/robots": "ilc_steering.core.robots",
+    "ilc_steering/config": "ilc_steering.config",
+    "ilc_steering/engine": "ilc_steering.engine",
+    "ilc_steering/compare": "ilc_steering.compare",
+    "ilc_steering/sweep": "ilc_steering.sweep",
     "envs": "ilc_steering.envs",
     "agents": "ilc_steering.agents",
 }
@@ -196,3 +200,92 @@ def test_no_robot_kind_dispatch_outside_the_robots_modules():
     for path in sorted((ROOT / "benchmarks").glob("*.py")):
         found += [f"{path.name}: {line.strip()}" for line in path.read_text().splitlines() if DISPATCH.search(line)]
     assert not found, "\n".join(found)
+
+
+# The floors, bottom first (docs/layout.md): a module may name (import, or write as a string that
+# is a module's or an entry's name) only modules of its own floor or below. The package's
+# __init__ is the roof: it registers the env ids by their entry strings and imports nothing.
+FLOORS = (
+    ("base", ("ilc_steering.errors", "ilc_steering.entries")),
+    ("core", ("ilc_steering.core",)),
+    ("spaces", ("ilc_steering.boxes",)),
+    (
+        "files",
+        (
+            *("ilc_steering.readers", "ilc_steering.yaml_reader", "ilc_steering.schema", "ilc_steering.output"),
+            *("ilc_steering.tables", "ilc_steering.figure_styles"),
+        ),
+    ),
+    ("config", ("ilc_steering.config",)),
+    ("envs", ("ilc_steering.envs",)),
+    ("agents", ("ilc_steering.agents",)),
+    ("trials", ("ilc_steering.loop", "ilc_steering.runner", "ilc_steering.oracle", "ilc_steering.plots")),
+    ("engine", ("ilc_steering.engine",)),
+    ("commands", ("ilc_steering.compare", "ilc_steering.sweep", "ilc_steering.cli")),
+)
+ROOF = {"ilc_steering", "ilc_steering.__main__"}
+MODULE_NAME = re.compile(r"\bilc_steering(?:\.\w+)+")
+
+
+def floor(name):
+    """The floor of module ``name`` (its index in FLOORS), by the longest prefix that names it."""
+    best = None
+    for index, (_, prefixes) in enumerate(FLOORS):
+        for prefix in prefixes:
+            if name == prefix or name.startswith(prefix + "."):
+                if best is None or len(prefix) > best[0]:
+                    best = (len(prefix), index)
+    return None if best is None else best[1]
+
+
+def named_modules(path):
+    """Every module of the package that ``path`` imports or names in a string (an entry
+    ``module:attr``, an ``import_module`` argument, a table of entries); docstrings are prose and
+    left out."""
+    tree = ast.parse(path.read_text())
+    docstrings = {
+        id(node.body[0].value)
+        for node in ast.walk(tree)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+        and node.body
+        and isinstance(node.body[0], ast.Expr)
+        and isinstance(node.body[0].value, ast.Constant)
+    }
+    names = {m for m in imports(path) if m in MODULES}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
+            for found in MODULE_NAME.findall(node.value):
+                while found not in MODULES and "." in found:
+                    found = found.rsplit(".", 1)[0]
+                names.add(found)
+    return names - {path.name}
+
+
+def test_every_module_has_a_floor():
+    assert not [name for name in MODULES if name not in ROOF and floor(name) is None]
+    assert floor("ilc_steering.compare.plan") == floor("ilc_steering.cli") > floor("ilc_steering.engine.runs")
+    assert floor("ilc_steering.core.robots.car") == 1 and floor("ilc_steering.errors") == 0
+    assert floor("ilc_steering.boxes") < floor("ilc_steering.envs") < floor("ilc_steering.agents")
+
+
+@pytest.mark.parametrize("name", sorted(set(MODULES) - ROOF))
+def test_no_stair_goes_up(name):
+    """A lower floor never names a higher one, not even in a string; the core's robots table
+    names only the core's robots (plants above it register as entry points, pyproject.toml)."""
+    up = sorted(
+        target
+        for target in named_modules(MODULES[name])
+        if target not in ROOF and target in MODULES and floor(target) > floor(name)
+    )
+    assert not up, f"{name} (floor {FLOORS[floor(name)][0]}) names a higher floor: {up}"
+
+
+def test_the_stair_check_sees_a_string_and_a_function_level_import(tmp_path):
+    path = tmp_path / "bad.py"
+    path.write_text(
+        '"""Mentions ilc_steering.cli in prose only."""\n'
+        'ROBOTS = {"x": "ilc_steering.envs.highway:HighwayPlantConfig"}\n'
+        "def f():\n    from ilc_steering.compare.command import main\n"
+    )
+    assert named_modules(path) >= {"ilc_steering.envs.highway", "ilc_steering.compare.command"}
+    assert "ilc_steering.cli" not in named_modules(path)

@@ -15,7 +15,7 @@ from ilc_steering.config import load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 from ilc_steering.loop import run_trials
-from ilc_steering.sweep import SweepArgs, lockstep, run_row
+from ilc_steering.sweep.rows import SweepArgs, lockstep, run_row
 
 
 def alone(config, ratios, trials):

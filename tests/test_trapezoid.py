@@ -9,12 +9,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from ilc_steering.agents.ilc import ILCAgent
-from ilc_steering.core.checks import ParameterError
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.chained import ChainedPlant
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.errors import ParameterError
 
 PROFILES = [
     TrapezoidProfile((12.0,), (), 3, 1.0),  # experiment 1's shape
@@ -167,7 +167,7 @@ def test_a_car_with_trapezoidal_v1_within_1e9_of_solve_ivp_and_ilc_converges():
     ],
 )
 def test_bad_trapezoid_keys_name_the_key(task, message):
-    from ilc_steering.config import ConfigError
+    from ilc_steering.errors import ConfigError
 
     with pytest.raises(ConfigError, match=message):
         trapezoid_config(**task)

@@ -16,9 +16,10 @@ import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.cli import main
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
-from ilc_steering.inputs import MAX_DEPTH, read_json, read_text
+from ilc_steering.errors import ConfigError
+from ilc_steering.readers import MAX_DEPTH, read_json, read_text
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 FORWARD = (CONFIGS / "forward_parking.yaml").read_text()
@@ -161,7 +162,8 @@ TINY = {"priors": ("nominal",), "scenarios": ("forward_parking",), "seeds": (0,)
 
 
 def test_a_compare_resumed_with_another_config_of_the_same_name_is_refused(tmp_path, capsys):
-    from ilc_steering.compare import Args, run_cells
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.command import run_cells
 
     scenario = tmp_path / "same.yaml"
     scenario.write_text(FORWARD)
@@ -178,17 +180,18 @@ def test_a_compare_resumed_with_another_config_of_the_same_name_is_refused(tmp_p
 
 
 def test_a_resume_by_another_version_is_refused_saying_so(tmp_path, monkeypatch):
-    from ilc_steering import compare
+    from ilc_steering.compare import command as compare
 
     args = compare.Args(out=tmp_path, methods=("ilc",), **TINY)
     compare.run_cells(args)
-    monkeypatch.setattr("ilc_steering.compare_plan.__version__", "9.9.9")
+    monkeypatch.setattr("ilc_steering.compare.plan.__version__", "9.9.9")
     with pytest.raises(ValueError, match=r"version '0\.1\.0', not '9\.9\.9'"):
         compare.run_cells(args)
 
 
 def test_a_sweep_resumed_with_another_config_of_the_same_name_is_refused(tmp_path):
-    from ilc_steering.sweep import SweepArgs, run_rows
+    from ilc_steering.sweep.command import run_rows
+    from ilc_steering.sweep.rows import SweepArgs
 
     scenario = tmp_path / "same.yaml"
     scenario.write_text(FORWARD)
@@ -207,9 +210,10 @@ def test_a_sweep_refuses_a_repeated_method_or_gain(tmp_path, capsys, option, val
 
 
 def test_file_names_are_injective_in_methods_and_gains(tmp_path):
-    from ilc_steering.compare import METHODS, cell_path
+    from ilc_steering.compare.cells import cell_path
+    from ilc_steering.compare.command import METHODS
     from ilc_steering.output import injective_name
-    from ilc_steering.sweep import gain_text, row_path
+    from ilc_steering.sweep.rows import gain_text, row_path
 
     methods = ["x_y:z", "x:y_z", "x_y_z:w", "newton:ilc", "a b:c", "a_b:c", "pkg.mod:make", "pkg:mod_make", *METHODS]
     names = [injective_name(m, METHODS) for m in methods]
@@ -223,7 +227,8 @@ def test_file_names_are_injective_in_methods_and_gains(tmp_path):
 
 
 def test_users_methods_that_safe_names_would_merge_keep_their_own_cells(tmp_path, monkeypatch):
-    from ilc_steering.compare import Args, run_cells
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.command import run_cells
 
     (tmp_path / "x_y.py").write_text("from ilc_steering.agents.ilc import make_ilc as z\n")
     (tmp_path / "x.py").write_text("from ilc_steering.agents.ilc import make_ilc_paper as y_z\n")
@@ -240,7 +245,8 @@ def test_users_methods_that_safe_names_would_merge_keep_their_own_cells(tmp_path
 
 
 def _one_cell(tmp_path: Path) -> tuple[Any, Path]:
-    from ilc_steering.compare import Args, run_cells
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.command import run_cells
 
     args = Args(out=tmp_path, methods=("ilc",), **TINY)
     run_cells(args)
@@ -262,7 +268,7 @@ def _one_cell(tmp_path: Path) -> tuple[Any, Path]:
     ],
 )
 def test_a_hand_edited_cell_is_refused_naming_the_file(tmp_path, edit, message):
-    from ilc_steering.compare import run_cells
+    from ilc_steering.compare.command import run_cells
 
     args, path = _one_cell(tmp_path)
     path.write_text(json.dumps({**json.loads(path.read_text()), **edit}))
@@ -302,7 +308,7 @@ import time
 import numpy as np
 
 from ilc_steering.agents.ilc import make_ilc
-from ilc_steering.core.checks import ParameterError
+from ilc_steering.errors import ParameterError
 
 
 class Failing:
@@ -412,7 +418,8 @@ def test_a_failing_cell_is_recorded_and_the_others_finish(learners, capsys, work
 )
 @pytest.mark.slow  # worker processes
 def test_a_users_learner_error_crosses_processes_and_names_the_learner_and_the_cell(learners, method, message):
-    from ilc_steering.compare import Args, run_all
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.command import run_all
 
     args = Args(out=learners / "run", methods=(method,), **{**TINY, "seeds": (0, 1), "workers": 2})
     cells, failed = run_all(args)
@@ -420,17 +427,20 @@ def test_a_users_learner_error_crosses_processes_and_names_the_learner_and_the_c
     assert all(message in f["error"] and method in f["error"] for f in failed)
 
 
+@pytest.mark.slow  # runs out its time limit, which must be far above the ILC cell's time in a fresh worker
 def test_a_cell_that_never_returns_is_stopped_by_the_cell_timeout(learners):
     import time
 
-    from ilc_steering.compare import Args, run_all
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.command import run_all
 
-    args = Args(out=learners / "run", methods=("ilc", "trust_learners:forever"), cell_timeout=2.0, **TINY)
+    # 2 s once failed here: the ILC cell's fresh worker (numba's cache, the env) took longer under load
+    args = Args(out=learners / "run", methods=("ilc", "trust_learners:forever"), cell_timeout=15.0, **TINY)
     start = time.perf_counter()
     cells, failed = run_all(args)
-    assert time.perf_counter() - start < 30
+    assert time.perf_counter() - start < 120  # a bound on a hang, not a speed
     assert [c["method"] for c in cells] == ["ilc"]
-    assert len(failed) == 1 and "took longer than the time limit of 2 s" in failed[0]["error"]
+    assert len(failed) == 1 and "took longer than the time limit of 15 s" in failed[0]["error"]
 
 
 def test_a_failed_sweep_row_is_recorded_and_its_map_left_out(learners, capsys):
@@ -452,7 +462,7 @@ def test_run_names_the_failing_learner_and_writes_the_trials_it_ran(learners, ca
 
 
 def test_workers_are_capped(tmp_path, capsys):
-    from ilc_steering.backends import MAX_WORKERS
+    from ilc_steering.engine.backends import MAX_WORKERS
 
     for command in (["compare", "--methods", "ilc"], ["sweep", "forward_parking"]):
         argv = [*command, "--workers", str(MAX_WORKERS + 1), "--out", str(tmp_path / command[0])]
@@ -464,7 +474,7 @@ def test_an_unreachable_ray_address_is_refused_quickly(monkeypatch):
     # (an address that answers but is no Ray is bounded by a time limit on ray.init: bad_inputs replays it)
     import time
 
-    from ilc_steering import backends
+    from ilc_steering.engine import backends
 
     monkeypatch.setattr(backends, "RAY_CONNECT_TIMEOUT", 1.0)
     start = time.perf_counter()
@@ -487,9 +497,8 @@ def test_exit_codes_are_documented():
 def test_the_librarys_errors_survive_pickling():
     import pickle
 
-    import ilc_steering.backends  # noqa: F401  (registers ParameterError's reduction)
-    from ilc_steering.core.checks import ParameterError
-    from ilc_steering.loop import LearnerError
+    import ilc_steering.engine.backends  # noqa: F401  (registers ParameterError's reduction)
+    from ilc_steering.errors import LearnerError, ParameterError
 
     for error in (ParameterError("nu_b", "must be in (0, 2)"), ConfigError("a.yaml: x: y"), LearnerError("learner z")):
         back = pickle.loads(pickle.dumps(error))
@@ -528,9 +537,10 @@ gains = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_fro
     timeout=st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True)),
 )
 def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_b, grid, trials, workers, timeout):
-    from ilc_steering.backends import MAX_WORKERS
-    from ilc_steering.engine import MAX_CELL_TIMEOUT
-    from ilc_steering.sweep import SweepArgs, plan
+    from ilc_steering.engine.backends import MAX_WORKERS
+    from ilc_steering.engine.runs import MAX_CELL_TIMEOUT
+    from ilc_steering.sweep.command import plan
+    from ilc_steering.sweep.rows import SweepArgs
 
     args = SweepArgs(
         methods=tuple(methods), nu_b=tuple(nu_b), grid=grid, trials=trials, workers=workers, cell_timeout=timeout
@@ -554,8 +564,9 @@ def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_
     timeout=st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True)),
 )
 def test_compare_arguments_are_accepted_or_refused_with_a_value_error(methods, seeds, budget, workers, timeout):
-    from ilc_steering.compare import MAX_BUDGET, Args, validate
-    from ilc_steering.engine import MAX_CELL_TIMEOUT
+    from ilc_steering.compare.args import MAX_BUDGET, Args
+    from ilc_steering.compare.command import validate
+    from ilc_steering.engine.runs import MAX_CELL_TIMEOUT
 
     args = Args(
         methods=tuple(methods),
@@ -604,6 +615,7 @@ def test_an_ill_posed_task_is_refused_before_any_trial_naming_what_to_change(tmp
     assert not (tmp_path / "c" / "cells").exists() or not any((tmp_path / "c" / "cells").iterdir())
 
 
+@pytest.mark.extra("highway")  # highway_parking is packaged
 def test_every_packaged_one_trial_task_is_well_posed():
     import gymnasium as gym
 
@@ -634,7 +646,8 @@ def test_a_coarse_integrator_step_is_found_by_halving_it(tmp_path, capsys):
 
 
 def test_clipped_actions_are_reported_by_run_and_compare(tmp_path, capsys):
-    from ilc_steering.compare import Args, run_cells
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.command import run_cells
 
     # a box just around the nominal solution's c2 (-12, 14.4, -2.88): every learned update leaves it
     boxed = tmp_path / "boxed.yaml"

@@ -1,6 +1,6 @@
 """Issue 34, class 3: files that block or crash a run.
 
-Every file a run reads goes through :mod:`ilc_steering.inputs` and every file it writes through
+Every file a run reads goes through :mod:`ilc_steering.readers` and every file it writes through
 :mod:`ilc_steering.output`; a hostile path (a FIFO, a loop of links, a dangling link, a path under
 a regular file, a name too long, a folder) is a one-line ``ValueError`` naming it, never a block
 and never another exception. The property tests draw the path's kind and where it sits.
@@ -16,8 +16,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ilc_steering.cli import main
-from ilc_steering.inputs import read_json, read_text
 from ilc_steering.output import check_output_dir, check_writable, write_atomic
+from ilc_steering.readers import read_json, read_text
 
 KINDS = ["fifo", "loop", "dangling", "under_file", "too_long", "folder", "missing", "link_to_fifo"]
 

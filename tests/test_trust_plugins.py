@@ -16,8 +16,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.config import load_config
 from ilc_steering.core import robots
+from ilc_steering.errors import ConfigError
 
 HERE = Path(__file__).parent
 FORWARD = (HERE.parent / "configs" / "forward_parking.yaml").read_text()

@@ -20,12 +20,13 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents.rl import BACKEND_VARIABLE, check_hyperparameters, hyperparameters, rl_backend
-from ilc_steering.config import ConfigError, load_config
+from ilc_steering.agents.rl_settings import BACKEND_VARIABLE, check_hyperparameters, hyperparameters, rl_backend
+from ilc_steering.config import load_config
 from ilc_steering.core.checks import DURATION_RANGE, FACTOR_RANGE, LENGTH_RANGE, MAX_START_ERROR
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.envs.steering_vector_env import MAX_ENVS, ChainedSteeringVectorEnv
 from ilc_steering.envs.wrappers import MAX_SCALE, ResidualAction
+from ilc_steering.errors import ConfigError
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 FAST = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -239,7 +240,7 @@ _BAD = {
 @FAST
 @given(data=st.data(), key=st.sampled_from(sorted(_BAD)))
 def test_an_rl_hyperparameter_of_the_wrong_type_or_range_is_refused_naming_file_and_key(data, key):
-    from ilc_steering.agents.rl import check_value
+    from ilc_steering.agents.rl_settings import check_value
 
     value = data.draw(_BAD[key])
     where = f"configs/rl/ppo.yaml: nominal.default.{key}"
@@ -248,6 +249,7 @@ def test_an_rl_hyperparameter_of_the_wrong_type_or_range_is_refused_naming_file_
 
 
 @pytest.mark.slow
+@pytest.mark.extra("rl")
 def test_the_packaged_hyperparameters_pass_and_a_bad_one_is_named_with_its_file():
     for algorithm in ("ppo", "sac", "td3", "crossq", "tqc"):
         for prior in ("nominal", "none"):
@@ -342,7 +344,7 @@ def test_a_valid_config_with_a_cost_runs_without_a_warning_from_scipys_files():
 
 
 def test_the_backend_setting_pins_rl_runs_only_and_checks_the_variable(monkeypatch):
-    from ilc_steering.agents.rl import backend_setting
+    from ilc_steering.agents.rl_settings import backend_setting
 
     monkeypatch.setenv(BACKEND_VARIABLE, "sb3")
     assert backend_setting(["ilc", "ppo"]) == {"rl_backend": "sb3"}

@@ -93,6 +93,7 @@ def test_bad_input_is_named():
         ChainedSteeringVectorEnv(0, "forward_parking")
 
 
+@pytest.mark.extra("rl")
 def test_sb3_adapter_matches_dummy_vec_env_and_ppo_trains_on_it():
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor

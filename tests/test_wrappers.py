@@ -11,7 +11,8 @@ from gymnasium.wrappers import RescaleAction
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import CyclicILCAgent
-from ilc_steering.agents.base import RESIDUAL_SCALE, LearnerContext
+from ilc_steering.agents.base import LearnerContext
+from ilc_steering.boxes import RESIDUAL_SCALE
 from ilc_steering.envs import CyclicSteeringVectorEnv, ResidualAction, cyclic_vector_env, wrappers
 
 STEERING, CYCLIC = "ilc_steering/ChainedSteering-v0", "ilc_steering/CyclicSteering-v0"

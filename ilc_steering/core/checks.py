@@ -15,6 +15,8 @@ from math import isfinite
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.errors import ParameterError
+
 __all__ = [
     "DURATION_RANGE",
     "FACTOR_RANGE",
@@ -22,7 +24,6 @@ __all__ = [
     "MAX_JITTER",
     "MAX_NOISE",
     "MAX_START_ERROR",
-    "ParameterError",
     "check_factors",
     "check_gains",
     "check_jitter",
@@ -48,15 +49,6 @@ FACTOR_RANGE = (1e-3, 1e3)
 ``true_factors``, ``parameter_jitter``'s draw, a model family's ratio)."""
 MAX_START_ERROR = 1.0
 """The largest ``start_error`` sigma [m or rad]: a homing error, not a different task."""
-
-
-class ParameterError(ValueError):
-    """A parameter out of its range: ``name`` is the parameter, ``problem`` what is wrong with it."""
-
-    def __init__(self, name: str, problem: str) -> None:
-        super().__init__(f"{name}: {problem}")
-        self.name = name
-        self.problem = problem
 
 
 def require(ok: bool, name: str, problem: str) -> None:

@@ -182,7 +182,7 @@ class Plant(Protocol):
 class PlantConfig(Protocol):
     """A robot's config keys (``plant:`` in a config): a frozen dataclass whose ``model`` field is a
     ``Literal`` of the robot's registered name, each other field a key with its unit in a comment.
-    Its ``__post_init__`` checks every key's range (a :class:`~ilc_steering.core.checks.ParameterError`
+    Its ``__post_init__`` checks every key's range (a :class:`~ilc_steering.errors.ParameterError`
     names the key); the config loader reports it with the file."""
 
     model: str
@@ -211,7 +211,7 @@ class PlantConfig(Protocol):
 
     def check_task(self, max_step: float, cyclic: bool) -> None:
         """The rules between these keys and the rest of the config: the integrator's ``max_step`` [s]
-        and whether the task is a cycle (a :class:`~ilc_steering.core.checks.ParameterError` names the
+        and whether the task is a cycle (a :class:`~ilc_steering.errors.ParameterError` names the
         key; a ``ValueError``, the plant)."""
         ...
 

@@ -1,5 +1,6 @@
-from ilc_steering.agents.adapters import PullLearner, SearchBox
+from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.bayes_opt import bayes_opt
+from ilc_steering.boxes import SearchBox
 
 
 def _make(k):

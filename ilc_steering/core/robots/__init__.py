@@ -33,9 +33,10 @@ import dataclasses
 import re
 import sys
 import typing
-from importlib import import_module
 from importlib.metadata import entry_points
 from typing import Any
+
+from ilc_steering.entries import load_entry
 
 __all__ = [
     "ENTRY",
@@ -56,9 +57,10 @@ ROBOTS: dict[str, str] = {
     "chained": "ilc_steering.core.robots.chained:ChainedPlantConfig",
     "unicycle": "ilc_steering.core.robots.unicycle:UnicyclePlantConfig",
     "car_trailer": "ilc_steering.core.robots.car_trailer:TrailerPlantConfig",
-    "highway_parking": "ilc_steering.envs.highway:HighwayPlantConfig",  # an external plant (extra [highway])
 }
-"""``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys."""
+"""``plant.model`` -> ``"module:ConfigClass"`` of the robot's config keys: the core's robots. The
+plants that live on a higher floor (highway-env's car in ``envs/highway_plant.py``) are the library's own
+entry points in :data:`GROUP`, like any installed package's, so the core names nothing above it."""
 
 PACKAGED = frozenset(ROBOTS)
 """The robots that ship with the library: no plugin replaces them."""
@@ -151,12 +153,14 @@ def _source(name: str) -> str:
     return _SOURCES.get(name, f"entry {ROBOTS[name]!r}")
 
 
-def config_class(name: str) -> Any:
+def config_class(name: str, folders: tuple[str, ...] = ()) -> Any:
     """The config class of robot ``name`` (or of ``"module:ConfigClass"``, registered under its
-    ``model`` literal), its module imported on first use and checked against the protocol;
+    ``model`` literal, its module found as :func:`~ilc_steering.entries.load_entry` finds one: the
+    working directory and ``folders``, the config's folder, searched last), its module imported on
+    first use and checked against the protocol;
     ``ValueError`` naming the robot and the package or entry that provides it."""
     if isinstance(name, str) and ENTRY.fullmatch(name):
-        return _from_entry(name)
+        return _from_entry(name, folders)
     _read_plugins()  # once per process; a plugin that conflicts is reported whatever is asked for
     if name not in ROBOTS:
         raise ValueError(f"no robot is registered as {name!r}; registered: {names()}")
@@ -165,9 +169,9 @@ def config_class(name: str) -> Any:
     return _LOADED[name]
 
 
-def _from_entry(entry: str) -> Any:
+def _from_entry(entry: str, folders: tuple[str, ...] = ()) -> Any:
     """The config class an entry names, registered under its ``model`` literal."""
-    cls = _load(entry, f"{entry!r}", None)
+    cls = _load(entry, "plant.model", None, folders)
     name = model_name(cls)
     register(name, entry)  # a packaged name or another robot's is refused here
     _SOURCES.setdefault(name, f"entry {entry!r}")
@@ -175,14 +179,9 @@ def _from_entry(entry: str) -> Any:
     return cls
 
 
-def _load(entry: str, who: str, name: str | None) -> Any:
+def _load(entry: str, who: str, name: str | None, folders: tuple[str, ...] = ()) -> Any:
     """Import ``entry``, isolated: whatever the module raises is a one-line ``ValueError`` naming ``who``."""
-    module, attribute = entry.split(":")
-    try:
-        cls = getattr(import_module(module), attribute)
-    except Exception as error:  # SyntaxError, an error of the module's own code, a missing name
-        problem = " ".join(str(error).split())[:300]
-        raise ValueError(f"{who}: cannot load {entry!r}: {type(error).__name__}: {problem}") from None
+    cls = load_entry(entry, who, folders, example="ConfigClass")
     check_robot(cls, who, name)
     return cls
 

@@ -5,7 +5,7 @@
 resumes from what was written. The backend changes where the calls run, never what they return:
 ``compare --backend ray`` writes the same cell files as the local backend (``tests/test_backends.py``).
 
-- ``local``: in this process (one worker), or in spawned worker processes;
+- ``local``: in spawned worker processes (in this process, one worker and no ``failed``);
 - ``ray``: each call a Ray task on ``ray.init()``: a local Ray by default, the cluster at
   ``RAY_ADDRESS`` when it is set (``pip install "ilc-steering[ray]"``). The function and its
   arguments go to the workers by pickling, so they must be importable there (the package
@@ -14,13 +14,13 @@ resumes from what was written. The backend changes where the calls run, never wh
 
 With ``failed`` given, a call that raises (or outlives ``timeout`` seconds) is handed to
 ``failed(key, message)`` and the others go on: a failing cell never takes a finished one with
-it. Local calls with ``failed`` run in worker processes that this process can kill
-(:func:`_killable_map`), whenever there are two workers or more or ``isolate`` is asked for: a
-call past its time limit is ended with its process (a learner that swallows the exception, an
-optimizer that never returns, a ``nogil`` compiled loop), and a worker that dies (``os._exit``,
-a crash) is that call's failure, the others going on in a fresh worker. In this process (one
-worker, not isolated; Ray tasks) the limit is a ``SIGALRM``, which stops Python code only.
-Local workers are capped at :data:`MAX_WORKERS`.
+it. Local calls with ``failed`` always run in worker processes that this process can kill
+(:func:`_killable_map`), one worker included: a call past its time limit is ended with its
+process (a learner that swallows the exception, an optimizer that never returns, a ``nogil``
+compiled loop), and a worker that dies (``os._exit``, a crash) is that call's failure, the
+others going on in a fresh worker. In a Ray task the limit is a ``SIGALRM``, which stops Python
+code only, and a task whose worker dies is its call's failure too. Local workers are capped at
+:data:`MAX_WORKERS`.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.core.checks import ParameterError
+from ilc_steering.errors import ParameterError
 
 __all__ = [
     "BACKENDS",
@@ -125,20 +125,19 @@ def run_calls(
     workers: int = 0,
     failed: Failed | None = None,
     timeout: float | None = None,
-    isolate: bool = False,
 ) -> None:
     """``finish(key, function(*calls[key]))`` for every key, on ``backend`` (``workers`` local
     processes, 0 for one per core). Without ``failed``, an error or an interrupt cancels what has
     not started and is raised; with it, a call that raises or outlives ``timeout`` [s] goes to
-    ``failed(key, message)`` and the rest run, in killable worker processes when there are two or
-    more, or with ``isolate`` (see the module). An interrupt is always raised."""
+    ``failed(key, message)`` and the rest run, locally in killable worker processes (see the
+    module). An interrupt is always raised."""
     if backend not in BACKENDS:
         raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
     check_workers(workers)
     if not calls:
         return
     count = min(workers or os.cpu_count() or 1, len(calls))
-    if backend == "local" and failed is not None and (count > 1 or isolate):
+    if backend == "local" and failed is not None:
         _killable_map(function, calls, count, finish, failed, timeout)
         return
     if failed is not None or timeout is not None:
@@ -156,7 +155,7 @@ def run_calls(
 
         function, calls, finish = _guarded, guarded, settle
     if backend == "ray":
-        _ray_map(function, calls, finish)
+        _ray_map(function, calls, finish, failed)
         return
     if count <= 1:
         for key, args in calls.items():
@@ -386,7 +385,11 @@ def _init_ray(ray: Any, address: str) -> None:
         os.write(2, log.read())
 
 
-def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]], finish: Finish) -> None:
+def _ray_map(
+    function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]], finish: Finish, failed: Failed | None = None
+) -> None:
+    """Every call a Ray task. With ``failed``, a task whose worker dies (``os._exit``, a crash) is
+    that call's failure, never retried (a trial is never resent), and the others go on."""
     try:
         import ray
     except ImportError:
@@ -410,7 +413,7 @@ def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]],
         function, args = pickle.loads(payload)
         return function(*args)
 
-    task = ray.remote(on_worker)
+    task = ray.remote(max_retries=0)(on_worker)
     home = str(Path(__file__).resolve().parents[1])  # where this process found the package
     width = 2 * max(1, int(ray.cluster_resources().get("CPU", 1)))  # type: ignore[no-untyped-call]
     pending: dict[Any, Any] = {}
@@ -422,7 +425,16 @@ def _ray_map(function: Callable[..., Any], calls: Mapping[Any, tuple[Any, ...]],
                 pending[task.remote(home, pickle.dumps((function, calls[key])))] = key
             finished, _ = ray.wait(list(pending), num_returns=1)
             for ref in finished:
-                finish(pending.pop(ref), ray.get(ref))
+                key = pending.pop(ref)
+                try:
+                    value = ray.get(ref)
+                except ray.exceptions.RayError as error:
+                    if failed is None:
+                        raise
+                    what = " ".join(str(error).split())[:200]
+                    failed(key, f"WorkerDied: its Ray task ended before returning ({type(error).__name__}: {what})")
+                    continue
+                finish(key, value)
     except BaseException:
         for ref in pending:
             ray.cancel(ref)

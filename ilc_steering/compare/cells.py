@@ -20,14 +20,14 @@ import numpy as np
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import Learner, LearnerContext, update_times
 from ilc_steering.agents.registry import Budgets
-from ilc_steering.compare_report import LADDER
+from ilc_steering.compare.stats import LADDER
 from ilc_steering.core.score import true_cost
-from ilc_steering.inputs import read_json
 from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
+from ilc_steering.readers import read_json
 
 if TYPE_CHECKING:
-    from ilc_steering.compare_args import Args
+    from ilc_steering.compare.args import Args
 
 __all__ = [
     "CELL_KEYS",

@@ -23,10 +23,10 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.inputs import read_json
 from ilc_steering.loop import run_vector_trials
 from ilc_steering.oracle import SOLVED
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
+from ilc_steering.readers import read_json
 
 __all__ = [
     "MAX_GRID",
@@ -78,7 +78,8 @@ class SweepArgs:
     seed: int = 0
     """Seed of every learner's own randomness."""
     cell_timeout: float | None = None
-    """[s] a row still running after this is stopped and recorded as failed; None: no limit."""
+    """[s] a row still running after this is stopped and recorded as failed; None:
+    :data:`~ilc_steering.engine.DEFAULT_CELL_TIMEOUT`."""
     axes: tuple[tuple[str, float, float], ...] = ()
     """Two plant keys with their ranges ``(key, low, high)`` [the key's unit], e.g.
     ``("steering_offset", -0.03, 0.03)``; empty: the plant's two ``factor_names`` as ratios

@@ -8,7 +8,7 @@ A Markdown file holds a generated table between two markers::
 
 ``ilc-steering tables docs/compare --into README.md docs/comparison.md`` rewrites every such block
 from the run's ``compare.json`` (its cells, summarized as ``compare`` summarizes them,
-:mod:`~ilc_steering.compare_report`); ``--check`` rewrites nothing and exits 1 if a block differs,
+:mod:`~ilc_steering.compare.report`); ``--check`` rewrites nothing and exits 1 if a block differs,
 which is what the tests run: a table in the docs is always the committed run's.
 """
 
@@ -20,17 +20,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.compare_report import (
-    LADDER_NAMES,
-    _iqm_table,
-    _main_table,
-    _ratio_table,
-    _statistic,
-    ratios,
-    summarize,
-)
-from ilc_steering.inputs import read_json, read_text
+from ilc_steering.compare.report import iqm_table, main_table, ratio_table, statistic
+from ilc_steering.compare.stats import LADDER_NAMES, ratios, summarize
+from ilc_steering.engine.provenance import RunRecord, read_run
 from ilc_steering.output import write_atomic
+from ilc_steering.readers import read_json, read_text
 from ilc_steering.tables import markdown_table
 
 __all__ = ["BLOCK", "TABLES", "budget_check", "check", "headline", "render", "write"]
@@ -55,7 +49,7 @@ def headline(rows: list[dict[str, Any]], level: str, prior: str = "nominal") -> 
                 line.append("")
                 continue
             entry = row[f"trials_to_{level}"]
-            line.append(f"{_statistic(entry, 'median', row['budget'])} ({entry['reached']}/{row['seeds']})")
+            line.append(f"{statistic(entry, 'median', row['budget'])} ({entry['reached']}/{row['seeds']})")
         lines.append(line)
     header = ["method", *(s.replace("_", " ") for s in scenarios)]
     return markdown_table(header, lines, [False, *[True] * len(scenarios)])
@@ -107,11 +101,11 @@ TABLES: dict[str, Callable[[list[dict[str, Any]], list[dict[str, Any]], dict[str
     "budget-check": lambda rows, entries, run: budget_check(run["cells"]),
     "headline-1cm": lambda rows, entries, run: headline(rows, "1cm"),
     "headline-0.5mm": lambda rows, entries, run: headline(rows, "0.5mm"),
-    "nominal": lambda rows, entries, run: _main_table(rows, "nominal"),
-    "none": lambda rows, entries, run: _main_table(rows, "none"),
-    "iqm-nominal": lambda rows, entries, run: _iqm_table(rows, "nominal"),
-    "iqm-none": lambda rows, entries, run: _iqm_table(rows, "none"),
-    "ratios": lambda rows, entries, run: _ratio_table(entries, ["black-box", "RL"]),
+    "nominal": lambda rows, entries, run: main_table(rows, "nominal"),
+    "none": lambda rows, entries, run: main_table(rows, "none"),
+    "iqm-nominal": lambda rows, entries, run: iqm_table(rows, "nominal"),
+    "iqm-none": lambda rows, entries, run: iqm_table(rows, "none"),
+    "ratios": lambda rows, entries, run: ratio_table(entries, ["black-box", "RL"]),
     "budgets": lambda rows, entries, run: f"Budgets [trials]: {_budgets(rows)}.\n",
     "run": lambda rows, entries, run: _run_line(run),
 }
@@ -119,24 +113,29 @@ TABLES: dict[str, Callable[[list[dict[str, Any]], list[dict[str, Any]], dict[str
 
 
 def _run_line(run: dict[str, Any]) -> str:
-    made = run.get("provenance") or {}
-    sessions = run.get("sessions") or []
-    wall = sum(s.get("wall_s", 0.0) for s in sessions)
-    machine = sessions[-1].get("machine", {}) if sessions else {}
-    commit = made.get("commit") or "no commit"
+    record: RunRecord = run["record"]
+    made, sessions = record.provenance, record.sessions
+    wall = sum(session.wall_s for session in sessions)
+    machine = sessions[-1].machine if sessions else None
+    commit = (made.commit if made else None) or "no commit"
+    seeds, ablation = run.get("seeds"), run.get("ablation_seeds")
+    if not (isinstance(seeds, list) and all(type(seed) is int for seed in seeds)) or type(ablation) is not int:
+        raise ValueError("run.json: seeds: a list of integers and ablation_seeds: an integer, as compare writes them")
     return (
-        f"Made by ilc-steering {made.get('version')}, code {made.get('code')} (commit {str(commit)[:12]}), in "
-        f"{len(sessions)} session(s) of {wall / 60:.0f} min of wall time in all on {machine.get('cpus')} cores "
-        f"({machine.get('processor')}, Python {machine.get('python')}); seeds {run.get('seeds')} under prior=nominal, "
-        f"the first {min(len(run.get('seeds') or []), run.get('ablation_seeds') or 0)} under prior=none.\n"
+        f"Made by ilc-steering {made.version if made else None}, code {made.code if made else None} "
+        f"(commit {commit[:12]}), in {len(sessions)} session(s) of {wall / 60:.0f} min of wall time in all on "
+        f"{machine.cpus if machine else None} cores ({machine.processor if machine else None}, Python "
+        f"{machine.python if machine else None}); seeds {seeds} under prior=nominal, "
+        f"the first {min(len(seeds), ablation)} under prior=none.\n"
     )
 
 
 def _tables(folder: Path) -> dict[str, str]:
     data = read_json(folder / "compare.json", MAX_REPORT_BYTES)
-    run = read_json(folder / "run.json", MAX_REPORT_BYTES)
-    if not isinstance(data, dict) or not isinstance(data.get("cells"), list) or not isinstance(run, dict):
+    if not isinstance(data, dict) or not isinstance(data.get("cells"), list) or not (folder / "run.json").is_file():
         raise ValueError(f"{folder}: not a compare run folder with compare.json and run.json")
+    stored, record = read_run(folder)
+    run = {**stored, "record": record}
     from ilc_steering.agents import registry
 
     rows = summarize(data["cells"])

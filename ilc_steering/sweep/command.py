@@ -7,7 +7,7 @@ stops. Every point of the grid is a true robot, the config's with its two parame
 grid is one :class:`~ilc_steering.envs.steering_vector_env.ChainedSteeringVectorEnv` with
 ``true_factors``: one learner per plant, all stepped in lock-step, one compiled call per trial
 index (:func:`lockstep`). Each finished row is written at once, so a sweep resumes where it
-stopped, on the local machine or on Ray (``--backend ray``, see :mod:`ilc_steering.backends`).
+stopped, on the local machine or on Ray (``--backend ray``, see :mod:`ilc_steering.engine.backends`).
 
     ilc-steering sweep forward_parking --methods ilc_paper newton --nu-b 1 0.5 --out runs/sweep
 
@@ -35,45 +35,29 @@ import numpy as np
 
 from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
-from ilc_steering.backends import MAX_WORKERS, check_backend, check_workers
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine import Grid, RunFolder, check_timeout, run_grid
+from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, check_grid_options, run_grid
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.inputs import read_json
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
-from ilc_steering.sweep_report import write_sweep_report
-from ilc_steering.sweep_rows import (
+from ilc_steering.readers import read_json
+from ilc_steering.sweep.report import write_sweep_report
+from ilc_steering.sweep.rows import (
     MAX_GRID,
     ORACLE,
     SweepArgs,
     axis_values,
     gain_text,
-    lockstep,
     map_name,
     read_oracle,
     read_row,
     row_name,
-    row_path,
     row_plants,
     run_oracle,
     run_row,
 )
 
-__all__ = [
-    "Plan",
-    "SweepArgs",
-    "gain_text",
-    "lockstep",
-    "main",
-    "main_with_failures",
-    "plan",
-    "read_row",
-    "row_path",
-    "run_all",
-    "run_row",
-    "run_rows",
-]
+__all__ = ["Plan", "main", "main_with_failures", "plan", "run_all", "run_rows"]
 
 Row = tuple[str, float, int]
 """A row's (method, gain, row index)."""
@@ -150,9 +134,7 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
             raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
-    check_workers(args.workers)
-    check_timeout(args.cell_timeout)
-    check_backend(args.backend)
+    check_grid_options(args.backend, args.workers, args.cell_timeout)
     if not args.methods:
         raise ValueError("--methods: give at least one")
     mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
@@ -184,7 +166,7 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
             raise ValueError(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
     if (args.low, args.high) != (SweepArgs.low, SweepArgs.high):
         raise ValueError("--range: the ratio axes' range; with --axis give each axis its own range (KEY LOW HIGH)")
-    from ilc_steering.config import ConfigError
+    from ilc_steering.errors import ConfigError
 
     nominal = Scenario.from_config(config).nominal.solve()
     for key, low, high in args.axes:  # a map varies the true plant; the learner's model stays the nominal one
@@ -234,7 +216,7 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
 
 
 def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]]], list[dict[str, Any]]]:
-    """Run the rows of ``the_plan`` on the engine (:func:`~ilc_steering.engine.run_grid`): each
+    """Run the rows of ``the_plan`` on the engine (:func:`~ilc_steering.engine.runs.run_grid`): each
     finished row is written the moment it finishes, a failed one under ``failed/``."""
     args = the_plan.args
     if the_plan.warning is not None:
@@ -325,21 +307,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--trials", type=int, default=SweepArgs.trials, help="budget per plant")
     parser.add_argument("--out", type=Path, default=SweepArgs.out, help="run folder; an existing one is resumed")
-    parser.add_argument(
-        "--backend",
-        default="local",
-        help="local worker processes, or Ray tasks (ray.init(): RAY_ADDRESS for a cluster)",
-    )
-    parser.add_argument(
-        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
-    )
-    parser.add_argument(
-        "--cell-timeout",
-        type=float,
-        default=None,
-        metavar="SECONDS",
-        help="stop a row still running after this and record it as failed (default: no limit)",
-    )
+    add_grid_options(parser, "row")
     parser.add_argument(
         "--axis",
         nargs=3,
@@ -376,5 +344,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         out=ns.out,
         backend=ns.backend,
         workers=ns.workers,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
     )

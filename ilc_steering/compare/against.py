@@ -6,7 +6,7 @@ A committed run folder (``docs/compare``, or any ``compare --out`` folder) holds
 reads both and refuses a folder that is not a run of this kind; :func:`resolve_settings` takes
 every setting the user left at its default from the committed run and refuses one given
 otherwise, naming the option; :func:`check_out` keeps the output out of the committed folder.
-:mod:`ilc_steering.compare` runs the rest: the committed cells are checked one by one and copied
+:mod:`ilc_steering.compare.command` runs the rest: the committed cells are checked one by one and copied
 into ``--out`` as they are, and only the cells the committed run lacks are computed, so the
 report in ``--out`` is the joint one and the folder resumes like any other.
 """
@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.inputs import is_file, read_json
+from ilc_steering.readers import is_file, read_json
 
 __all__ = [
     "CommittedRun",
@@ -57,7 +57,7 @@ class CommittedRun:
     failed: int = 0
     """How many cells the committed run recorded as failed (they are not taken)."""
     made_by: dict[str, Any] | None = None
-    """What made its cells (``run.json``'s provenance, :mod:`~ilc_steering.provenance`)."""
+    """What made its cells (``run.json``'s provenance, :mod:`~ilc_steering.engine.provenance`)."""
 
 
 def _refuse(folder: Path, problem: str) -> ValueError:
@@ -205,7 +205,7 @@ def committed_cells(
     from ilc_steering import __version__
     from ilc_steering.agents.base import PRIORS
     from ilc_steering.agents.registry import METHODS, is_custom
-    from ilc_steering.compare_cells import check_cell
+    from ilc_steering.compare.cells import check_cell
 
     folder = committed.folder
     for name, digest in configs.items():
@@ -244,7 +244,7 @@ def joint_grid(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) ->
     """The cells of an ``--against`` run, in the report's order: every committed one, and those of
     ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
     from ilc_steering.agents.base import PRIORS
-    from ilc_steering.compare_args import seeds_of
+    from ilc_steering.compare.args import seeds_of
 
     priors = [prior for prior in PRIORS if prior in args.priors or any(cell[0] == prior for cell in held)]
     scenarios = list(dict.fromkeys([*(cell[2] for cell in held), *names]))

@@ -2,7 +2,7 @@
 
 :func:`plan` turns the :class:`Args` a user gave into a :class:`Plan` that every later stage
 reads and none recomputes: ``quick``'s budgets and seeds applied (here only), ``--against``'s
-committed settings taken (:mod:`~ilc_steering.against`), every option checked, every scenario's
+committed settings taken (:mod:`~ilc_steering.compare.against`), every option checked, every scenario's
 config loaded, hashed and checked as a task once (an env each), each (prior, method, scenario)'s
 budget read once (for RL from its hyperparameter file) and the grid of cells laid out in the
 report's order.
@@ -16,14 +16,13 @@ from typing import Any
 import gymnasium as gym
 
 from ilc_steering import __version__
-from ilc_steering.against import Cell, CommittedRun
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
-from ilc_steering.backends import check_backend, check_workers
-from ilc_steering.compare_args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
-from ilc_steering.compare_cells import ENV_ID, budgets
+from ilc_steering.compare.against import Cell, CommittedRun
+from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
+from ilc_steering.compare.cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
-from ilc_steering.engine import check_timeout
+from ilc_steering.engine.runs import check_grid_options
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -100,7 +99,7 @@ def check_options(args: Args) -> None:
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
     MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s."""
-    check_backend(args.backend)
+    check_grid_options(args.backend, args.workers, args.cell_timeout)
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:
@@ -112,7 +111,7 @@ def check_options(args: Args) -> None:
     if unknown_priors:
         raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
     if any(registry.lookup(method).family == "RL" for method in args.methods):
-        from ilc_steering.agents.rl import rl_backend
+        from ilc_steering.agents.rl_settings import rl_backend
 
         rl_backend()  # ILC_STEERING_RL_BACKEND checked before any cell, not in each RL cell
     bad = [s for s in args.seeds or () if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
@@ -126,8 +125,6 @@ def check_options(args: Args) -> None:
             raise ValueError(
                 f"--{option.replace('_', '-')}: the budget must be a whole number in [1, {MAX_BUDGET}], got {value!r}"
             )
-    check_workers(args.workers)
-    check_timeout(args.cell_timeout)
     k = args.ablation_seeds
     if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SEED:
         raise ValueError(f"--ablation-seeds: a whole number of seeds >= 1, got {k!r}")
@@ -188,7 +185,7 @@ def plan(args: Args) -> Plan:
             (p, m, n, s) for p in args.priors for n in names.values() for m in args.methods for s in seeds_of(args, p)
         ]
     else:
-        from ilc_steering.against import committed_cells, joint_grid
+        from ilc_steering.compare.against import committed_cells, joint_grid
 
         held, configs = committed_cells(args, committed, configs, budget)
         grid = joint_grid(args, list(names.values()), held)
@@ -211,7 +208,7 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
     folder = args.against
     if folder is None:
         raise ValueError("--against: give a committed run folder")
-    from ilc_steering.against import check_out, read_committed, resolve_settings
+    from ilc_steering.compare.against import check_out, read_committed, resolve_settings
 
     committed = read_committed(folder)
     check_out(args.out, folder)
@@ -254,7 +251,7 @@ def _warn_if_stale(committed: CommittedRun) -> None:
     taken as they were made, beside cells this code computes (``ilc-steering current`` says more)."""
     import sys
 
-    from ilc_steering.provenance import changed, provenance
+    from ilc_steering.engine.provenance import changed, provenance
 
     made_by, now = committed.made_by, provenance()
     if isinstance(made_by, dict) and made_by.get("code") == now["code"]:

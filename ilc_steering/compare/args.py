@@ -43,7 +43,7 @@ class Args:
     """Run folder; an existing one is resumed."""
     against: Path | None = None
     """A committed run folder, only read: run the cells of ``methods`` it lacks, with its settings,
-    and report both (:mod:`~ilc_steering.against`)."""
+    and report both (:mod:`~ilc_steering.compare.against`)."""
     priors: tuple[str, ...] = PRIORS
     """Conditions: ``nominal`` (start from the nominal solution) and ``none`` (no prior)."""
     methods: tuple[str, ...] = registry.DEFAULT_METHODS
@@ -68,9 +68,10 @@ class Args:
     progress_bar: bool = False
     """SB3's progress bar on RL cells (with one worker only)."""
     backend: str = "local"
-    """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.backends`)."""
+    """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.engine.backends`)."""
     cell_timeout: float | None = None
-    """[s] a cell still running after this is stopped and recorded as failed; None: no limit."""
+    """[s] a cell still running after this is stopped and recorded as failed; None:
+    :data:`~ilc_steering.engine.DEFAULT_CELL_TIMEOUT`."""
 
 
 def seeds_of(args: Args, prior: str) -> tuple[int, ...]:

@@ -2,7 +2,7 @@
 
 ``compare`` (a cell: one learner on one scenario, seed and prior) and ``sweep`` (a row of a
 robustness map) are thin layers on it. A command resolves its arguments once into a frozen plan
-(:class:`~ilc_steering.compare.Plan`, :class:`~ilc_steering.sweep.Plan`): every option checked,
+(:class:`~ilc_steering.compare.plan.Plan`, :class:`~ilc_steering.sweep.command.Plan`): every option checked,
 every config loaded and hashed, every cell's key and budget known. The engine then
 
 1. prepares the run folder (:meth:`RunFolder.prepare`): ``run.json`` records the settings, the
@@ -12,13 +12,14 @@ every config loaded and hashed, every cell's key and budget known. The engine th
 2. holds an exclusive lock on it (:meth:`RunFolder.locked`): two runs never share a folder;
 3. reads every finished result back through the command's checker (a resume never trusts a file
    it did not check) and runs only the others (:func:`run_grid`), in worker processes or Ray
-   tasks (:mod:`~ilc_steering.backends`);
+   tasks (:mod:`~ilc_steering.engine.backends`);
 4. writes each result the moment it arrives (finish), or its error under ``failed/`` (fail,
    named on stderr too); a resume computes the failed ones again.
 """
 
 from __future__ import annotations
 
+import argparse
 import fcntl
 import math
 import os
@@ -31,7 +32,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
-from ilc_steering.backends import run_calls
+from ilc_steering.engine.backends import run_calls
+from ilc_steering.engine.provenance import check_code, machine, provenance
 from ilc_steering.output import (
     check_output_dir,
     check_output_file,
@@ -40,7 +42,6 @@ from ilc_steering.output import (
     record_session,
     write_json,
 )
-from ilc_steering.provenance import check_code, machine, provenance
 
 __all__ = [
     "DEFAULT_CELL_TIMEOUT",
@@ -51,6 +52,7 @@ __all__ = [
     "RunFolder",
     "check_timeout",
     "run_grid",
+    "timeout_help",
 ]
 
 K = TypeVar("K", bound=Hashable)
@@ -58,7 +60,47 @@ MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
 """The longest ``--cell-timeout`` [s]: a week. A longer one is no bound a timer can hold."""
 DEFAULT_CELL_TIMEOUT = 6 * 3600.0
 """[s] the bound on a cell when ``--cell-timeout`` is not given: six hours, far above any cell of the
-packaged comparison, so that a learner that never returns fails its cell instead of hanging the run."""
+packaged comparison, so that a learner that never returns fails its cell instead of hanging the run.
+This is where the default is stated; ``--cell-timeout``'s help (:func:`timeout_help`) reads it."""
+
+
+def timeout_help(what: str) -> str:
+    """The help of ``--cell-timeout`` for a command whose unit of work is ``what`` (a cell, a row)."""
+    return (
+        f"stop a {what} still running after this, its worker process ended, and record it as failed "
+        f"(default: {DEFAULT_CELL_TIMEOUT / 3600:g} h; at most {MAX_CELL_TIMEOUT / 86400:g} days)"
+    )
+
+
+def add_grid_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """The options every command over a grid of cells shares, with one help each: ``--backend``,
+    ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
+    from ilc_steering.engine.backends import MAX_WORKERS
+
+    parser.add_argument(
+        "--backend",
+        default="local",
+        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
+    )
+    parser.add_argument(
+        "--cell-timeout",
+        type=float,
+        default=argparse.SUPPRESS,  # the engine's bound, DEFAULT_CELL_TIMEOUT, stated in the help
+        metavar="SECONDS",
+        help=timeout_help(what),
+    )
+
+
+def check_grid_options(backend: str, workers: int, timeout: float | None) -> None:
+    """The shared options' rules, checked once, before any cell: ``ValueError`` naming the option."""
+    from ilc_steering.engine.backends import check_backend, check_workers
+
+    check_backend(backend)
+    check_workers(workers)
+    check_timeout(timeout)
 
 
 def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
@@ -198,9 +240,11 @@ def run_grid(
     """Every cell of ``grid`` in ``folder`` (prepared), under its lock: the finished ones read back
     through ``grid.read``, the others computed by ``function(*grid.call(key))`` on ``backend``
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
-    ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`); when it is given, the
-    cells run in worker processes that are killed at it, even with one worker
-    (:func:`~ilc_steering.backends.run_calls`).
+    ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`). On the local backend
+    the cells always run in worker processes that are killed at it, one worker included, so a
+    cell stuck in compiled code or one whose learner ends its process (``os._exit``) is that
+    cell's failure (:func:`~ilc_steering.engine.backends.run_calls`); on Ray the bound is a Python alarm
+    in the cell's task, which a line on stderr says.
     ``before(todo)`` is called once the cells to compute are known (a message)."""
     outcome: Outcome[K] = Outcome()
     with folder.locked():
@@ -245,8 +289,15 @@ def run_grid(
         else:
             calls = {key: grid.call(key) for key in todo}
             bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
+            if backend == "ray" and calls:
+                print(
+                    f"ilc-steering: --backend ray: each cell's time limit ({bound:g} s) is a Python alarm in its "
+                    "Ray task, which cannot stop compiled code; --backend local can",
+                    file=sys.stderr,
+                    flush=True,
+                )
             try:
-                run_calls(function, calls, finish, backend, workers, fail, bound, isolate=timeout is not None)
+                run_calls(function, calls, finish, backend, workers, fail, bound)
             finally:
                 _session(folder, todo, outcome, started, clock, count, backend)
     return outcome

@@ -22,11 +22,11 @@ retries the failed ones: an interrupted run resumes and never recomputes or lose
 cell. A resume with other settings, another version, or another config under a scenario's name
 is refused, saying which; every resumed cell is checked value by value (:func:`read_cell`).
 Cells run in ``--workers`` processes (one per core by default, at most
-:data:`~ilc_steering.backends.MAX_WORKERS`), with the same results as one process.
+:data:`~ilc_steering.engine.backends.MAX_WORKERS`), with the same results as one process.
 
 ``--against DIR`` puts new methods beside a committed run without rerunning it: the run takes
 the committed run's settings (budgets, seeds, ``quick``; another version or other settings are
-refused, :mod:`~ilc_steering.against`), its scenarios and priors, copies its cells, each checked,
+refused, :mod:`~ilc_steering.compare.against`), its scenarios and priors, copies its cells, each checked,
 into ``--out`` (``DIR`` is only read), computes only the cells it lacks, and reports them all.
 
 A tolerance level is met when the error is at most the level; a count that a relative change
@@ -48,79 +48,24 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.against import Cell, copy_committed, describe
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
-from ilc_steering.backends import MAX_WORKERS
-from ilc_steering.compare_cells import (
-    ENV_ID,
-    FRAGILE,
-    TrialLog,
-    best_so_far,
-    budget,
+from ilc_steering.compare.against import Cell, copy_committed, describe
+from ilc_steering.compare.args import MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, Args
+from ilc_steering.compare.cells import (
     cell_name,
     cell_path,
-    check_cell,
-    first_within,
-    fragile_levels,
     implementation,
-    make_learner,
-    measure,
     read_cell,
     run_cell,
 )
-from ilc_steering.compare_plan import (
-    MAX_BUDGET,
-    MAX_SEED,
-    QUICK,
-    QUICK_SEEDS,
-    SCENARIOS,
-    SEEDS,
-    Args,
-    Plan,
-    plan,
-    resolve,
-    run_settings,
-)
-from ilc_steering.compare_report import LADDER, write_report
-from ilc_steering.engine import Grid, RunFolder, run_grid
-from ilc_steering.inputs import is_file, read_json
+from ilc_steering.compare.plan import Plan, plan
+from ilc_steering.compare.report import write_report
+from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, run_grid
 from ilc_steering.output import write_json
+from ilc_steering.readers import is_file, read_json
 
-__all__ = [
-    "ENV_ID",
-    "FRAGILE",
-    "LADDER",
-    "MAX_BUDGET",
-    "QUICK",
-    "QUICK_SEEDS",
-    "SCENARIOS",
-    "SEEDS",
-    "Args",
-    "Plan",
-    "TrialLog",
-    "best_so_far",
-    "budget",
-    "cell_path",
-    "check_cell",
-    "first_within",
-    "fragile_levels",
-    "implementation",
-    "main",
-    "main_with_failures",
-    "make_learner",
-    "measure",
-    "method_families",
-    "parse",
-    "plan",
-    "read_cell",
-    "resolve",
-    "run_all",
-    "run_cell",
-    "run_cells",
-    "run_settings",
-    "validate",
-]
+__all__ = ["main", "main_with_failures", "method_families", "parse", "run_all", "run_cells", "validate"]
 
 MODEL_METHODS = registry.ids("model-based")
 BLACKBOX = registry.ids("black-box")
@@ -137,7 +82,7 @@ def method_families(methods: Iterable[str] = ()) -> dict[str, tuple[str, ...]]:
 
 
 def validate(args: Args) -> dict[str, str]:
-    """Check every argument and scenario before the first cell (:func:`~ilc_steering.compare_plan.plan`);
+    """Check every argument and scenario before the first cell (:func:`~ilc_steering.compare.plan.plan`);
     returns scenario -> config name."""
     return plan(args).names
 
@@ -185,17 +130,11 @@ def _progress(cell: dict[str, Any]) -> str:
     )
 
 
-TRIAL_SECONDS = {"model-based": 0.03, "black-box": 7e-4, "RL": 5e-3, "yours": 0.01}
-"""A rough cost of one trial [s] per family (``bayes_opt``: :data:`BAYES_OPT_TRIAL_SECONDS`), measured
-on this machine: the cells run longest first, and the progress bar's estimate starts from it."""
-BAYES_OPT_TRIAL_SECONDS = 0.1
-
-
 def expected_seconds(method: str, budget: int) -> float:
-    """A cell's rough cost [s]: its budget times :data:`TRIAL_SECONDS` of its family."""
-    family = "yours" if registry.is_custom(method) else registry.REGISTRY[method].family
-    per_trial = BAYES_OPT_TRIAL_SECONDS if method == "bayes_opt" else TRIAL_SECONDS[family]
-    return 1.0 + budget * per_trial
+    """A cell's rough cost [s], from the spec's cost of a trial (the cells run longest first, and
+    the progress bar's estimate starts from it)."""
+    spec = registry.REGISTRY.get(method)  # a user's learner: the spec's default cost of a trial
+    return 1.0 + (spec.expected_seconds(budget) if spec else registry.LearnerSpec.trial_seconds * budget)
 
 
 def workers(args: Args) -> int:
@@ -212,7 +151,7 @@ def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
 
 def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Every cell of the run, computing only those not yet in the run folder, on the engine
-    (:func:`~ilc_steering.engine.run_grid`; with a custom ``runner``, in this process, called as
+    (:func:`~ilc_steering.engine.runs.run_grid`; with a custom ``runner``, in this process, called as
     it is: a test's hook); returns the finished cells and the failed ones, each in the run's order."""
     return execute(plan(args), runner)
 
@@ -387,21 +326,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help=f"prior=none, the ablation, runs the first K seeds (default: {Args.ablation_seeds})",
     )
-    parser.add_argument(
-        "--workers", type=int, default=0, help=f"worker processes (0: one per core; at most {MAX_WORKERS})"
-    )
-    parser.add_argument(
-        "--cell-timeout",
-        type=float,
-        default=None,
-        metavar="SECONDS",
-        help="stop a cell still running after this and record it as failed (default: no limit)",
-    )
-    parser.add_argument(
-        "--backend",
-        default="local",
-        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
-    )
+    add_grid_options(parser, "cell")
     bar = parser.add_mutually_exclusive_group()
     bar.add_argument("--progress-bar", action="store_true", help="SB3's progress bar on RL cells (one worker)")
     bar.add_argument("--no-progress-bar", action="store_true", help="no progress bar (the default)")
@@ -420,7 +345,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
-        cell_timeout=ns.cell_timeout,
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
     )
     return replace(args, **budgets)
 

@@ -1,6 +1,6 @@
 """What made a run's results, and whether the code in the tree would make them again.
 
-Every run folder's ``run.json`` (``compare`` and ``sweep``, :class:`~ilc_steering.engine.RunFolder`)
+Every run folder's ``run.json`` (``compare`` and ``sweep``, :class:`~ilc_steering.engine.runs.RunFolder`)
 records under ``"provenance"``:
 
 - ``code``: a content hash of the code that makes the results (:data:`CODE`: the simulator and
@@ -27,6 +27,7 @@ import os
 import platform
 import subprocess
 import sys
+from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import metadata, util
 from pathlib import Path
@@ -34,14 +35,106 @@ from typing import Any
 
 from ilc_steering import __version__
 
-__all__ = ["CODE", "PACKAGES", "Provenance", "check_code", "code_files", "freshness", "machine", "provenance"]
+__all__ = [
+    "CODE",
+    "PACKAGES",
+    "Machine",
+    "Provenance",
+    "ProvenanceRecord",
+    "RunRecord",
+    "Session",
+    "check_code",
+    "code_files",
+    "freshness",
+    "machine",
+    "provenance",
+    "read_run",
+]
+
+
+@dataclass(frozen=True)
+class ProvenanceRecord:
+    """A ``run.json``'s ``provenance``, as read back (the schema: :mod:`ilc_steering.schema`)."""
+
+    version: str
+    code: str
+    commit: str | None
+    dirty: bool | None
+    packages: dict[str, str]
+    files: dict[str, str]
+
+
+@dataclass(frozen=True)
+class Machine:
+    """The machine a session ran on."""
+
+    platform: str
+    processor: str
+    cpus: int | None
+    python: str
+
+
+@dataclass(frozen=True)
+class Session:
+    """One session of work on a run folder."""
+
+    started: str
+    wall_s: float
+    computed: int
+    failed: int
+    workers: int
+    backend: str
+    commit: str | None
+    machine: Machine
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """What every ``run.json`` holds besides its command's settings, checked when read back: what
+    made it, the packaged configs it used (name -> content hash) and its sessions."""
+
+    provenance: ProvenanceRecord | None = None
+    configs: dict[str, str] = field(default_factory=dict)
+    sessions: tuple[Session, ...] = ()
+
+
+def read_run(folder: Path) -> tuple[dict[str, Any], RunRecord]:
+    """``folder/run.json`` as read (the command's settings with it) and its :class:`RunRecord`,
+    checked: ``ValueError`` naming the file and the key if it is not a run record or a key is of
+    the wrong type, or if its provenance contradicts itself (a code hash that is not the hash of
+    its files). A record is a file on disk: hostile until checked."""
+    from ilc_steering.errors import ConfigError
+    from ilc_steering.readers import read_json
+    from ilc_steering.schema import validate
+
+    path = folder / "run.json"
+    stored = read_json(path, 1 << 24)
+    if not isinstance(stored, dict):
+        raise ValueError(f"{path}: not a run record (a JSON object)")
+    parts = {key: stored[key] for key in ("provenance", "configs", "sessions") if key in stored}
+    try:
+        record: RunRecord = validate(RunRecord, parts)
+    except ConfigError as error:
+        raise ValueError(f"{path}: {error}") from None
+    made = record.provenance
+    if made is not None and made.files and code_hash(made.files) != made.code:
+        raise ValueError(
+            f"{path}: provenance.code: {made.code} is not the hash of its provenance.files ({code_hash(made.files)}): "
+            "the record contradicts itself"
+        )
+    return stored, record
+
 
 CODE: dict[str, tuple[str, ...]] = {
     "ilc_steering.core": ("**/*.py",),
     "ilc_steering.agents": ("**/*.py",),
     "ilc_steering.envs": ("**/*.py",),
     "ilc_steering.configs": ("rl/*.yaml",),
-    "ilc_steering": ("loop.py", "config.py", "runner.py", "oracle.py", "compare_cells.py", "sweep_rows.py"),
+    "ilc_steering": (
+        *("errors.py", "entries.py", "boxes.py", "schema.py", "yaml_reader.py", "config/*.py"),
+        *("loop.py", "runner.py", "oracle.py"),
+        *("compare/cells.py", "sweep/rows.py"),  # files, not imports: the engine names no command
+    ),
 }
 """The code that makes a run's results: package -> glob patterns of its files. The scenario
 configs are not here: each run records the content hash of every config it used."""
@@ -135,7 +228,7 @@ def _provenance() -> tuple[tuple[str, Any], ...]:
 
 
 def provenance() -> Provenance:
-    """What :mod:`this module <ilc_steering.provenance>` records of the code in this process
+    """What :mod:`this module <ilc_steering.engine.provenance>` records of the code in this process
     (computed once per process)."""
     return dict(_provenance())
 
@@ -179,33 +272,25 @@ def freshness(folder: Path) -> tuple[bool, list[str]]:
     from dataclasses import asdict
 
     from ilc_steering.config import load_config, packaged_configs
-    from ilc_steering.inputs import read_json
     from ilc_steering.output import content_hash
 
-    path = folder / "run.json"
-    stored = read_json(path, 1 << 24)
-    if not isinstance(stored, dict):
-        raise ValueError(f"{path}: not a run record (a JSON object)")
-    record = stored.get("provenance")
+    _, run = read_run(folder)
+    record = run.provenance
     now = provenance()
     lines: list[str] = []
     current = True
-    if not isinstance(record, dict) or "code" not in record:
+    if record is None:
         return False, [f"{folder}: STALE: its run.json records no hash of the code that made it (an older run)"]
-    if record["code"] != now["code"]:
+    if record.code != now["code"]:
         current = False
-        files = changed(record.get("files") or {}, now["files"])
+        files = changed(record.files, now["files"])
         differ = ", ".join(files)
-        lines.append(
-            f"code: made by {record['code']}, the tree's is {now['code']}; {len(files)} files differ: {differ}"
-        )
-    if record.get("version") != now["version"]:
+        lines.append(f"code: made by {record.code}, the tree's is {now['code']}; {len(files)} files differ: {differ}")
+    if record.version != now["version"]:
         current = False
-        lines.append(f"version: made by ilc-steering {record.get('version')}, the tree is {now['version']}")
-    found = stored.get("configs")
-    configs: dict[str, Any] = found if isinstance(found, dict) else {}
+        lines.append(f"version: made by ilc-steering {record.version}, the tree is {now['version']}")
     packaged = packaged_configs()
-    for name, digest in sorted(configs.items()):
+    for name, digest in sorted(run.configs.items()):
         if name not in packaged:
             lines.append(f"config {name}: not a packaged config, not checked")
             continue
@@ -213,7 +298,7 @@ def freshness(folder: Path) -> tuple[bool, list[str]]:
         if today != digest:
             current = False
             lines.append(f"config {name}: made with content {digest}, the packaged one is {today}")
-    before, after = record.get("packages") or {}, now["packages"]
+    before, after = record.packages, now["packages"]
     moved = [
         f"{p} {before.get(p)} -> {after.get(p)}"
         for p in sorted(before.keys() | after.keys())
@@ -221,8 +306,8 @@ def freshness(folder: Path) -> tuple[bool, list[str]]:
     ]
     if moved:
         lines.append("packages (results may differ, the code is not stale for them): " + ", ".join(moved))
-    commit = record.get("commit")
-    made = f"commit {commit[:12]}{' with local changes' if record.get('dirty') else ''}" if commit else "no commit"
+    commit = record.commit
+    made = f"commit {commit[:12]}{' with local changes' if record.dirty else ''}" if commit else "no commit"
     head = "current" if current else "STALE"
-    lines.insert(0, f"{folder}: {head}: made by code {record['code']} ({made}); the code in this tree is {now['code']}")
+    lines.insert(0, f"{folder}: {head}: made by code {record.code} ({made}); the code in this tree is {now['code']}")
     return current, lines

@@ -10,11 +10,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.output import write_figure
-from ilc_steering.sweep_rows import ORACLE, axis_values, centre_values, gain_text, map_name
+from ilc_steering.sweep.rows import ORACLE, axis_values, centre_values, gain_text, map_name
 
 if TYPE_CHECKING:
     from ilc_steering.config import SteeringConfig
-    from ilc_steering.sweep_rows import SweepArgs
+    from ilc_steering.sweep.rows import SweepArgs
 
 __all__ = ["plot_map", "summary", "write_sweep_report"]
 

@@ -1,0 +1,257 @@
+"""The MuJoCo car (``plant.model: mujoco_car``): how it repeats itself, and how the learners do on it.
+
+Two tables, for each of the packaged MuJoCo configs:
+
+- **repeatability**: ``repeats`` trials of the nominal solution's coefficients on one plant (the
+  scatter config draws each wheel's friction anew per trial), the std of the final ``x``, ``y``
+  [m] and ``theta`` [rad], the mean landing error from the goal, the CPU per trial and the
+  simulated seconds per wall second, all measured in this one run;
+- **learners**: ``ilc-steering run CONFIG --learner ID --trials 15`` for each learner, counted from
+  the first trial: the first within 1 cm / 0.01 rad, whether the last five all stay inside, their
+  worst errors;
+- **scatter sweep**: the scatter config with each ``friction_spread`` of ``spreads``: its
+  repeatability and the learners' runs, to see where the scatter outgrows the target.
+
+    python benchmarks/mujoco_car.py [--quick] [--out DIR]
+
+writes ``mujoco_repeatability``, ``mujoco_learners`` and ``mujoco_spread`` ``.{csv,json,md}`` (committed in
+``docs/mujoco``, quoted by ``docs/mujoco.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.envs.scenario import Scenario
+from ilc_steering.runner import run_ilc
+from ilc_steering.tables import markdown_table, write_results
+
+__all__ = ["Args", "main"]
+
+CM, RAD = 0.01, 0.01
+"""The target [m], [rad]."""
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+@dataclass(frozen=True)
+class Args:
+    quick: bool = False
+    """One config, one learner, three repeats and three trials: checks that the script runs (CI)."""
+    configs: tuple[str, ...] = (
+        "mujoco_forward_parking",
+        "mujoco_parallel_parking",
+        "mujoco_reverse_parking",
+        "mujoco_forward_parking_scatter",
+    )
+    """Packaged config names."""
+    learners: tuple[str, ...] = ("robust_ilc", "newton_ilc", "ilc")
+    """``run --learner`` names."""
+    repeats: int = 20
+    """Trials of the same coefficients per config, for the repeatability."""
+    trials: int = 15
+    """Trials per run."""
+    last: int = 5
+    """The last trials of a run that must all stay within the target."""
+    scatter: str = "mujoco_forward_parking_scatter"
+    """The config whose ``friction_spread`` the sweep varies."""
+    spreads: tuple[float, ...] = (0.1, 0.2, 0.4, 0.8)
+    """The sweep's ``friction_spread`` values (relative spread of each wheel's friction per trial)."""
+    out: Path = Path("docs/mujoco")
+    """Where the tables go."""
+
+
+def config(name: str, spread: float | None = None) -> SteeringConfig:
+    """Packaged config ``name``, its ``friction_spread`` replaced by ``spread`` if given."""
+    loaded = load_config(CONFIGS / f"{name}.yaml")
+    return loaded if spread is None else replace(loaded, plant=replace(loaded.plant, friction_spread=spread))  # type: ignore[type-var]
+
+
+def repeatability(name: str, repeats: int, spread: float | None = None) -> dict[str, Any]:
+    """``repeats`` trials of the nominal solution on a fresh plant of config ``name`` (its
+    ``friction_spread`` replaced by ``spread`` if given)."""
+    scenario = Scenario.from_config(config(name, spread))
+    c = np.repeat(scenario.nominal.solve()[None], repeats, axis=0)
+    scenario.run(c[:1])  # the plant settles on its tyres once, when first used: not timed
+    wall, cpu = time.perf_counter(), time.process_time()
+    trials = scenario.run(c)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    final = scenario.to_world(trials.final)
+    identical = bool(np.all(trials.final == trials.final[0]))
+    std = np.zeros(final.shape[1]) if identical else final.std(axis=0)  # numpy's of equal numbers may be 1e-18
+    landing = final - scenario.goal
+    simulated = repeats * sum(scenario.nominal.profile.durations)
+    return {
+        "config": name,
+        "repeats": repeats,
+        "bit_for_bit": identical,
+        "std_x_m": float(std[0]),
+        "std_y_m": float(std[1]),
+        "std_theta_rad": float(std[2]),
+        "landing_m": float(np.hypot(landing[:, 0], landing[:, 1]).mean()),
+        "landing_rad": float(np.abs(landing[:, 2]).mean()),
+        "cpu_per_trial_s": cpu / repeats,
+        "simulated_per_wall": simulated / wall,
+    }
+
+
+def learner_run(name: str, learner: str, trials: int, last: int, spread: float | None = None) -> dict[str, Any]:
+    """A run of ``learner`` on config ``name`` (the env's seed 1, as ``ilc-steering run``; its
+    ``friction_spread`` replaced by ``spread`` if given)."""
+    start = time.perf_counter()
+    result = run_ilc(config(name, spread), trials=trials, learner=learner)
+    seconds = time.perf_counter() - start
+    cartesian = [r.cartesian_error or 0.0 for r in result.trials]
+    orientation = [r.orientation_error or 0.0 for r in result.trials]
+    inside = [e <= CM and o <= RAD for e, o in zip(cartesian, orientation)]
+    to_target = next((k + 1 for k, flag in enumerate(inside) if flag), None)
+    stays = len(inside) >= last and all(inside[-last:])
+    return {
+        "config": name,
+        "learner": learner,
+        "trials": len(inside),
+        "trials_to_1cm": to_target,
+        "last_inside": stays,
+        "target_met": to_target is not None and to_target <= 3 and stays,
+        "first_error_m": cartesian[0],
+        "last_worst_m": max(cartesian[-last:]),
+        "last_worst_rad": max(orientation[-last:]),
+        "left_chart": sum(r.left_chart for r in result.trials),
+        "seconds": seconds,
+    }
+
+
+def main(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
+    configs, learners, repeats, trials, last = args.configs, args.learners, args.repeats, args.trials, args.last
+    spreads = args.spreads
+    if args.quick:
+        configs, learners, repeats, trials, last, spreads = configs[:1], learners[:1], 3, 3, 1, spreads[:1]
+    spread = [repeatability(name, repeats) for name in configs]
+    for row in spread:
+        print(row, flush=True)
+    table = markdown_table(
+        [
+            "config",
+            "bit for bit",
+            "std x [mm]",
+            "std y [mm]",
+            "std θ [mrad]",
+            "landing [mm]",
+            "landing [mrad]",
+            "CPU/trial [s]",
+            "sim s / wall s",
+        ],
+        [
+            [
+                r["config"],
+                "yes" if r["bit_for_bit"] else "no",
+                f"{1e3 * r['std_x_m']:.3g}",
+                f"{1e3 * r['std_y_m']:.3g}",
+                f"{1e3 * r['std_theta_rad']:.3g}",
+                f"{1e3 * r['landing_m']:.3g}",
+                f"{1e3 * r['landing_rad']:.3g}",
+                f"{r['cpu_per_trial_s']:.3f}",
+                f"{r['simulated_per_wall']:.1f}",
+            ]
+            for r in spread
+        ],
+        [False, False] + [True] * 7,
+    )
+    write_results(
+        spread,
+        args.out,
+        "mujoco_repeatability",
+        f"{table}\n{repeats} trials of the nominal solution per config, on one plant; landing: the mean distance "
+        "of the final pose from the goal (the nominal solution's error on this car).\n",
+        {"repeats": repeats},
+    )
+    runs = []
+    for name in configs:
+        for learner in learners:
+            runs.append(learner_run(name, learner, trials, last))
+            print(runs[-1], flush=True)
+    results = markdown_table(
+        ["config", "learner", "to 1 cm", f"last {last} inside", "target met", "first [m]", f"worst of last {last} [m]",
+         f"worst of last {last} [rad]", "left chart", "wall [s]"],
+        [
+            [
+                r["config"],
+                r["learner"],
+                str(r["trials_to_1cm"] or f"> {trials}"),
+                "yes" if r["last_inside"] else "no",
+                "yes" if r["target_met"] else "no",
+                f"{r['first_error_m']:.3g}",
+                f"{r['last_worst_m']:.3g}",
+                f"{r['last_worst_rad']:.3g}",
+                str(r["left_chart"]),
+                f"{r['seconds']:.1f}",
+            ]
+            for r in runs
+        ],
+        [False, False] + [True] * 8,
+    )  # fmt: skip
+    write_results(
+        runs,
+        args.out,
+        "mujoco_learners",
+        f"{results}\n{trials} trials per run, counted from 1; the target: 1 cm / 0.01 rad within 3 trials, "
+        f"and the last {last} inside.\n",
+        {"trials": trials, "last": last},
+    )
+    sweep = []
+    for value in spreads:
+        scattered = repeatability(args.scatter, repeats, value)
+        for learner in learners:
+            sweep.append(
+                {"friction_spread": value, **scattered, **learner_run(args.scatter, learner, trials, last, value)}
+            )
+            print(sweep[-1], flush=True)
+    swept = markdown_table(
+        ["friction spread", "std x [mm]", "std y [mm]", "std θ [mrad]", "learner", "to 1 cm", f"last {last} inside",
+         f"worst of last {last} [mm]", f"worst of last {last} [mrad]"],
+        [
+            [
+                f"{r['friction_spread']:g}",
+                f"{1e3 * r['std_x_m']:.3g}",
+                f"{1e3 * r['std_y_m']:.3g}",
+                f"{1e3 * r['std_theta_rad']:.3g}",
+                r["learner"],
+                str(r["trials_to_1cm"] or f"> {trials}"),
+                "yes" if r["last_inside"] else "no",
+                f"{1e3 * r['last_worst_m']:.3g}",
+                f"{1e3 * r['last_worst_rad']:.3g}",
+            ]
+            for r in sweep
+        ],
+        [True, True, True, True, False, True, True, True, True],
+    )  # fmt: skip
+    write_results(
+        sweep,
+        args.out,
+        "mujoco_spread",
+        f"{swept}\n{args.scatter} with each friction spread: the std of {repeats} repeats of the nominal "
+        f"solution, and {trials} trials per run.\n",
+        {"repeats": repeats, "trials": trials, "last": last, "config": args.scatter},
+    )
+    print(table)
+    print(results)
+    print(swept)
+    return spread, runs, sweep
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--repeats", type=int, default=Args.repeats)
+    parser.add_argument("--trials", type=int, default=Args.trials)
+    parser.add_argument("--out", type=Path, default=Args.out)
+    parser.add_argument("--learners", default=",".join(Args.learners))
+    cli = parser.parse_args()
+    learners = tuple(cli.learners.split(","))
+    main(Args(quick=cli.quick, learners=learners, repeats=cli.repeats, trials=cli.trials, out=cli.out))

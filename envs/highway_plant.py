@@ -1,0 +1,307 @@
+r"""highway-env's parking car (``parking-v0``) as an external plant: a car nobody here wrote.
+
+highway-env's own code steps the car (``Vehicle.step``): a kinematic bicycle referenced at its
+centre, slip angle :math:`\beta = \arctan(\tan\delta / 2)`, heading rate
+:math:`v \sin\beta / (L/2)`, Euler at 15 Hz, (acceleration, steering) actions held for 0.2 s
+(5 Hz) and clipped by ``ContinuousAction`` to ±5 m/s² and ±45°, with the lot's walls and crashes.
+:class:`HighwayParkingPlant` drives it through a fresh ``reset(seed=seed)`` of ``parking-v0`` per
+trial; at each 0.2 s action step it measures the car (centre, heading, speed, the steering angle
+it holds), turns that into the library's configuration (rear axle, heading, steering angle, task
+frame) and sends the action that follows the library's inputs over the next step: the steering
+angle the nominal closed loop (eqs. 3-5 with the nominal geometry, from the measured
+configuration) reaches at mid-step, and the acceleration that brings the speed to the profile's
+at the step's end, both normalised to parking-v0's action scale (not clipped here: highway-env
+clips). Every action it sends is logged (``info["plant"]["actions"]``): :func:`replay` runs them
+in a fresh ``parking-v0`` and gives the same final pose.
+
+**The controller's nominal car** (:func:`nominal_map`): the library's car of eqs. 3-5 with
+wheelbase ``L = Vehicle.LENGTH`` (5 m) and wheel radius 1 m (``u1`` is the rear axle's speed
+[m/s]), the configuration referenced at the rear axle, ``L/2`` behind highway-env's centre. In
+continuous time highway-env's bicycle *is* that car (its rear axle moves along the heading at
+:math:`v\cos\beta`, turning at :math:`v\cos\beta\tan\delta / L`). What differs is outside any
+geometry: Euler integration at 1/15 s, the steering angle set (not integrated) and held 0.2 s,
+the speed reached through a clipped acceleration (one action step of lag), the ±45° stop, and
+the walls (a crash stops the car; ``info["plant"]["crashed"]``).
+
+The tasks (parking-v0's start and goal for a seed, as a config) are :mod:`~ilc_steering.envs.highway`'s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from math import pi
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.checks import require
+from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.integrate import LEFT_CHART, OK
+from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
+from ilc_steering.core.profiles import InputProfile
+from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
+
+__all__ = [
+    "ACCELERATION",
+    "ACTION_STEP",
+    "LENGTH",
+    "MAX_TURN",
+    "STEERING",
+    "HighwayParkingPlant",
+    "HighwayPlantConfig",
+    "nominal_map",
+    "parking_task",
+    "replay",
+]
+
+Array = npt.NDArray[np.float64]
+
+ENV_ID = "parking-v0"
+HIGHWAY = PlantKind("highway_parking", True, CAR.coordinates, CAR.inputs)
+"""A car (the library's configuration, rear axle first), stepped by highway-env."""
+LENGTH = 5.0
+"""[m] highway-env's ``Vehicle.LENGTH``: the nominal wheelbase (``tests/test_highway.py`` checks it)."""
+ACCELERATION = 5.0
+"""[m/s²] ``ContinuousAction.ACCELERATION_RANGE``: an action of 1 is this acceleration."""
+STEERING = pi / 4
+"""[rad] ``ContinuousAction.STEERING_RANGE``: an action of 1 is this steering angle, the car's stop."""
+ACTION_STEP = 0.2
+"""[s] parking-v0's action period (``policy_frequency`` 5 Hz)."""
+FRAMES = 3
+"""Simulation frames per action (``simulation_frequency`` 15 Hz over 5 Hz)."""
+SUBSTEPS = 8
+"""RK4 steps of the nominal closed loop over one action step (the adapter's prediction)."""
+MAX_TURN = 150 * pi / 180
+"""[rad] the largest turn from the start's heading to the goal's one chart serves: the task frame
+puts both ``MAX_TURN / 2`` from its axis, leaving 15° to the chart's edge for the manoeuvre."""
+
+
+def nominal_map() -> CarModel:
+    """The controller's car: wheelbase ``LENGTH`` [m], wheel radius 1 m (``u1`` the rear axle's speed [m/s])."""
+    return CarModel(LENGTH, 1.0)
+
+
+def _make_env(render_mode: str | None = None) -> Any:
+    try:
+        import gymnasium as gym
+        import highway_env  # registers parking-v0
+    except ImportError:
+        raise ValueError('highway_parking needs highway-env: pip install "ilc-steering[highway]"') from None
+    gym.register_envs(highway_env)
+    return gym.make(ENV_ID, render_mode=render_mode)
+
+
+def _pose(vehicle: Any) -> Array:
+    """The library's world configuration (rear axle [m], heading [rad], steering [rad]) of a highway-env vehicle."""
+    heading = float(vehicle.heading)
+    x, y = (float(p) for p in vehicle.position)
+    steering = float(np.clip(vehicle.action["steering"], -STEERING, STEERING))
+    return np.array([x - 0.5 * LENGTH * np.cos(heading), y - 0.5 * LENGTH * np.sin(heading), heading, steering])
+
+
+def parking_task(seed: int) -> tuple[Array, Array]:
+    """parking-v0's start and goal for ``seed`` as world configurations ``(x, y, theta, phi)`` (rear
+    axle [m], heading and steering [rad], the goal's steering 0): the start's heading in
+    ``(-pi, pi]``, the goal's the way nearer it. ``ValueError`` naming the seed when the turn between
+    them exceeds :data:`MAX_TURN` (one chart cannot serve it)."""
+    env = _make_env()
+    env.reset(seed=seed)
+    vehicle = env.unwrapped.vehicle
+    start = _pose(vehicle)
+    start[2] = np.angle(np.exp(1j * start[2]))
+    goal_heading = float(vehicle.goal.heading)
+    goal_heading += 2 * pi * np.round((start[2] - goal_heading) / (2 * pi))
+    gx, gy = (float(p) for p in vehicle.goal.position)
+    goal = np.array(
+        [gx - 0.5 * LENGTH * np.cos(goal_heading), gy - 0.5 * LENGTH * np.sin(goal_heading), goal_heading, 0]
+    )
+    env.close()
+    turn = abs(goal[2] - start[2])
+    if turn > MAX_TURN:
+        raise ValueError(
+            f"parking-v0 seed {seed}: the goal's heading is {np.degrees(turn):.0f}° from the start's, over the "
+            f"{np.degrees(MAX_TURN):.0f}° one chart serves; this task cannot serve it (it needs a waypoint)"
+        )
+    return start, goal
+
+
+@dataclass(frozen=True)
+class HighwayParkingPlant(ExternalPlantBase):
+    """parking-v0's car for ``seed``, stepped by highway-env, reporting the library's configuration
+    in the task frame (the world rotated by ``frame`` [rad]). See the module for the adapter."""
+
+    kind: ClassVar[PlantKind] = HIGHWAY
+    factor_names: ClassVar[tuple[str, str]] = ("wheelbase_ratio", "wheel_radius_ratio")
+    name: ClassVar[str] = "highway-env's parking car"
+    seed: int
+    frame: float = 0.0
+    render_mode: str | None = None
+    _env: list[Any] = field(default_factory=list, compare=False, repr=False)
+    frames: list[Any] = field(default_factory=list, compare=False, repr=False)
+    """With ``render_mode="rgb_array"``: highway-env's frames of the last trial, one per action step."""
+
+    state_dim: ClassVar[int] = 4
+    steering_limit: ClassVar[float] = STEERING
+
+    @property
+    def env(self) -> Any:
+        """The ``parking-v0`` env this plant drives (made on first use)."""
+        if not self._env:
+            self._env.append(_make_env(self.render_mode))
+        return self._env[0]
+
+    def with_frame(self, angle: float) -> HighwayParkingPlant:
+        return replace(self, frame=float(angle), _env=self._env, frames=self.frames)
+
+    def configuration(self, x: Array) -> Array:
+        return np.array(x, dtype=np.float64)
+
+    def estimate(self, x: Array) -> Array:
+        return np.array(x, dtype=np.float64)
+
+    def initial_state(self, q: Array) -> Array:
+        return np.array(q, dtype=np.float64)
+
+    def check_configuration(self, q: Array) -> None:
+        check_chart(q)
+        check_magnitude(q)
+        check_angles(q, "|theta| and |phi|")
+        check_limit(np.asarray(q, dtype=np.float64)[..., 3], STEERING)
+
+    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
+        total = sum(profile.durations)
+        steps = round(total / ACTION_STEP)
+        require(
+            abs(steps * ACTION_STEP - total) < 1e-9,
+            "task.pieces",
+            f"must add up to a whole number of parking-v0's {ACTION_STEP} s action steps, got {total} s",
+        )
+        outcomes = [self._trial(profile, x0[b], c[b], steps) for b in range(c.shape[0])]
+        final = np.array([o[0] for o in outcomes])
+        status = np.array([o[1] for o in outcomes], dtype=np.int64)
+        logs = [o[3] for o in outcomes]
+        if not record:
+            return ExternalTrials(final, status, logs=logs)
+        times = ACTION_STEP * np.arange(steps + 1, dtype=np.float64)
+        return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
+
+    def _measure(self, vehicle: Any) -> Array:
+        """The vehicle's configuration in the task frame, its heading wrapped to ``(-pi, pi]``."""
+        q = rotate(_pose(vehicle), self.frame)
+        q[2] = np.angle(np.exp(1j * q[2]))
+        return q
+
+    def _trial(
+        self, profile: InputProfile, x0: Array, c: Array, steps: int
+    ) -> tuple[Array, int, Array, dict[str, Any]]:
+        env = self.env
+        env.reset(seed=self.seed)
+        vehicle = env.unwrapped.vehicle
+        q = self._measure(vehicle)
+        if float(np.max(np.abs(q - x0))) > 1e-6:
+            raise ValueError(
+                f"task.start {rotate(x0, -self.frame).tolist()} is not parking-v0 seed {self.seed}'s start "
+                f"{_pose(vehicle).tolist()}: a highway-env trial starts where parking-v0 puts the car "
+                "(no simulation.start_error)"
+            )
+        self.frames.clear()
+        states, actions = [q], []
+        status, halted = OK, q
+        command = float(q[3])  # the steering command the adapter integrates from u2 (the servo's state)
+        for k in range(steps):
+            if status == OK and abs(q[2]) >= pi / 2 - CHART_MARGIN:
+                status, halted = LEFT_CHART, states[-2] if len(states) > 1 else q
+            if status == OK:
+                acted_on = np.array([q[0], q[1], q[2], command])
+                phi_mid, command, speed_end = self._follow(profile, c, acted_on, k * ACTION_STEP)
+                beta = np.arctan(0.5 * np.tan(np.clip(phi_mid, -STEERING, STEERING)))
+                accel = (speed_end / np.cos(beta) - vehicle.speed) / ACTION_STEP
+                action = np.array([accel / ACCELERATION, phi_mid / STEERING])
+            else:  # out of the chart, eqs. 4-5 break down: brake to a stop, wheels straight
+                action = np.array([-vehicle.speed / ACTION_STEP / ACCELERATION, 0.0])
+            # env.step's dynamics without its observation, reward and info (pandas, 2/3 of a step's
+            # time); tests/test_highway.py replays the logged actions through env.step, bit for bit
+            env.unwrapped._simulate(action)
+            actions.append(action.tolist())
+            if self.render_mode is not None:
+                self.frames.append(env.render())
+            q = self._measure(vehicle)
+            states.append(q)
+        final = q if status == OK else halted
+        log = {"seed": self.seed, "actions": actions, "crashed": bool(vehicle.crashed), "is_success": _success(env)}
+        return final, status, np.array(states), log
+
+    @staticmethod
+    def _follow(profile: InputProfile, c: Array, q: Array, t0: float) -> tuple[float, float, float]:
+        """The nominal closed loop (eqs. 3-5, nominal geometry, the wheel at the stop beyond
+        ``STEERING`` while the command winds on) from ``q`` (its ``phi`` the adapter's steering
+        command) at ``t0`` over one action step by RK4: the steering command at mid-step and at the
+        end [rad], and the rear axle's speed at the end [m/s]."""
+        model = nominal_map()
+        h = ACTION_STEP / SUBSTEPS
+        # every RK4 stage falls on a half step: the inputs of the whole step in one call
+        v1s, v2s = profile.evaluate(c, t0 + 0.5 * h * np.arange(2 * SUBSTEPS + 1, dtype=np.float64))
+        ell, rho = model.wheelbase, model.wheel_radius
+
+        def field_(i: int, x: Array) -> Array:
+            phi = min(max(x[3], -STEERING), STEERING)
+            u1, u2 = chained_inputs(x[2], phi, float(v1s[i]), float(v2s[i]), ell, rho)
+            return np.array(car_velocity(x[2], phi, u1, u2, ell, rho))
+
+        x, phi_mid = q.copy(), float(q[3])
+        for i in range(SUBSTEPS):
+            k1 = field_(2 * i, x)
+            k2 = field_(2 * i + 1, x + h / 2 * k1)
+            k3 = field_(2 * i + 1, x + h / 2 * k2)
+            k4 = field_(2 * i + 2, x + h * k3)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            if i == SUBSTEPS // 2 - 1:
+                phi_mid = float(x[3])
+        speed = float(v1s[-1]) / np.cos(x[2]) * rho
+        return phi_mid, float(x[3]), speed
+
+
+def _success(env: Any) -> bool:
+    """parking-v0's own success test (its ``info["is_success"]``) at the car's present state."""
+    parking = env.unwrapped
+    obs = parking.observation_type_parking.observe()
+    return bool(parking._is_success(obs["achieved_goal"], obs["desired_goal"]))
+
+
+def replay(seed: int, actions: list[list[float]], render_mode: str | None = None) -> tuple[Array, bool, Any]:
+    """Run logged ``actions`` in a fresh ``parking-v0`` reset with ``seed``: the final world
+    configuration (rear axle, heading, steering), whether the car crashed, and the env."""
+    env = _make_env(render_mode)
+    env.reset(seed=seed)
+    for action in actions:
+        env.step(np.array(action, dtype=np.float64))
+    vehicle = env.unwrapped.vehicle
+    return _pose(vehicle), bool(vehicle.crashed), env
+
+
+@dataclass(frozen=True)
+class HighwayPlantConfig:
+    model: Literal["highway_parking"]
+    seed: int  # parking-v0's reset seed: the car's start and the goal (task.start, task.goal must be its)
+
+    kind: ClassVar[PlantKind] = HIGHWAY
+    plant_class: ClassVar[type] = HighwayParkingPlant
+    dimension: ClassVar[int] = 4
+    steering_limit: ClassVar[float] = STEERING
+
+    def __post_init__(self) -> None:
+        require(
+            isinstance(self.seed, int) and 0 <= self.seed < 2**31, "seed", f"must be in [0, 2**31), got {self.seed}"
+        )
+
+    def nominal_map(self) -> CarModel:
+        """The geometry the controller assumes (see the module)."""
+        return nominal_map()
+
+    def plant(self) -> HighwayParkingPlant:
+        return HighwayParkingPlant(self.seed)
+
+    def check_task(self, max_step: float, cyclic: bool) -> None:
+        if cyclic:
+            raise ValueError("highway_parking is a one-trial task (parking-v0 resets the car for each trial)")

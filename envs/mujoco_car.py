@@ -1,0 +1,492 @@
+r"""A car-like robot in MuJoCo as an external plant: wheels that roll on contacts, slip and scatter.
+
+## Description
+
+The car is written as MJCF (:func:`mjcf`, a template filled from the config's geometry): a
+chassis on a free joint, four wheels touching a floor plane through MuJoCo's soft contacts with
+Coulomb friction (elliptic cones), a position-controlled steering linkage on the front wheels
+(one hinge per wheel about the vertical, its angle set by the Ackermann rule :func:`ackermann`
+from the bicycle angle ``phi``) and velocity-controlled rear wheels (an electronic differential:
+each wheel's speed is the one that rolls it without slip on the bicycle's turn). The wheels are
+thin ellipsoids, which touch the floor at one point: a cylinder touches it at its two rims,
+whose friction scrubs in every turn (with cylinders the nominal forward parking ended 3.1 cm
+from the kinematic car's end, with ellipsoids 1.8 cm). At the paper's scale: wheelbase ``ell``
+= 0.2 m, wheel radius ``rho`` = 0.02 m, track 0.12 m, a 1 kg chassis on 30 g wheels
+(section 5, ``configs/forward_parking.yaml``).
+
+:class:`MujocoCarPlant` runs one trial as highway's adapter does (:mod:`ilc_steering.envs.highway`):
+every ``control_period`` it measures the car (the rear axle's midpoint [m], the chassis' heading
+[rad], the steering angle of the linkage [rad]) in the task frame and follows the chained-form
+inputs ``v1(t)``, ``v2(t)`` of the trial's profile and coefficients through the nominal closed
+loop (eqs. 3-5 with the nominal geometry, RK4 over the period from the measured pose and the
+steering command it integrates from ``u2``): the steering target is the command at the period's
+end, the rear wheels' speed is ``u1`` [rad/s] of eq. 5 at mid-period. MuJoCo then steps the
+physics (``timestep``, implicit-in-velocity ``implicitfast``). The final configuration is the
+measured one: the pose and the linkage's bicycle angle (:func:`bicycle_angle`).
+
+**The controller's nominal car** is the MJCF's geometry (:class:`~ilc_steering.core.robots.car.CarModel`
+of ``wheelbase``, ``wheel_radius``). What differs is everything outside a geometry: the car
+spins up from rest through motors of finite torque (the paper's ``v1`` jumps to its level at
+``t = 0``), the tyres creep on their soft contacts (and sink 0.01 mm into the floor), the
+steering servos lag, the car rocks on its contacts. On the packaged forward parking the nominal
+solution ends 1.8 cm and 12 mrad from where the kinematic car of eqs. 3-5 ends.
+
+## Scatter
+
+With ``friction_spread`` > 0 every trial draws each wheel's friction coefficient anew, log-normal
+around ``friction`` with that relative spread, from a generator seeded by the config's ``seed``:
+near the grip limit the car slides a little differently each time, so the same commands end a
+few millimetres apart. A run is reproducible (a fresh plant replays the same draws); the trials
+within a run differ. With ``friction_spread`` = 0 the plant repeats itself bit for bit.
+
+## Why a template string
+
+The MJCF lives in this module as a string filled from the config (wheelbase, wheel radius,
+track, friction, contact stiffness): the geometry the controller is told and the one MuJoCo
+simulates are then the same numbers by construction, and the robot stays one module
+(``docs/robots.md``); ``mjcf(config)`` prints the file for MuJoCo's own viewer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from math import atan, cos, isfinite, pi, sin, tan
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.core.checks import require, require_length
+from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.integrate import LEFT_CHART, OK
+from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
+from ilc_steering.core.profiles import InputProfile
+from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
+
+__all__ = ["MUJOCO_CAR", "MujocoCarConfig", "MujocoCarPlant", "ackermann", "bicycle_angle", "mjcf"]
+
+Array = npt.NDArray[np.float64]
+
+MUJOCO_CAR = PlantKind("mujoco_car", True, CAR.coordinates, CAR.inputs)
+"""A car (the library's configuration, rear axle first), stepped by MuJoCo."""
+SUBSTEPS = 2
+"""RK4 steps of the nominal closed loop over one control period (the adapter's prediction)."""
+STEER_JOINT_RANGE = 1.5
+"""[rad] the front wheels' hinge stops (past any wheel angle :func:`ackermann` asks within the limit)."""
+WHEEL_HALF_WIDTH = 0.4
+"""A wheel's half-width, in wheel radii."""
+MASS_RANGE = (0.01, 100.0)
+"""[kg] the chassis' mass a config may give."""
+MAX_FRICTION = 5.0
+"""The largest tyre-floor friction coefficient a config may give [-]."""
+MAX_FRICTION_SPREAD = 1.0
+"""The largest relative spread of the wheels' friction per trial [-]."""
+TIMESTEP_RANGE = (1e-4, 5e-3)
+"""[s] MuJoCo's step a config may give."""
+MAX_CONTACT_TIME = 0.1
+"""[s] the softest contact (MuJoCo's ``solref`` time constant) a config may give."""
+MAX_STEPS_PER_PERIOD = 1000
+"""The most MuJoCo steps in one control period."""
+
+
+def ackermann(phi: float, wheelbase: float, track: float) -> tuple[float, float]:
+    r"""The left and right front wheels' angles [rad] of a bicycle angle ``phi`` [rad] (Ackermann:
+    both wheels' axes through the turn's centre on the rear axle, :math:`\cot\delta_{l,r} =
+    \cot\phi \mp w / (2\ell)`), for ``wheelbase`` ``ell`` and ``track`` ``w`` [m]."""
+    t = tan(phi)
+    half = 0.5 * track
+    return atan(wheelbase * t / (wheelbase - half * t)), atan(wheelbase * t / (wheelbase + half * t))
+
+
+def bicycle_angle(left: float, right: float, wheelbase: float, track: float) -> float:
+    """The bicycle angle ``phi`` [rad] of measured front wheel angles [rad] (:func:`ackermann`
+    inverted for each wheel, averaged)."""
+    half = 0.5 * track
+    tl, tr = tan(left), tan(right)
+    return 0.5 * (atan(wheelbase * tl / (wheelbase + half * tl)) + atan(wheelbase * tr / (wheelbase - half * tr)))
+
+
+_MJCF = """<mujoco model="ilc_steering car">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{timestep}" integrator="implicitfast" cone="elliptic"/>
+  <default>
+    <geom contype="0" conaffinity="0"/>
+    <default class="wheel">
+      <geom type="ellipsoid" size="{rho} {rho} {half_width}" zaxis="0 1 0" mass="{wheel_mass}" contype="1"
+            conaffinity="0" friction="{friction} 0 0" condim="3" solref="{contact_time} 1"/>
+    </default>
+  </default>
+  <worldbody>
+    <geom name="floor" type="plane" size="0 0 1" conaffinity="1" friction="0 0 0" solref="{contact_time} 1"/>
+    <body name="chassis" pos="0 0 {rho}">
+      <freejoint name="root"/>
+      <geom name="body" type="box" pos="{body_x} 0 {body_z}" size="{body_half} {body_width} 0.008" mass="{mass}"/>
+      <body name="rear_left" pos="0 {half_track} 0">
+        <joint name="rear_left" axis="0 1 0" armature="{drive_armature}"/>
+        <geom name="rear_left" class="wheel"/>
+      </body>
+      <body name="rear_right" pos="0 -{half_track} 0">
+        <joint name="rear_right" axis="0 1 0" armature="{drive_armature}"/>
+        <geom name="rear_right" class="wheel"/>
+      </body>
+      <body name="steer_left" pos="{ell} {half_track} 0">
+        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
+        <joint name="steer_left" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
+        <body name="front_left">
+          <joint name="front_left" axis="0 1 0"/>
+          <geom name="front_left" class="wheel"/>
+        </body>
+      </body>
+      <body name="steer_right" pos="{ell} -{half_track} 0">
+        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
+        <joint name="steer_right" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
+        <body name="front_right">
+          <joint name="front_right" axis="0 1 0"/>
+          <geom name="front_right" class="wheel"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <position name="steer_left" joint="steer_left" kp="{steer_kp}" dampratio="1"/>
+    <position name="steer_right" joint="steer_right" kp="{steer_kp}" dampratio="1"/>
+    <velocity name="drive_left" joint="rear_left" kv="{drive_kv}" forcerange="-{drive_torque} {drive_torque}"/>
+    <velocity name="drive_right" joint="rear_right" kv="{drive_kv}" forcerange="-{drive_torque} {drive_torque}"/>
+  </actuator>
+</mujoco>
+"""
+WHEELS = ("rear_left", "rear_right", "front_left", "front_right")
+"""The wheels' geom names, in the order of a trial's logged friction coefficients."""
+# The robot's build, beside its config keys: a 1 kg chassis on 30 g wheels, motors through gearboxes.
+WHEEL_MASS = 0.03
+"""[kg] each wheel."""
+DRIVE_KV = 0.05
+"""[N m s/rad] the rear wheels' velocity servo gain (torque per rad/s of speed error)."""
+DRIVE_TORQUE = 0.1
+"""[N m] the rear motors' torque limit."""
+DRIVE_ARMATURE = 1e-5
+"""[kg m²] the drive gearbox's reflected inertia on each rear wheel's axle."""
+STEER_KP = 20.0
+"""[N m/rad] the steering servos' stiffness (critically damped)."""
+STEER_ARMATURE = 1e-4
+"""[kg m²] the steering gearbox's reflected inertia on each kingpin."""
+
+
+def mjcf(config: MujocoCarConfig) -> str:
+    """The car's MJCF (MuJoCo's XML) for ``config``: its geometry, contact and build (see the module)."""
+    ell, rho = config.wheelbase, config.wheel_radius
+    return _MJCF.format(
+        timestep=config.timestep,
+        rho=rho,
+        half_width=WHEEL_HALF_WIDTH * rho,
+        wheel_mass=WHEEL_MASS,
+        friction=config.friction,
+        contact_time=config.contact_time,
+        body_x=0.5 * ell,
+        body_z=0.5 * rho,
+        body_half=0.65 * ell,
+        body_width=0.5 * config.track - 0.6 * rho,
+        mass=config.mass,
+        half_track=0.5 * config.track,
+        ell=ell,
+        steer_range=STEER_JOINT_RANGE,
+        drive_armature=DRIVE_ARMATURE,
+        steer_armature=STEER_ARMATURE,
+        steer_kp=STEER_KP,
+        drive_kv=DRIVE_KV,
+        drive_torque=DRIVE_TORQUE,
+    )
+
+
+def _load_mujoco() -> Any:
+    try:
+        import mujoco
+    except ImportError:
+        raise ValueError('mujoco_car needs MuJoCo: pip install "ilc-steering[mujoco]"') from None
+    return mujoco
+
+
+class _Sim:
+    """MuJoCo's model and data of one plant, with the addresses the adapter reads and writes."""
+
+    def __init__(self, config: MujocoCarConfig) -> None:
+        mujoco = _load_mujoco()
+        self.mujoco = mujoco
+        self.model = mujoco.MjModel.from_xml_string(mjcf(config))
+        self.data = mujoco.MjData(self.model)
+        model = self.model
+        self.chassis = model.body("chassis").id
+        self.steer = [model.joint(name).qposadr[0] for name in ("steer_left", "steer_right")]
+        self.wheels = [model.geom(name).id for name in WHEELS]
+        self.height = self._settle(config)
+
+    def _settle(self, config: MujocoCarConfig) -> float:
+        """The chassis' height [m] at rest on its tyres (they sink into the soft floor): the car is
+        dropped from ``rho`` and held still for 0.5 s, once per plant."""
+        mujoco, data = self.mujoco, self.data
+        mujoco.mj_resetData(self.model, data)
+        mujoco.mj_step(self.model, data, nstep=round(0.5 / config.timestep))
+        return float(data.qpos[2])
+
+
+@dataclass
+class _Shared:
+    """What a plant and its copies in other frames share: the simulator (made on first use), the
+    scatter's generator and the counts of trials run and of MuJoCo steps taken."""
+
+    sims: list[_Sim] = field(default_factory=list)
+    rng: list[np.random.Generator] = field(default_factory=list)
+    trials: int = 0
+    steps: int = 0
+
+
+@dataclass(frozen=True)
+class MujocoCarPlant(ExternalPlantBase):
+    """The MuJoCo car of ``config``, reporting the library's configuration in the task frame (the
+    world rotated by ``frame`` [rad]). See the module for the adapter and the scatter."""
+
+    kind: ClassVar[PlantKind] = MUJOCO_CAR
+    factor_names: ClassVar[tuple[str, str]] = ("wheelbase_ratio", "wheel_radius_ratio")
+    name: ClassVar[str] = "the MuJoCo car"
+    state_dim: ClassVar[int] = 4
+    config: MujocoCarConfig
+    frame: float = 0.0
+    shared: _Shared = field(default_factory=_Shared, compare=False, repr=False)
+    """The simulator, the scatter's generator (seeded by ``config.seed``) and the counts."""
+
+    @property
+    def steering_limit(self) -> float:
+        return self.config.steering_limit
+
+    @property
+    def sim(self) -> _Sim:
+        """MuJoCo's model and data of this car (made on first use)."""
+        if not self.shared.sims:
+            self.shared.sims.append(_Sim(self.config))
+        return self.shared.sims[0]
+
+    def with_frame(self, angle: float) -> MujocoCarPlant:
+        return replace(self, frame=float(angle), shared=self.shared)
+
+    def configuration(self, x: Array) -> Array:
+        return np.array(x, dtype=np.float64)
+
+    def estimate(self, x: Array) -> Array:
+        return np.array(x, dtype=np.float64)
+
+    def initial_state(self, q: Array) -> Array:
+        return np.array(q, dtype=np.float64)
+
+    def check_configuration(self, q: Array) -> None:
+        check_chart(q)
+        check_magnitude(q)
+        check_angles(q, "|theta| and |phi|")
+        check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
+
+    def draw_friction(self) -> Array:
+        """The wheels' friction coefficients of the next trial (:data:`WHEELS` order): ``friction``
+        times a log-normal factor of relative spread ``friction_spread``, from the seeded generator."""
+        config = self.config
+        if not config.friction_spread:
+            return np.full(len(WHEELS), config.friction)
+        if not self.shared.rng:
+            self.shared.rng.append(np.random.default_rng(config.seed))
+        return config.friction * np.exp(config.friction_spread * self.shared.rng[0].standard_normal(len(WHEELS)))
+
+    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
+        total = sum(profile.durations)
+        period = self.config.control_period
+        periods = round(total / period)
+        require(
+            abs(periods * period - total) < 1e-9,
+            "task.pieces",
+            f"must add up to a whole number of the MuJoCo car's {period} s control periods, got {total} s",
+        )
+        outcomes = [self._trial(profile, x0[b], c[b], periods) for b in range(c.shape[0])]
+        final = np.array([o[0] for o in outcomes])
+        status = np.array([o[1] for o in outcomes], dtype=np.int64)
+        logs = [o[3] for o in outcomes]
+        if not record:
+            return ExternalTrials(final, status, logs=logs)
+        times = period * np.arange(periods + 1, dtype=np.float64)
+        return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
+
+    def _measure(self, sim: _Sim) -> Array:
+        """The car's configuration in the task frame: the rear axle's midpoint [m], the chassis'
+        heading wrapped to ``(-pi, pi]`` and the linkage's bicycle angle [rad]."""
+        data, config = sim.data, self.config
+        x, y = data.xpos[sim.chassis, :2]
+        r = data.xmat[sim.chassis]
+        phi = bicycle_angle(data.qpos[sim.steer[0]], data.qpos[sim.steer[1]], config.wheelbase, config.track)
+        q = rotate(np.array([x, y, np.arctan2(r[3], r[0]), phi]), self.frame)
+        q[2] = np.angle(np.exp(1j * q[2]))
+        return q
+
+    def _place(self, sim: _Sim, q: Array) -> None:
+        """The car at rest at world configuration ``q``, its tyres sunk to their resting depth."""
+        mujoco, model, data, config = sim.mujoco, sim.model, sim.data, self.config
+        mujoco.mj_resetData(model, data)
+        data.qpos[:3] = q[0], q[1], sim.height
+        data.qpos[3:7] = cos(0.5 * q[2]), 0.0, 0.0, sin(0.5 * q[2])
+        wheels = ackermann(float(q[3]), config.wheelbase, config.track)
+        data.qpos[sim.steer] = wheels
+        data.ctrl[:2] = wheels
+        mujoco.mj_forward(model, data)
+
+    def _trial(
+        self, profile: InputProfile, x0: Array, c: Array, periods: int
+    ) -> tuple[Array, int, Array, dict[str, Any]]:
+        sim, config = self.sim, self.config
+        friction = self.draw_friction()
+        sim.model.geom_friction[sim.wheels, 0] = friction
+        self._place(sim, rotate(x0, -self.frame))
+        self.shared.trials += 1
+        period, limit = config.control_period, config.steering_limit
+        ell, half = config.wheelbase, 0.5 * config.track
+        nstep = round(period / config.timestep)
+        # every RK4 stage falls on a half step: the inputs of the whole trial in one call
+        h = period / SUBSTEPS
+        v1s, v2s = profile.evaluate(c, 0.5 * h * np.arange(2 * SUBSTEPS * periods + 1, dtype=np.float64))
+        q = self._measure(sim)
+        states = [q]
+        status, halted = OK, q
+        command = float(x0[3])  # the steering command the adapter integrates from u2 (the servo's state)
+        for k in range(periods):
+            if status == OK and abs(q[2]) >= pi / 2 - CHART_MARGIN:
+                status, halted = LEFT_CHART, states[-2] if len(states) > 1 else q
+            if status == OK:
+                acted_on = np.array([q[0], q[1], q[2], command])
+                command, u1, phi_mid = self._follow(v1s, v2s, 2 * SUBSTEPS * k, acted_on)
+                spin = half * tan(phi_mid) / ell  # the electronic differential: each wheel rolls on the turn
+                left, right = ackermann(min(max(command, -limit), limit), ell, config.track)
+                sim.data.ctrl[:] = left, right, u1 * (1 - spin), u1 * (1 + spin)
+            else:  # out of the chart, eqs. 4-5 break down: stop the wheels, hold the steering
+                sim.data.ctrl[2:] = 0.0
+            sim.mujoco.mj_step(sim.model, sim.data, nstep=nstep)
+            self.shared.steps += nstep
+            q = self._measure(sim)
+            states.append(q)
+        final = q if status == OK else halted
+        log = {"seed": config.seed, "friction": friction.tolist()}
+        return final, status, np.array(states), log
+
+    def _follow(self, v1s: Array, v2s: Array, first: int, q: Array) -> tuple[float, float, float]:
+        """The nominal closed loop (eqs. 3-5, nominal geometry, the wheel at the stop beyond
+        ``steering_limit`` while the command winds on) from ``q`` (its ``phi`` the adapter's
+        steering command) over one control period by RK4, the inputs from ``v1s[first:]``: the
+        steering command at the end [rad], the rear wheels' speed ``u1`` of eq. 5 [rad/s] and the
+        steering angle [rad] at mid-period."""
+        config = self.config
+        ell, rho, limit = config.wheelbase, config.wheel_radius, config.steering_limit
+        h = config.control_period / SUBSTEPS
+
+        def field_(i: int, x: Array) -> Array:
+            phi = min(max(x[3], -limit), limit)
+            u1, u2 = chained_inputs(x[2], phi, float(v1s[first + i]), float(v2s[first + i]), ell, rho)
+            return np.array(car_velocity(x[2], phi, u1, u2, ell, rho))
+
+        x, u1, phi_mid = q.copy(), 0.0, float(q[3])
+        for i in range(SUBSTEPS):
+            if i == SUBSTEPS // 2:
+                phi_mid = min(max(float(x[3]), -limit), limit)
+                u1 = float(chained_inputs(x[2], phi_mid, float(v1s[first + 2 * i]), 0.0, ell, rho)[0])
+            k1 = field_(2 * i, x)
+            k2 = field_(2 * i + 1, x + h / 2 * k1)
+            k3 = field_(2 * i + 1, x + h / 2 * k2)
+            k4 = field_(2 * i + 2, x + h * k3)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return float(x[3]), u1, phi_mid
+
+
+@dataclass(frozen=True)
+class MujocoCarConfig:
+    """The MuJoCo car's config keys (``plant.model: mujoco_car``)."""
+
+    model: Literal["mujoco_car"]
+    wheelbase: float  # ell [m]: the MJCF's and the controller's
+    wheel_radius: float  # rho [m]: the MJCF's and the controller's
+    track: float = 0.12  # [m] between the wheels of an axle
+    mass: float = 1.0  # [kg] the chassis (the four wheels add 0.12 kg)
+    steering_limit: float = 1.2  # [rad] the linkage's stop, as a bicycle angle
+    friction: float = 1.0  # tyre-floor Coulomb friction coefficient [-]
+    friction_spread: float = 0.0  # relative spread of each wheel's friction, drawn per trial [-]; 0: none
+    contact_time: float = 0.005  # [s] MuJoCo's contact time constant (solref): the tyres' softness
+    timestep: float = 0.001  # [s] MuJoCo's step
+    control_period: float = 0.01  # [s] the adapter measures and commands once per period
+    seed: int = 0  # the scatter's generator (friction_spread)
+
+    kind: ClassVar[PlantKind] = MUJOCO_CAR
+    plant_class: ClassVar[type] = MujocoCarPlant
+    dimension: ClassVar[int] = 4
+
+    def __post_init__(self) -> None:
+        require_length("wheelbase", self.wheelbase)
+        require_length("wheel_radius", self.wheel_radius)
+        require_length("track", self.track)
+        require(
+            self.track >= 4 * WHEEL_HALF_WIDTH * self.wheel_radius,
+            "track",
+            f"must leave room for the chassis between the wheels (at least {4 * WHEEL_HALF_WIDTH:g} wheel_radius "
+            f"= {4 * WHEEL_HALF_WIDTH * self.wheel_radius:g} m), got {self.track}",
+        )
+        low, high = MASS_RANGE
+        require(
+            isfinite(self.mass) and low <= self.mass <= high, "mass", f"must be in [{low}, {high}] kg, got {self.mass}"
+        )
+        limit = self.steering_limit
+        require(
+            isfinite(limit) and 0 < limit < pi / 2 and self._inner_wheel(limit) < STEER_JOINT_RANGE,
+            "steering_limit",
+            f"must be in (0, pi/2) rad with the inner front wheel inside its hinge's {STEER_JOINT_RANGE} rad stop "
+            f"(Ackermann with wheelbase {self.wheelbase} m and track {self.track} m), got {limit}",
+        )
+        friction = self.friction
+        require(
+            isfinite(friction) and 0 < friction <= MAX_FRICTION,
+            "friction",
+            f"must be in (0, {MAX_FRICTION}], got {friction}",
+        )
+        spread = self.friction_spread
+        require(
+            isfinite(spread) and 0 <= spread <= MAX_FRICTION_SPREAD,
+            "friction_spread",
+            f"must be in [0, {MAX_FRICTION_SPREAD}], got {spread}",
+        )
+        low, high = TIMESTEP_RANGE
+        require(
+            isfinite(self.timestep) and low <= self.timestep <= high,
+            "timestep",
+            f"must be in [{low}, {high}] s, got {self.timestep}",
+        )
+        require(
+            isfinite(self.contact_time) and 2 * self.timestep <= self.contact_time <= MAX_CONTACT_TIME,
+            "contact_time",
+            f"must be in [2 * timestep, {MAX_CONTACT_TIME}] = [{2 * self.timestep}, {MAX_CONTACT_TIME}] s "
+            f"(a stiffer contact than two steps MuJoCo cannot resolve), got {self.contact_time}",
+        )
+        steps = self.control_period / self.timestep
+        require(
+            isfinite(steps) and 1 <= round(steps) <= MAX_STEPS_PER_PERIOD and abs(steps - round(steps)) < 1e-9,
+            "control_period",
+            f"must be a whole number (1-{MAX_STEPS_PER_PERIOD}) of MuJoCo steps of {self.timestep} s, "
+            f"got {self.control_period}",
+        )
+        require(
+            isinstance(self.seed, int) and 0 <= self.seed < 2**31, "seed", f"must be in [0, 2**31), got {self.seed}"
+        )
+
+    def _inner_wheel(self, phi: float) -> float:
+        """The inner front wheel's angle [rad] at bicycle angle ``phi`` [rad] (``inf`` past 90°)."""
+        if 0.5 * self.track * tan(phi) >= self.wheelbase:
+            return float("inf")
+        return ackermann(phi, self.wheelbase, self.track)[0]
+
+    def nominal_map(self) -> CarModel:
+        """The geometry the controller assumes: the MJCF's wheelbase and wheel radius."""
+        return CarModel(self.wheelbase, self.wheel_radius)
+
+    def plant(self) -> MujocoCarPlant:
+        return MujocoCarPlant(self)
+
+    def check_task(self, max_step: float, cyclic: bool) -> None:
+        """Nothing between these keys and the rest of the config (``run_trials`` checks the pieces)."""

@@ -1,0 +1,158 @@
+"""A whole scenario: :class:`SteeringConfig`, its sections and the robot's config keys, with the
+checks that span keys (dimensions, tolerances, the task's chart, the time grid, eq. 12's travel)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ilc_steering.config.sections import (
+    CyclicTaskConfig,
+    LearningConfig,
+    SegmentConfig,
+    SimulationConfig,
+    TaskConfig,
+    domain,
+    require,
+)
+from ilc_steering.core.grid import check_grid
+from ilc_steering.core.plants import PlantConfig
+from ilc_steering.core.robots.car import frame_angle, rotate
+from ilc_steering.schema import show
+
+__all__ = ["MIN_TRAVEL", "SteeringConfig"]
+
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}")
+MIN_TRAVEL = 1e-3
+"""[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``:
+below it ``W`` is all but singular and the ``c11`` box all but zero wide."""
+
+
+@dataclass(frozen=True)
+class SteeringConfig:
+    name: str
+    plant: PlantConfig  # plant.model names a robot of ilc_steering.core.robots, whose config class has the rest
+    task: TaskConfig | CyclicTaskConfig
+    learning: LearningConfig
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)
+
+    @property
+    def is_cyclic(self) -> bool:
+        return isinstance(self.task, CyclicTaskConfig)
+
+    def points(self) -> list[tuple[str, tuple[float, ...]]]:
+        """The task's configurations with their keys: start and goal, or the waypoints."""
+        if isinstance(self.task, CyclicTaskConfig):
+            return [(f"task.waypoints[{i}]", w) for i, w in enumerate(self.task.waypoints)]
+        return [("task.start", self.task.start), ("task.goal", self.task.goal)]
+
+    def legs(self) -> list[tuple[str, TaskConfig | SegmentConfig]]:
+        """One (key, segment) per trial of a cycle: the task itself for a one-trial task."""
+        if isinstance(self.task, CyclicTaskConfig):
+            many = len(self.task.segments) > 1
+            return [
+                (f"task.segments[{i if many else 0}]", self.task.segment(i)) for i in range(len(self.task.waypoints))
+            ]
+        return [("task", self.task)]
+
+    def frame(self) -> float:
+        """The rotation [rad] of the task frame (:func:`~ilc_steering.core.robots.car.frame_angle`, computed once,
+        on loading); 0 without a pose."""
+        frame: float = self.__dict__["_frame"]
+        return frame
+
+    def __post_init__(self) -> None:
+        require(
+            bool(_NAME.fullmatch(self.name)),
+            "name",
+            f"must be 1-100 letters, digits, '_', '-' or '.', starting with a letter or digit (it names output files), "
+            f"got {show(self.name)}",
+        )
+        n = self.plant.dimension
+        for key in ("measurement_noise", "start_error"):
+            noise = getattr(self.simulation, key)
+            require(
+                noise is None or len(noise) == n,
+                f"simulation.{key}",
+                f"needs one sigma per coordinate ({n} for plant.model {self.plant.model}), got {len(noise or ())}",
+            )
+        points = self.points()
+        for key, point in points:
+            require(len(point) == n, key, f"needs {n} values for plant.model {self.plant.model}, got {len(point)}")
+        tolerance = self.learning.tolerance
+        if self.plant.kind.has_pose:
+            require(
+                tolerance.cartesian is not None and tolerance.orientation is not None and tolerance.error is None,
+                "learning.tolerance",
+                f"a {self.plant.model} needs {{cartesian: [m], orientation: [rad]}} "
+                "and no error (that is for chained plants)",
+            )
+        else:
+            require(
+                tolerance.error is not None and tolerance.cartesian is None and tolerance.orientation is None,
+                "learning.tolerance",
+                "a chained plant needs {error: ...} alone (it has no Cartesian or orientation error)",
+            )
+        frame = 0.0
+        if self.plant.kind.has_pose:
+            with domain(points[-1][0]):
+                frame = frame_angle(*(point[2] for _, point in points))
+            if isinstance(self.task, TaskConfig) and self.task.frame is not None:
+                frame = self.task.frame  # the points' chart is checked in it below
+        object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
+        plant = self.plant.plant()
+        with domain("plant", prefix="plant."):
+            self.plant.check_task(self.simulation.max_step, self.is_cyclic)
+        task_points = []
+        for key, point in points:
+            with domain(key, {"phi": key, "configuration": key}):
+                q = np.array(point, dtype=np.float64)
+                task_points.append(rotate(q, frame) if self.plant.kind.has_pose else q)
+                plant.check_configuration(task_points[-1])
+        cost = self.learning.cost
+        if cost != "none":
+            require(not self.is_cyclic, "learning.cost", "is for one-trial tasks (the cyclic law has none)")
+            require(
+                cost != "steering_margin" or self.plant.steering_limit is not None,
+                "learning.cost",
+                "steering_margin needs a robot with plant.steering_limit (a car, a car_trailer)",
+            )
+            require(
+                self.legs()[0][1].v2_terms > n - 1,
+                "learning.cost",
+                f"{cost} needs task.v2_terms > n - 1 = {n - 1}, spare coefficients for a null space of W",
+            )
+        chained_map = self.plant.nominal_map()
+        z1 = []
+        for (key, _), q in zip(points, task_points):
+            with domain(key):
+                z1.append(float(np.asarray(chained_map.to_chained(q), dtype=np.float64)[..., 0]))
+        for i, (key, leg) in enumerate(self.legs()):
+            require(
+                leg.v2_terms >= n - 1,
+                f"{key}.v2_terms",
+                f"needs q >= n - 1 = {n - 1} to reach every z_b (section 3), got {leg.v2_terms}",
+            )
+            with domain(f"{key}.pieces", {"max_step": "simulation.max_step"}):
+                check_grid(leg.pieces, self.simulation.max_step)
+            require(  # a step across a switch of the inputs would blur the switch the learning law relies on
+                self.simulation.max_step <= min(leg.pieces),
+                "simulation.max_step",
+                f"{self.simulation.max_step} s is longer than the shortest piece of {key} ({min(leg.pieces)} s); "
+                "give a step at most as long as every piece",
+            )
+            # eq. 12 sets the learned v1 from the change of z1 (x in the task frame for the car, section
+            # 2.1; whatever the robot's chained map makes it for another robot)
+            z1_change = z1[(i + 1) % len(points)] - z1[i]
+            ramp = leg.ramp or 0.0  # a trapezoid's area is its plateau times (Delta - ramp)
+            fixed = sum(v * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            travel = abs(z1_change - fixed) + sum(abs(v) * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            require(
+                travel > MIN_TRAVEL,
+                f"{key}.v1_fixed",
+                f"the start and goal share z1 (the chained form's first coordinate; x in the task frame for a car): "
+                f"v1 covers only {travel:.3g} along z1, so W is singular (eq. 11); add a piece with a nonzero "
+                "fixed v1, as in the paper's parallel parking",
+            )

@@ -1,0 +1,102 @@
+"""Code named by a string ``module:attr``: a robot's config class, a learner's factory, a plugin.
+
+One loader and one search rule for all of them, on the lowest floor so that every floor uses it:
+
+- ``module`` is an import name (``my_robot``, ``mypkg.mod``), ``attr`` a name in it, dotted for a
+  nested one (``module:Class.make``, as in an entry point);
+- a user's module is found on the path, then in the **working directory**, then in the **folder
+  of the config** that names it (both appended to ``sys.path``, last, so that they shadow nothing
+  installed; spawned workers inherit the path);
+- whatever goes wrong (not of that form, a file's path given, the module does not import or its
+  own code raises, no such attribute) is a one-line ``ValueError`` that starts with ``who`` (the
+  option or config key that named it) and says what to give instead: the user's code is named,
+  never the library's.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from collections.abc import Iterable
+from importlib import import_module, invalidate_caches
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+__all__ = ["ENTRY", "load_entry", "search_folders"]
+
+ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_][\w.]*")
+"""The form of an entry: ``module:attr``, both dotted names."""
+
+
+def search_folders(folders: Iterable[str | os.PathLike[str]] = ()) -> None:
+    """Put the working directory, then each of ``folders`` (a config's folder), on ``sys.path``,
+    last, where a user's module beside them is found and nothing installed is shadowed."""
+    for folder in (os.getcwd(), *(os.fspath(Path(f).resolve()) for f in folders)):
+        if folder not in sys.path and not (folder == os.getcwd() and "" in sys.path):
+            sys.path.append(folder)
+
+
+def load_entry(entry: str, who: str, folders: Iterable[str | os.PathLike[str]] = (), example: str = "make") -> Any:
+    """The object ``entry`` (``module:attr``) names, its module imported now, the working directory
+    and ``folders`` searched last (:func:`search_folders`). ``ValueError`` starting with ``who`` if
+    it is not of that form (``example`` is the attribute the message suggests), cannot be imported
+    (the module's own code raised, named as such) or has no such attribute."""
+    if not isinstance(entry, str):
+        raise ValueError(f"{who}: give module:attr as a string, got {type(entry).__name__}")
+    module_name, colon, attr = entry.partition(":")
+    if module_name.endswith(".py") or "/" in module_name or "\\" in module_name:
+        stem = module_name.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".py")
+        raise ValueError(
+            f"{who} {entry}: give the module's import name, not its file: {stem}:{attr or example} "
+            f"for {stem}.py in the working directory or the config's folder (or a package's dotted name)"
+        )
+    if (
+        not colon
+        or not ENTRY.fullmatch(entry)
+        or not all(p.isidentifier() for p in (*module_name.split("."), *attr.split(".")))
+    ):
+        raise ValueError(
+            f"{who} {entry}: give module:attr, a module's import name and a name in it, e.g. my_module:{example}"
+        )
+    folders = list(folders)
+    search_folders(folders)
+    invalidate_caches()  # a module written since this process started is found
+    try:
+        target: Any = import_module(module_name)
+    except ModuleNotFoundError as error:
+        if error.name is not None and (module_name + ".").startswith(error.name + "."):
+            where = ", ".join(
+                [f"the working directory ({os.getcwd()})", *(f"the config's folder ({f})" for f in folders)]
+            )
+            raise ValueError(
+                f"{who} {entry}: cannot import it: no module {error.name!r} in {where} or on the path"
+            ) from None
+        raise ValueError(f"{who} {entry}: cannot import it: importing it raised ModuleNotFoundError: {error}") from None
+    except BaseException as error:  # the user's module: SyntaxError, its own error, even SystemExit
+        if isinstance(error, KeyboardInterrupt):
+            raise
+        problem = " ".join(str(error).split())[:300]
+        raise ValueError(
+            f"{who} {entry}: cannot import it: importing it raised {type(error).__name__}: {problem}"
+        ) from None
+    module = target
+    for part in attr.split("."):
+        if not hasattr(target, part):
+            raise ValueError(f"{who} {entry}: cannot import it: {_missing(module, attr)}")
+        target = getattr(target, part)
+    return target
+
+
+def _missing(module: ModuleType, attr: str) -> str:
+    """That ``module`` (and its file) has no ``attr``, and, when an installed module of the same
+    top-level name came before the working directory's file of that name (the working directory is
+    searched last, so that it shadows nothing installed), so."""
+    text = f"module {module.__name__} ({getattr(module, '__file__', None) or 'built in'}) has no attribute {attr!r}"
+    top = module.__name__.split(".")[0]
+    found = getattr(sys.modules.get(top), "__file__", None)
+    for mine in (Path(top + ".py"), Path(top, "__init__.py")):
+        if mine.is_file() and (found is None or Path(found).resolve() != mine.resolve()):
+            return f"{text}; it is an installed module, found before your {mine} of the working directory: rename yours"
+    return text
