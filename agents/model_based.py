@@ -18,8 +18,10 @@ import numpy.typing as npt
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.scatter import FLOOR, MIN_SCATTER, estimate
 
 __all__ = [
+    "BAND",
     "Trial",
     "box",
     "broyden_update",
@@ -29,7 +31,10 @@ __all__ = [
     "levenberg_marquardt",
     "measure",
     "newton_solve",
+    "scatter_groups",
+    "trial_scatter",
     "trust_box",
+    "within_scatter",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -210,3 +215,43 @@ def gauss_newton(
         if not improved:
             break
     return c, r
+
+
+def scatter_groups(model: NominalModel) -> tuple[tuple[int, ...], ...]:
+    """The coordinates of a configuration whose scatter is pooled (:func:`ilc_steering.core.scatter.estimate`):
+    a pose's x and y [m], then its heading [rad]; without a pose, every chained coordinate."""
+    if getattr(model.chained_map, "has_pose", False):
+        return ((0, 1), (2,))
+    return (tuple(range(model.dimension)),)
+
+
+def trial_scatter(
+    family: ModelFamily, theta: Array, trials: list[Trial], groups: tuple[tuple[int, ...], ...]
+) -> Array | None:
+    """The plant's scatter per group [m or rad] from the residuals of ``trials`` against the family's
+    model ``theta`` (one batched simulation, no trial), or None: too few trials qualify, the errors
+    still fall, or the scatter is below :data:`~ilc_steering.core.scatter.MIN_SCATTER` (a plant that
+    repeats itself)."""
+    ok = [t for t in trials if t.ok]
+    if not ok:
+        return None
+    q, inside = family.configurations(theta, np.array([t.c for t in ok]))
+    residuals = np.where(inside[:, None], np.array([t.q for t in ok]) - q, np.nan)
+    found = estimate(residuals, np.array([t.error for t in ok]), groups)
+    if found is None or float(np.min(found[0])) < MIN_SCATTER:
+        return None
+    return found[0]
+
+
+def within_scatter(q: Array, goal_q: Array, sigma: Array, groups: tuple[tuple[int, ...], ...], factor: float) -> bool:
+    """Whether the configuration ``q`` is within ``factor`` times the scatter of ``goal_q`` in every
+    group (the norm of the group's error against ``factor * sigma * sqrt(len(group))``)."""
+    return all(
+        float(np.linalg.norm((q - goal_q)[list(g)])) <= factor * float(s) * np.sqrt(len(g))
+        for s, g in zip(sigma, groups)
+    )
+
+
+BAND = FLOOR
+"""A learner that knows the scatter averages once a trial lands within this many times it (per
+coordinate): there, what it measures is mostly the scatter, which no step can take back."""

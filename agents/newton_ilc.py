@@ -34,8 +34,25 @@ after each one:
    action scales of :math:`c_k`, projected onto the action box.
 4. **Fall-back.** When a trial did not reduce the measured error below the best so far, the
    next trial is eqs. 33-34 from the best trial (:class:`~ilc_steering.agents.ilc.ILCAgent`),
-   and :math:`D` is reset. When a trial left the chart, the next one halves its step from the
-   best trial (eqs. 33-34 from it if there is no best yet).
+   and :math:`D` is reset. When that fails too, the step from the best trial is halved, up to
+   :data:`FALLBACK_HALVINGS` times (unless the best trial is within :data:`REACHED`, where no
+   tolerance fails it); when the smallest step fails as well, the best trial's error was likely
+   a lucky draw of the plant's scatter, and the best trial itself is run again (a repeat it asks
+   for and counts, ``NewtonILC.repeats``): its measurements are averaged, and the learner goes
+   on from the mean. So no failed trial is sent again as it was. When a trial left the chart,
+   the next one halves its step from the best trial (eqs. 33-34 from it if there is no best yet).
+
+5. **The plant's scatter.** A robot that does not repeat itself scatters the final pose of one
+   action; chasing each draw passes it on whole into the next trial. Once the learner can
+   estimate the scatter :math:`\hat\sigma` from its trials' residuals against the refit model
+   (:func:`~ilc_steering.agents.model_based.trial_scatter`, :mod:`ilc_steering.core.scatter`)
+   and a trial lands within :data:`~ilc_steering.agents.model_based.BAND` times it, it averages:
+   the offset :math:`d` of step 3 is the mean of :math:`d_j` over the trials since it entered the
+   band, so the :math:`N`-th trial there moves by :math:`1/N` of a new draw (the shrinking gain of
+   stochastic-approximation ILC, Saab 2001; Butcher, Karimi, Longchamp 2008), :math:`D = 0`, and
+   no trial in the band is a failure to fall back from. A trial beyond twice the band (a change of
+   the plant, not a draw) ends the averaging. A plant that repeats itself (every packaged
+   noiseless config) has no scatter to estimate, and this step never runs.
 
 On the nominal plant :math:`\hat\theta = 0`, :math:`d = 0` and step 3 is an exact inversion:
 one update lands on the goal to the integrator's accuracy (``tests/test_newton_ilc.py``).
@@ -54,17 +71,21 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.model_based import (
+    BAND,
     Trial,
     broyden_update,
     law_step,
     levenberg_marquardt,
     newton_solve,
+    scatter_groups,
+    trial_scatter,
     trust_box,
+    within_scatter,
 )
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["TRUST_RADIUS", "NewtonILC", "make_newton_ilc"]
+__all__ = ["FALLBACK_HALVINGS", "TRUST_RADIUS", "NewtonILC", "make_newton_ilc"]
 
 Array = npt.NDArray[np.float64]
 
@@ -72,6 +93,11 @@ TRUST_RADIUS = 2.0
 """The largest step of one update, in units of ``NominalModel.action_scale()`` per coefficient."""
 RIDGE = 1e-4
 """[m or rad per unit of theta] the weight that pulls ``theta`` to 0 where the trials say nothing."""
+FALLBACK_HALVINGS = 3
+"""Failed fall-backs in a row, each with half the last one's step, before the best trial is run again."""
+REACHED = 1e-10
+"""[m and rad] a best trial this near the goal is at the integrator's accuracy: no tolerance fails it,
+and its fall-back is run as it is, however often."""
 _FIT_ITERATIONS = 20
 _SOLVE_ITERATIONS = 20
 
@@ -125,6 +151,13 @@ class NewtonILC:
         self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
         self._previous: Trial | None = None  # the last trial of the secant, None after a fall-back
+        self._failures = 0  # trials in a row not better than the best
+        self._measured: list[Trial] = []  # the best trial's measurements, when it was run again
+        self.repeats = 0
+        """Trials that ran the best trial's coefficients again, by the learner's choice (see the module)."""
+        self.scatter: npt.NDArray[np.float64] | None = None
+        """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
+        self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 5)
         self._next = self.start.copy()
 
     def act(self, observation: Any = None) -> Array:
@@ -147,16 +180,63 @@ class NewtonILC:
         q = self.family.to_configuration(z)
         trial = Trial(c, z, q, float(np.linalg.norm(q - self._goal_q)))
         self._trials.append(trial)
-        if self._best is not None and trial.error >= self._best.error:
-            self._next = self._fallback(self._best)
+        if self._averaging(trial):
+            self._failures, self._measured = 0, []
+            self._best = trial
+            if self.identify:
+                self.theta = self._fit(self.theta)
             self._D[:] = 0.0
             self._previous = None
+            z_model, ok = self._final_z(np.array([t.c for t in self._band]))
+            self._next = self._newton(trial, np.mean((np.array([t.z for t in self._band]) - z_model)[ok], axis=0))
+            self.update_seconds.append(time.perf_counter() - began)
             return
+        best = self._best
+        if best is not None and self._measured and np.array_equal(c, best.c):
+            trial = self._mean(trial)  # the repeat it asked for: the best trial, measured once more
+        elif best is not None and trial.error >= best.error:
+            self._failures += 1
+            self._D[:] = 0.0
+            self._previous = None
+            if self._failures == 1 or best.error < REACHED:
+                self._next = self._fallback(best)
+            elif self._failures <= FALLBACK_HALVINGS + 1:
+                self._next = best.c + 0.5 ** (self._failures - 1) * (self._fallback(best) - best.c)
+            else:  # the smallest step failed too: the best trial's error may be the scatter's luck
+                self._measured = self._measured or [best]
+                self._failures = 0
+                self.repeats += 1
+                self._next = best.c.copy()
+            return
+        else:
+            self._measured = []
+        self._failures = 0
         self._best = trial
         if self.identify:
             self.theta = self._fit(self.theta)
         self._next = self._newton(trial)
         self.update_seconds.append(time.perf_counter() - began)
+
+    def _averaging(self, trial: Trial) -> bool:
+        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 5)."""
+        groups = scatter_groups(self.model)
+        self.scatter = trial_scatter(self.family, self.theta, self._trials, groups)
+        if self.scatter is None:
+            self._band = []
+            return False
+        inside = within_scatter(trial.q, self._goal_q, self.scatter, groups, BAND)
+        if inside or (self._band and within_scatter(trial.q, self._goal_q, self.scatter, groups, 2 * BAND)):
+            self._band.append(trial)
+            return True
+        self._band = []
+        return False
+
+    def _mean(self, trial: Trial) -> Trial:
+        """The best trial with ``trial``, a repeat of it, among its measurements: their mean."""
+        self._measured.append(trial)
+        z = np.mean([t.z for t in self._measured], axis=0)
+        q = self.family.to_configuration(z)
+        return Trial(trial.c, z, q, float(np.linalg.norm(q - self._goal_q)))
 
     def _fallback(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``."""
@@ -178,10 +258,13 @@ class NewtonILC:
         bound = np.full(theta.size, MAX_LOG_RATIO)
         return levenberg_marquardt(residuals, theta, -bound, bound, _FIT_ITERATIONS)[0]
 
-    def _newton(self, trial: Trial) -> Array:
-        """Solve ``F(c; theta) + d + D (c - c_k) = z^d`` for the next ``c`` from ``c_k``."""
+    def _newton(self, trial: Trial, offset: Array | None = None) -> Array:
+        """Solve ``F(c; theta) + d + D (c - c_k) = z^d`` for the next ``c`` from ``c_k``; ``d`` is
+        ``offset`` when given (step 5's mean), else the trial's own."""
         z_model, ok = self._final_z(trial.c[None])
         d = trial.z - z_model[0] if ok[0] else np.zeros_like(trial.z)
+        if offset is not None and np.all(np.isfinite(offset)):
+            d = offset
         previous = self._previous
         if self.secant and previous is not None:
             z_prev, ok_prev = self._final_z(previous.c[None])

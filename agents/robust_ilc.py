@@ -44,6 +44,15 @@ each trial's measured final error, never the plant) and globalizes each of the t
    :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
    halted trial), so that the first in-chart trial identifies the plant.
 
+4. **The plant's scatter.** As ``newton_ilc`` (its step 5): once the scatter can be estimated
+   from the trials' residuals against the refit model and a trial lands within
+   :data:`~ilc_steering.agents.model_based.BAND` times it, the learner averages. The offset
+   :math:`d` is the mean over the trials since it entered the band, :math:`D = 0`, no global
+   search runs, and the next trial is the refit model's Newton solution from the last one, with
+   no trust region: in the band the measured error is mostly the scatter's draw, and a trust
+   region on it would only freeze the learner at its luckiest trial. A trial beyond twice the
+   band ends the averaging. A plant that repeats itself never enters it.
+
 **Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0` and
 :math:`d = 0`: one update lands on the goal to the integrator's accuracy, as ``newton_ilc`` does
 (``tests/test_robust_ilc.py``). Inside a family (the geometry's, or a car's with its steering
@@ -71,6 +80,7 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.model_based import (
+    BAND,
     Trial,
     box,
     broyden_update,
@@ -80,6 +90,9 @@ from ilc_steering.agents.model_based import (
     levenberg_marquardt,
     measure,
     newton_solve,
+    scatter_groups,
+    trial_scatter,
+    within_scatter,
 )
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
@@ -185,6 +198,9 @@ class RobustILC:
         self._stalled = 0  # updates since the best error last halved
         self._thorough = True
         self._reach = 1.0  # the fraction of the way to the goal aimed at while no trial stays in the chart
+        self.scatter: Array | None = None
+        """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
+        self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
         self._next = self.start.copy()
 
     def act(self, observation: Any = None) -> Array:
@@ -198,6 +214,10 @@ class RobustILC:
         if ok and trial.error < REACHED and (self._best is None or trial.error <= self._best.error):
             # At the goal to the integrator's accuracy: nothing left to learn; run it again.
             self._best, self._next = trial, c.copy()
+            self.update_seconds.append(time.perf_counter() - began)
+            return
+        if ok and self._averaging(trial):
+            self._average(trial)
             self.update_seconds.append(time.perf_counter() - began)
             return
         improved = self._best is None or trial.error < 0.5 * self._best.error
@@ -236,6 +256,38 @@ class RobustILC:
             self._update_secant(trial)
             self._next = self._within(c, self._solve(trial, 1.0))
         self.update_seconds.append(time.perf_counter() - began)
+
+    # the scatter ---------------------------------------------------------------------------------
+
+    def _averaging(self, trial: Trial) -> bool:
+        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4)."""
+        groups = scatter_groups(self.model)
+        self.scatter = trial_scatter(self.family, self.theta, self._trials, groups)
+        if self.scatter is None:
+            self._band = []
+            return False
+        inside = within_scatter(trial.q, self._goal_q, self.scatter, groups, BAND)
+        if inside or (self._band and within_scatter(trial.q, self._goal_q, self.scatter, groups, 2 * BAND)):
+            self._band.append(trial)
+            return True
+        self._band = []
+        return False
+
+    def _average(self, trial: Trial) -> None:
+        """The next trial from the mean offset of the band's trials, on the refit model (step 4)."""
+        self._thorough = False  # a local refit: the scatter, not the family, is what is left
+        self.family, self.theta = self._identify()
+        self._D[:] = 0.0
+        self._previous = None
+        self._best = trial
+        c = np.array([t.c for t in self._band])
+        z, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
+        if not np.any(ok):
+            self._next = self._law(trial)
+            return
+        d = np.mean((np.array([t.z for t in self._band]) - z)[ok], axis=0)
+        next_c, g = self._newton(trial.c, self.theta, self.model.z_goal - d, self._D, trial.c)
+        self._next = self._box(next_c) if np.all(np.isfinite(g)) else self._law(trial)
 
     # identification -----------------------------------------------------------------------------
 

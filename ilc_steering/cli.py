@@ -4,7 +4,9 @@
 simulations. ``plot RUN.json`` draws the paper's figures of a run. ``compare`` runs (or resumes)
 the benchmark of ILC against RL and black-box learners. ``list`` shows the packaged configs.
 
-Exit codes (:data:`EXIT_CODES`): 0 converged (or done), 1 not converged, 2 bad input (a config,
+Exit codes (:data:`EXIT_CODES`): 0 converged (or done; ``run``: the last ``--hold`` trials within the
+tolerance), 1 not converged, 5 converged to the plant's floor (``run``: the tolerance is below the
+plant's repeatability, estimated from the trials, and the last trials are within that), 2 bad input (a config,
 an argument, a run file, an unusable output path: all checked before any trial runs), 3 an
 internal error (a bug of the library), 4 the user's code failed: in ``run``, a learner raised or
 acted with an action the env refused, or a plant failed (``plant.model: process``: the program hung,
@@ -29,6 +31,7 @@ from pathlib import Path
 from ilc_steering.agents.registry import REGISTRY
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
+from ilc_steering.core.scatter import FLOOR, HOLD
 from ilc_steering.errors import ConfigError, LearnerError, LimitError, PlantError
 from ilc_steering.output import check_output_dir, check_output_file, write_json
 from ilc_steering.runner import (
@@ -47,13 +50,15 @@ from ilc_steering.sweep.command import add_arguments as add_sweep_arguments
 __all__ = ["EXIT_CODES", "main"]
 
 EXIT_CODES = {
-    0: "converged (or done)",
+    0: "converged (or done): run's last --hold trials within the tolerance",
     1: "not converged",
     2: "bad input: a config, an argument, a run file or an output path, refused before any trial",
     3: "internal error: a bug of ilc-steering (please report it; --debug prints the traceback)",
     4: "the user's code failed (a learner, or a plant: a program that hung, died or answered junk): run wrote "
     "the trials before it; compare and sweep recorded each failed cell or row (its error, or --cell-timeout) "
     "under failed/ and finished the others",
+    5: "converged to the plant's floor: the tolerance is below the plant's repeatability (estimated from "
+    "the trials) and run's last --hold trials are within the repeatability",
     130: "interrupted",
 }
 """The CLI's exit codes, as its ``--help`` prints them."""
@@ -125,8 +130,42 @@ def _print_row(record: TrialRecord | CycleRecord) -> None:
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 
+def _bounds(below: dict[str, list[float]], index: int) -> str:
+    units = {"cartesian": " m", "orientation": " rad", "error": ""}
+    return " / ".join(f"{values[index]:.2g}{units[name]}" for name, values in below.items())
+
+
+def _verdict(result: RunResult | CyclicRunResult, unit: str, done: int) -> None:
+    """The lines that end a run: converged or not, its relapses, and a tolerance below the plant's scatter."""
+    verdict = result.verdict
+    spans = [f"{unit[:-1]} {first}" if first == last else f"{unit} {first}-{last}" for first, last in verdict.relapses]
+    if spans:  # one line, however many: "...at trial 5, out again at trial 6; at trials 9-13, ... 14"
+        print(
+            "relapsed: within the tolerance "
+            + "; ".join(
+                f"at {span}, out again at {unit[:-1]} {last + 1}" for span, (_, last) in zip(spans, verdict.relapses)
+            )
+        )
+    if verdict.below and verdict.scatter is not None:
+        sigma = ", ".join(f"{k} {v:.2g}" for k, v in verdict.scatter.items() if k != "dof")
+        print(
+            f"tolerance {_bounds(verdict.below, 0)} is below this plant's repeatability, about "
+            f"{_bounds(verdict.below, 1)} ({FLOOR:g} times its scatter per coordinate, estimated from the trials: "
+            f"{sigma})" + (": converged to the plant's floor" if verdict.floor else "")
+        )
+    if verdict.converged_at is not None:
+        print(f"converged at {unit[:-1]} {verdict.converged_at} (held for the last {verdict.held} {unit})")
+    elif not verdict.floor:
+        held = f" (the last {verdict.held} within the tolerance, {verdict.hold} needed)" if verdict.held else ""
+        print(f"not converged within {done} {unit}{held}")
+
+
 def _learn(
-    config: SteeringConfig, count: int | None, trajectories: bool, learner: str = DEFAULT_LEARNER
+    config: SteeringConfig,
+    count: int | None,
+    trajectories: bool,
+    learner: str = DEFAULT_LEARNER,
+    hold: int = HOLD,
 ) -> RunResult | CyclicRunResult:
     """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
     if config.is_cyclic and learner != DEFAULT_LEARNER:
@@ -139,20 +178,17 @@ def _learn(
     _print_header(config, config.learning.trials if count is None else count)
     if config.is_cyclic:
         result: RunResult | CyclicRunResult = run_cyclic_ilc(
-            config, count, on_cycle=_print_row, trajectories=trajectories
+            config, count, on_cycle=_print_row, trajectories=trajectories, hold=hold
         )
     else:
-        result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories, learner=learner)
+        result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories, learner=learner, hold=hold)
     unit = "cycles" if config.is_cyclic else "trials"
     done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
     records = result.trials if isinstance(result, RunResult) else [w for c in result.cycles for w in c.waypoints]
     clipped = sum(r.clipped for r in records)
     if clipped:
         print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
-    if result.converged_at is None:
-        print(f"not converged within {done} {unit}")
-    else:
-        print(f"converged at {unit[:-1]} {result.converged_at}")
+    _verdict(result, unit, done)
     return result
 
 
@@ -173,6 +209,8 @@ def _run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
         raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
+    if not 1 <= args.hold <= MAX_TRIALS:
+        raise ValueError(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
     if args.json is not None:
         check_output_file(args.json, "--json")
     if args.plots is not None:
@@ -181,13 +219,15 @@ def _run(args: argparse.Namespace) -> int:
     if warning is not None:
         print(f"ilc-steering: {warning}", file=sys.stderr)
     try:
-        result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner)
+        result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner, args.hold)
     except (LearnerError, PlantError, LimitError) as error:
         if isinstance(error.partial, RunResult) and error.partial.trials:
             _save(error.partial, args.json, args.plots)  # the trials it completed are kept
         raise
     _save(result, args.json, args.plots)
-    return 0 if result.converged_at is not None else 1
+    if result.converged_at is not None:
+        return 0
+    return 5 if result.verdict.floor else 1
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -264,7 +304,10 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     listing = sub.add_parser("list", help="the packaged configs, one line each")
     listing.set_defaults(handler=_list)
-    run = sub.add_parser("run", help="learn on one scenario (one-trial or cyclic); exit 0 if it converged")
+    run = sub.add_parser(
+        "run",
+        help="learn on one scenario (one-trial or cyclic); exit 0 if it converged and held, 5 at the plant's floor",
+    )
     run.add_argument("config", help="a YAML file or a packaged config name, e.g. forward_parking")
     run.add_argument(
         "--trials",
@@ -285,6 +328,14 @@ def _parser() -> argparse.ArgumentParser:
         help="ilc_paper (the paper's eqs. 33-34), newton_ilc (re-identify, then Newton on the refit model), "
         "robust_ilc (global identification, continuation, a trust region), any other id of compare --methods, "
         "or module:attr, a factory make(LearnerContext) -> Learner",
+    )
+    run.add_argument(
+        "--hold",
+        type=int,
+        default=HOLD,
+        metavar="N",
+        help=f"converged means the last N trials (cycles) are all within the tolerance (default {HOLD}: one "
+        "trial within it may be the scatter's luck)",
     )
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")

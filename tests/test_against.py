@@ -236,7 +236,7 @@ def test_any_module_attr_is_found_in_the_working_directory_or_refused_in_one_lin
     (tmp_path / "mypkg" / "mod.py").write_text(learner)
     (tmp_path / "broken.py").write_text("import not_installed\n")
     (tmp_path / "syntax.py").write_text("def make(:\n")
-    result = script(["run", "parallel_parking", "--trials", "3", "--learner", spec], tmp_path)
+    result = script(["run", "parallel_parking", "--trials", "5", "--learner", spec], tmp_path)
     if message is None:
         assert result.returncode == 0 and "converged at trial 3" in result.stdout, result.stderr
     else:

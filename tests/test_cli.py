@@ -79,7 +79,7 @@ def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, 
 def test_python_dash_m_entry_point(tmp_path):
     # Outside the checkout: from its root, `python -m` would find the bare ilc_steering/ folder first.
     done = subprocess.run(
-        [sys.executable, "-m", "ilc_steering", "run", "forward_parking", "--trials", "5"],
+        [sys.executable, "-m", "ilc_steering", "run", "forward_parking", "--trials", "6"],
         capture_output=True,
         text=True,
         timeout=300,

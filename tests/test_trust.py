@@ -489,7 +489,8 @@ def test_an_unreachable_ray_address_is_refused_quickly(monkeypatch):
 def test_exit_codes_are_documented():
     from ilc_steering.cli import EXIT_CODES, _parser
 
-    assert sorted(EXIT_CODES) == [0, 1, 2, 3, 4, 130]
+    assert sorted(EXIT_CODES) == [0, 1, 2, 3, 4, 5, 130]
+    assert "5 converged to the plant's floor" in (_parser().epilog or "")
     assert "4 the user's code failed (a learner, or a plant" in (_parser().epilog or "")
 
 
