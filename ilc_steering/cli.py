@@ -22,27 +22,22 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
-from ilc_steering.agents.registry import REGISTRY
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
-from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
-from ilc_steering.core.scatter import FLOOR, HOLD
+from ilc_steering.config import MAX_TRIALS, load_config, packaged_configs
+from ilc_steering.console import learn, save
+from ilc_steering.core.scatter import HOLD
 from ilc_steering.errors import ConfigError, LearnerError, LimitError, PlantError
-from ilc_steering.output import check_output_dir, check_output_file, write_json
+from ilc_steering.output import check_output_dir, check_output_file
+from ilc_steering.reproduce import PAPER
+from ilc_steering.reproduce import reproduce as reproduce_paper
 from ilc_steering.runner import (
     DEFAULT_LEARNER,
-    CycleRecord,
-    CyclicRunResult,
     RunResult,
-    TrialRecord,
-    learner_spec,
-    run_cyclic_ilc,
-    run_ilc,
     step_warning,
 )
 from ilc_steering.sweep.command import add_arguments as add_sweep_arguments
@@ -63,148 +58,8 @@ EXIT_CODES = {
 }
 """The CLI's exit codes, as its ``--help`` prints them."""
 
+
 # Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
-PAPER: dict[str, tuple[int | None, str]] = {
-    "forward_parking": (4, "Figs. 3-6"),
-    "forward_parking_saturated": (7, "Figs. 7-10"),
-    "parallel_parking": (5, "Figs. 11-14"),
-    "cyclic_home_goal": (None, "Figs. 23-25"),  # no count stated; the figures show five cycles
-    "experiment_forward": (5, "Figs. 16-18"),  # section 5, on the lab robot
-    "experiment_parallel": (5, "Figs. 19-21"),
-}
-WHY_DIFFERENT = {
-    "forward_parking_saturated": (
-        "the paper does not say how its 45-degree saturation is modelled (ours: a steering servo whose "
-        "command winds past the stop, ilc_steering/core/robots/car_fields.py), and it judged 'exact steering' "
-        "from its plots where we count trials to a 0.5 mm tolerance"
-    ),
-    "experiment_forward": (
-        "the simulated MARIO's imperfections are this library's modelling choices (configs/experiment_forward.yaml), "
-        "milder on this maneuver than the real robot's: its first trial lands within 7 cm, and no single one "
-        "of them, at its configured size, needs more than 3 trials"
-    ),
-    "experiment_parallel": (
-        "the imperfections are modelling choices, and parallel parking is sensitive to them: the steering "
-        "linkage's play (0.02 rad) alone keeps eqs. 33-34 from converging in 15 trials (seed 0), each other "
-        "imperfection alone needs 3-4, all of them at half size 6 (docs/paper.md, 'Section 5')"
-    ),
-}
-
-
-def _columns(config: SteeringConfig) -> list[str]:
-    names = ["cartesian [m]", "orientation [rad]"] if config.plant.kind.has_pose else ["error norm"]
-    if not config.is_cyclic:
-        return names
-    return [
-        f"wp{l} {name}"
-        for l in range(1, len(config.task.waypoints) + 1)  # type: ignore[union-attr]
-        for name in names
-    ]
-
-
-def _print_header(config: SteeringConfig, count: int) -> None:
-    tol = config.learning.tolerance
-    unit = "cycles" if config.is_cyclic else "trials"
-    bound = (
-        f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.kind.has_pose else f"{tol.error} on ||z^d - z||"
-    )
-    print(f"{config.name}: {count} {unit}, tolerance {bound}{' at every waypoint' if config.is_cyclic else ''}")
-    print(f"{unit[:-1]:>5}  " + "  ".join(f"{c:>17}" for c in _columns(config)))
-
-
-def _values(record: TrialRecord) -> list[float]:
-    if record.cartesian_error is not None and record.orientation_error is not None:
-        return [record.cartesian_error, record.orientation_error]
-    return [record.error_norm]
-
-
-def _print_row(record: TrialRecord | CycleRecord) -> None:
-    if isinstance(record, CycleRecord):
-        index, values = record.cycle, [v for w in record.waypoints for v in _values(w)]
-        left = any(w.left_chart for w in record.waypoints)
-        clipped = any(w.clipped for w in record.waypoints)
-    else:
-        index, values, left, clipped = record.trial, _values(record), record.left_chart, record.clipped
-    note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
-    note += "  action clipped to the box (task.action_bound)" if clipped else ""
-    print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
-
-
-def _bounds(below: dict[str, list[float]], index: int) -> str:
-    units = {"cartesian": " m", "orientation": " rad", "error": ""}
-    return " / ".join(f"{values[index]:.2g}{units[name]}" for name, values in below.items())
-
-
-def _verdict(result: RunResult | CyclicRunResult, unit: str, done: int) -> None:
-    """The lines that end a run: converged or not, its relapses, and a tolerance below the plant's scatter."""
-    verdict = result.verdict
-    spans = [f"{unit[:-1]} {first}" if first == last else f"{unit} {first}-{last}" for first, last in verdict.relapses]
-    if spans:  # one line, however many: "...at trial 5, out again at trial 6; at trials 9-13, ... 14"
-        print(
-            "relapsed: within the tolerance "
-            + "; ".join(
-                f"at {span}, out again at {unit[:-1]} {last + 1}" for span, (_, last) in zip(spans, verdict.relapses)
-            )
-        )
-    if verdict.below and verdict.scatter is not None:
-        sigma = ", ".join(f"{k} {v:.2g}" for k, v in verdict.scatter.items() if k != "dof")
-        print(
-            f"tolerance {_bounds(verdict.below, 0)} is below this plant's repeatability, about "
-            f"{_bounds(verdict.below, 1)} ({FLOOR:g} times its scatter per coordinate, estimated from the trials: "
-            f"{sigma})" + (": converged to the plant's floor" if verdict.floor else "")
-        )
-    if verdict.converged_at is not None:
-        print(f"converged at {unit[:-1]} {verdict.converged_at} (held for the last {verdict.held} {unit})")
-    elif not verdict.floor:
-        held = f" (the last {verdict.held} within the tolerance, {verdict.hold} needed)" if verdict.held else ""
-        print(f"not converged within {done} {unit}{held}")
-
-
-def _learn(
-    config: SteeringConfig,
-    count: int | None,
-    trajectories: bool,
-    learner: str = DEFAULT_LEARNER,
-    hold: int = HOLD,
-) -> RunResult | CyclicRunResult:
-    """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
-    if config.is_cyclic and learner != DEFAULT_LEARNER:
-        raise ValueError(
-            f"--learner {learner}: a cyclic config runs the paper's cyclic law of eqs. 39-40 "
-            f"(the default, --learner {DEFAULT_LEARNER})"
-        )
-    if not config.is_cyclic:
-        learner_spec(learner)  # an unknown or unimportable learner is refused before the header
-    _print_header(config, config.learning.trials if count is None else count)
-    if config.is_cyclic:
-        result: RunResult | CyclicRunResult = run_cyclic_ilc(
-            config, count, on_cycle=_print_row, trajectories=trajectories, hold=hold
-        )
-    else:
-        result = run_ilc(config, count, on_trial=_print_row, trajectories=trajectories, learner=learner, hold=hold)
-    unit = "cycles" if config.is_cyclic else "trials"
-    done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
-    records = result.trials if isinstance(result, RunResult) else [w for c in result.cycles for w in c.waypoints]
-    clipped = sum(r.clipped for r in records)
-    if clipped:
-        print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
-    _verdict(result, unit, done)
-    return result
-
-
-def _save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Path | None) -> None:
-    """Write the run's JSON and its figures, where asked (the paths were checked before the run)."""
-    data = result.to_json()
-    if json_path is not None:
-        write_json(json_path, data)
-        print(f"wrote {json_path}")
-    if plots is not None:
-        from ilc_steering.plots import write_plots
-
-        for path in write_plots(data, plots):
-            print(f"wrote {path}")
-
-
 def _run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
@@ -219,12 +74,12 @@ def _run(args: argparse.Namespace) -> int:
     if warning is not None:
         print(f"ilc-steering: {warning}", file=sys.stderr)
     try:
-        result = _learn(config, args.trials, args.json is not None or args.plots is not None, args.learner, args.hold)
+        result = learn(config, args.trials, args.json is not None or args.plots is not None, args.learner, args.hold)
     except (LearnerError, PlantError, LimitError) as error:
         if isinstance(error.partial, RunResult) and error.partial.trials:
-            _save(error.partial, args.json, args.plots)  # the trials it completed are kept
+            save(error.partial, args.json, args.plots)  # the trials it completed are kept
         raise
-    _save(result, args.json, args.plots)
+    save(result, args.json, args.plots)
     if result.converged_at is not None:
         return 0
     return 5 if result.verdict.floor else 1
@@ -238,60 +93,6 @@ def _plot(args: argparse.Namespace) -> int:
     for path in write_plots(run, args.out):
         print(f"wrote {path}")
     return 0
-
-
-def _reproduce(args: argparse.Namespace) -> int:
-    for folder, option in ((args.json_dir, "--json-dir"), (args.plots, "--plots")):
-        if folder is not None:
-            check_output_dir(folder, option)
-    rows = []
-    for name, (paper, figures) in PAPER.items():
-        result = _learn(load_config(name), None, trajectories=args.json_dir is not None or args.plots is not None)
-        _save(result, None if args.json_dir is None else args.json_dir / f"{name}.json", args.plots)
-        print()
-        rows.append((name, figures, paper, result))
-    print("| scenario | paper figures | paper iterations | trials (cycles) to tolerance |")
-    print("| --- | --- | ---: | ---: |")
-    for name, figures, paper, result in rows:
-        ours = result.converged_at if result.converged_at is not None else "not converged"
-        print(f"| {name} | {figures} | {paper if paper is not None else 'not stated'} | {ours} |")
-    for name, _, paper, result in rows:
-        if paper is None:
-            print(f"\n{name}: the paper states no count; its figures show errors shrinking over five cycles.")
-        elif result.converged_at != paper and isinstance(result, RunResult):
-            errors = [t.error_norm if t.cartesian_error is None else t.cartesian_error for t in result.trials]
-            ratio = errors[-1] / errors[-2] if len(errors) > 1 else float("nan")
-            at_paper = f"{errors[paper - 1]:.2e} m at trial {paper}, " if paper <= len(errors) else ""
-            print(
-                f"\n{name}: {result.converged_at} trials against the paper's {paper}: "
-                f"{WHY_DIFFERENT.get(name, 'no known cause')}. "
-                f"Measured: {at_paper}error ratio {ratio:.2f} per trial at the end."
-            )
-    noisy = [name for name, *_ in rows if load_config(name).simulation.measurement_noise is not None]
-    if noisy:
-        _seeds_table(noisy)
-    return 0 if all(result.converged_at is not None for *_, result in rows) else 1
-
-
-SEEDS = range(10)
-"""Seeds of the measurement noise over which ``reproduce`` reports the lab experiments."""
-SEEDED_LEARNERS = tuple(i for i, spec in REGISTRY.items() if spec.reproduce)
-"""The learners of that table: a view of the registry (``LearnerSpec.reproduce``)."""
-
-
-def _seeds_table(names: list[str]) -> None:
-    """Trials to tolerance over :data:`SEEDS` of the noise: median [range] and how many converged."""
-    print(f"\nOver {len(SEEDS)} seeds of the localization noise (trials to the config's tolerance, median [range]):")
-    print("| scenario | paper iterations | " + " | ".join(SEEDED_LEARNERS) + " |")
-    print("| --- | ---: | " + " | ".join("---:" for _ in SEEDED_LEARNERS) + " |")
-    for name in names:
-        cells = []
-        for learner in SEEDED_LEARNERS:
-            counts = [run_ilc(name, learner=learner, seed=seed).converged_at for seed in SEEDS]
-            got = sorted(c for c in counts if c is not None)
-            summary = f"{statistics.median(got):g} [{got[0]}, {got[-1]}]" if got else "-"
-            cells.append(f"{summary}, {len(got)}/{len(counts)} converged")
-        print(f"| {name} | {PAPER[name][0]} | " + " | ".join(cells) + " |", flush=True)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -347,7 +148,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="write the paper's figures (Figs. 3-14, 16-21, 23-25) here as PNGs",
     )
-    reproduce.set_defaults(handler=_reproduce)
+    reproduce.set_defaults(handler=reproduce_paper)
     plot = sub.add_parser("plot", help="draw the paper's figures of a run written by run --json")
     plot.add_argument("run", type=Path, help="the run's JSON file")
     plot.add_argument("--out", type=Path, required=True, metavar="DIR", help="write the PNGs here")

@@ -6,7 +6,7 @@ import gymnasium as gym
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering import cli, runner
+from ilc_steering import cli, reproduce, runner
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import BaseLearner, Closable, LearnerContext, TimedUpdates, close_learner, update_times
 from ilc_steering.agents.costs import NullSpaceCost
@@ -31,7 +31,9 @@ def test_every_method_id_is_in_one_table_and_the_commands_tables_are_views_of_it
     assert compare.METHODS == registry.METHODS
     assert set(compare.MODEL_METHODS) | set(compare.BLACKBOX) | set(compare.RL) == set(registry.METHODS)
     assert compare.DEFAULT_METHODS == tuple(m for m in registry.METHODS if m != "crossq")
-    assert set(cli.SEEDED_LEARNERS) <= set(registry.METHODS) and runner.DEFAULT_LEARNER in cli.SEEDED_LEARNERS
+    assert (
+        set(reproduce.SEEDED_LEARNERS) <= set(registry.METHODS) and runner.DEFAULT_LEARNER in reproduce.SEEDED_LEARNERS
+    )
     for spec in registry.REGISTRY.values():
         assert spec.family in registry.FAMILIES[:-1]
         assert spec.budget_key in {f.name for f in dataclasses.fields(registry.Budgets)}

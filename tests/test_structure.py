@@ -219,9 +219,18 @@ FLOORS = (
     ("config", ("ilc_steering.config",)),
     ("envs", ("ilc_steering.envs", "ilc_steering.lab_robot")),
     ("agents", ("ilc_steering.agents",)),
-    ("trials", ("ilc_steering.loop", "ilc_steering.runner", "ilc_steering.oracle", "ilc_steering.plots")),
+    (
+        "trials",
+        (
+            "ilc_steering.loop",
+            "ilc_steering.runner",
+            "ilc_steering.oracle",
+            "ilc_steering.plots",
+            "ilc_steering.console",
+        ),
+    ),
     ("engine", ("ilc_steering.engine",)),
-    ("commands", ("ilc_steering.compare", "ilc_steering.sweep", "ilc_steering.cli")),
+    ("commands", ("ilc_steering.compare", "ilc_steering.sweep", "ilc_steering.reproduce", "ilc_steering.cli")),
 )
 ROOF = {"ilc_steering", "ilc_steering.__main__"}
 MODULE_NAME = re.compile(r"\bilc_steering(?:\.\w+)+")

@@ -1,0 +1,137 @@
+"""A run on the console: its header, a row per trial (or cycle) as it finishes, the verdict (held,
+relapses, the plant's floor), and the run's JSON and figures where asked. ``run`` and
+``reproduce`` print through it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ilc_steering.config import SteeringConfig
+from ilc_steering.core.scatter import FLOOR, HOLD
+from ilc_steering.output import write_json
+from ilc_steering.runner import (
+    DEFAULT_LEARNER,
+    CycleRecord,
+    CyclicRunResult,
+    RunResult,
+    TrialRecord,
+    learner_spec,
+    run_cyclic_ilc,
+    run_ilc,
+)
+
+__all__ = ["learn", "print_header", "print_row", "save"]
+
+
+def _columns(config: SteeringConfig) -> list[str]:
+    names = ["cartesian [m]", "orientation [rad]"] if config.plant.kind.has_pose else ["error norm"]
+    if not config.is_cyclic:
+        return names
+    return [
+        f"wp{l} {name}"
+        for l in range(1, len(config.task.waypoints) + 1)  # type: ignore[union-attr]
+        for name in names
+    ]
+
+
+def print_header(config: SteeringConfig, count: int) -> None:
+    tol = config.learning.tolerance
+    unit = "cycles" if config.is_cyclic else "trials"
+    bound = (
+        f"{tol.cartesian} m / {tol.orientation} rad" if config.plant.kind.has_pose else f"{tol.error} on ||z^d - z||"
+    )
+    print(f"{config.name}: {count} {unit}, tolerance {bound}{' at every waypoint' if config.is_cyclic else ''}")
+    print(f"{unit[:-1]:>5}  " + "  ".join(f"{c:>17}" for c in _columns(config)))
+
+
+def _values(record: TrialRecord) -> list[float]:
+    if record.cartesian_error is not None and record.orientation_error is not None:
+        return [record.cartesian_error, record.orientation_error]
+    return [record.error_norm]
+
+
+def print_row(record: TrialRecord | CycleRecord) -> None:
+    if isinstance(record, CycleRecord):
+        index, values = record.cycle, [v for w in record.waypoints for v in _values(w)]
+        left = any(w.left_chart for w in record.waypoints)
+        clipped = any(w.clipped for w in record.waypoints)
+    else:
+        index, values, left, clipped = record.trial, _values(record), record.left_chart, record.clipped
+    note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
+    note += "  action clipped to the box (task.action_bound)" if clipped else ""
+    print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
+
+
+def _bounds(below: dict[str, list[float]], index: int) -> str:
+    units = {"cartesian": " m", "orientation": " rad", "error": ""}
+    return " / ".join(f"{values[index]:.2g}{units[name]}" for name, values in below.items())
+
+
+def _verdict(result: RunResult | CyclicRunResult, unit: str, done: int) -> None:
+    """The lines that end a run: converged or not, its relapses, and a tolerance below the plant's scatter."""
+    verdict = result.verdict
+    spans = [f"{unit[:-1]} {first}" if first == last else f"{unit} {first}-{last}" for first, last in verdict.relapses]
+    if spans:  # one line, however many: "...at trial 5, out again at trial 6; at trials 9-13, ... 14"
+        print(
+            "relapsed: within the tolerance "
+            + "; ".join(
+                f"at {span}, out again at {unit[:-1]} {last + 1}" for span, (_, last) in zip(spans, verdict.relapses)
+            )
+        )
+    if verdict.below and verdict.scatter is not None:
+        sigma = ", ".join(f"{k} {v:.2g}" for k, v in verdict.scatter.items() if k != "dof")
+        print(
+            f"tolerance {_bounds(verdict.below, 0)} is below this plant's repeatability, about "
+            f"{_bounds(verdict.below, 1)} ({FLOOR:g} times its scatter per coordinate, estimated from the trials: "
+            f"{sigma})" + (": converged to the plant's floor" if verdict.floor else "")
+        )
+    if verdict.converged_at is not None:
+        print(f"converged at {unit[:-1]} {verdict.converged_at} (held for the last {verdict.held} {unit})")
+    elif not verdict.floor:
+        held = f" (the last {verdict.held} within the tolerance, {verdict.hold} needed)" if verdict.held else ""
+        print(f"not converged within {done} {unit}{held}")
+
+
+def learn(
+    config: SteeringConfig,
+    count: int | None,
+    trajectories: bool,
+    learner: str = DEFAULT_LEARNER,
+    hold: int = HOLD,
+) -> RunResult | CyclicRunResult:
+    """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
+    if config.is_cyclic and learner != DEFAULT_LEARNER:
+        raise ValueError(
+            f"--learner {learner}: a cyclic config runs the paper's cyclic law of eqs. 39-40 "
+            f"(the default, --learner {DEFAULT_LEARNER})"
+        )
+    if not config.is_cyclic:
+        learner_spec(learner)  # an unknown or unimportable learner is refused before the header
+    print_header(config, config.learning.trials if count is None else count)
+    if config.is_cyclic:
+        result: RunResult | CyclicRunResult = run_cyclic_ilc(
+            config, count, on_cycle=print_row, trajectories=trajectories, hold=hold
+        )
+    else:
+        result = run_ilc(config, count, on_trial=print_row, trajectories=trajectories, learner=learner, hold=hold)
+    unit = "cycles" if config.is_cyclic else "trials"
+    done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
+    records = result.trials if isinstance(result, RunResult) else [w for c in result.cycles for w in c.waypoints]
+    clipped = sum(r.clipped for r in records)
+    if clipped:
+        print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
+    _verdict(result, unit, done)
+    return result
+
+
+def save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Path | None) -> None:
+    """Write the run's JSON and its figures, where asked (the paths were checked before the run)."""
+    data = result.to_json()
+    if json_path is not None:
+        write_json(json_path, data)
+        print(f"wrote {json_path}")
+    if plots is not None:
+        from ilc_steering.plots import write_plots
+
+        for path in write_plots(data, plots):
+            print(f"wrote {path}")
