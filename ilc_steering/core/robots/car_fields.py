@@ -37,11 +37,12 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 
 from ilc_steering.core import tangent
+from ilc_steering.core.kernels import trial_kernel
 from ilc_steering.core.plants import Kernel, KernelLayout
-from ilc_steering.core.stepper import CHART_LIMIT, drive, locate, poly, rk_step, step_with_stop
+from ilc_steering.core.stepper import CHART_LIMIT, locate, poly, rk_step, step_with_stop
 from ilc_steering.core.tangent import CAR_LAYOUT
 
 __all__ = ["ANGLE_KERNEL", "LAB_KERNEL", "SERVO_KERNEL", "car_kernel", "closed_loop_velocity"]
@@ -287,64 +288,10 @@ def _lab_chart(params, x):  # type: ignore[no-untyped-def]
     return max(abs(x[2]), abs(x[10]), abs(phi_s), abs(wheel)) < CHART_LIMIT
 
 
-# One compiled trial function per field, and its two batch runners; numba cannot share the runner
-# loops (a prange loop inside an inlined function is not parallelized, and a function passed to a
-# compiled one is keyed in the cache by its address), so each field has its own, three lines each.
-@njit(cache=True)
-def _angle_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_car_field, _limit_step, _car_chart, 4, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _servo_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_servo_field, _limit_step, _servo_chart, 6, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _lab_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_lab_field, _lab_step, _lab_chart, 12, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _angle_serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _angle_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _angle_parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _angle_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True)
-def _servo_serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _servo_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _servo_parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _servo_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True)
-def _lab_serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _lab_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _lab_parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _lab_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-ANGLE_KERNEL = Kernel("car (angles)", CAR_LAYOUT, _angle_serial, _angle_parallel)
+ANGLE_KERNEL = trial_kernel("car (angles)", CAR_LAYOUT, __name__, _car_field, _car_chart, _limit_step)
 """The car without servo perturbations in ``(x, y, theta, phi_c)``: the kernel the batched one replaced."""
-SERVO_KERNEL = Kernel("car-servo", SERVO_LAYOUT, _servo_serial, _servo_parallel)
-LAB_KERNEL = Kernel("car-lab", LAB_LAYOUT, _lab_serial, _lab_parallel)
+SERVO_KERNEL = trial_kernel("car-servo", SERVO_LAYOUT, __name__, _servo_field, _servo_chart, _limit_step)
+LAB_KERNEL = trial_kernel("car-lab", LAB_LAYOUT, __name__, _lab_field, _lab_chart, _lab_step)
 
 
 def car_kernel(plant: Any) -> tuple[Kernel, Array]:
