@@ -45,6 +45,7 @@ __all__ = [
     "locate",
     "poly",
     "rk_step",
+    "rk_step_on",
     "step_with_stop",
 ]
 
@@ -83,6 +84,30 @@ def rk_step(rhs, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-
         t = tau + _C[s] * h
         rhs(params, tmp, poly(v1c, t), poly(v2c, t), work[s])
     for i in range(n):
+        acc = 0.0
+        for s in range(STAGES):
+            acc += _B[s] * work[s, i]
+        out[i] = x[i] + h * acc
+
+
+@njit(cache=True, inline="always")
+def rk_step_on(rhs, moving, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-untyped-def]
+    """:func:`rk_step` of a field whose entries outside ``moving`` (an array of indices) have zero
+    derivative (the lab robot's estimate, between its jumps): those are carried over as they are,
+    the others combined exactly as :func:`rk_step` combines them."""
+    tmp = work[STAGES]
+    for i in range(x.shape[0]):
+        tmp[i] = x[i]
+        out[i] = x[i]
+    for s in range(STAGES):
+        for i in moving:
+            acc = 0.0
+            for j in range(s):
+                acc += _A[s, j] * work[j, i]
+            tmp[i] = x[i] + h * acc
+        t = tau + _C[s] * h
+        rhs(params, tmp, poly(v1c, t), poly(v2c, t), work[s])
+    for i in moving:
         acc = 0.0
         for s in range(STAGES):
             acc += _B[s] * work[s, i]
