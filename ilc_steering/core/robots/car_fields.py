@@ -64,6 +64,7 @@ _ELL, _RHO, _TRUE_ELL, _TRUE_RHO, _LIMIT = (LAB_LAYOUT.index(name) for name in C
 _OFFSET, _STEERING_LAG, _SPEED_LAG = (LAB_LAYOUT.index(n) for n in ("steering_offset", "steering_lag", "speed_lag"))
 _BACKLASH, _PULSES = LAB_LAYOUT.index("steering_backlash"), LAB_LAYOUT.index("encoder_pulses")
 _PHI_C = CAR_LAYOUT.state.index("phi_c")
+_SIN_HAT, _COS_HAT = len(LAB_LAYOUT.params), len(LAB_LAYOUT.params) + 1  # _lab_step's, past the row
 _MAX_EVENTS = 10_000  # events within one step of the lab robot before it gives up locating them
 _LAB_EVENT_TIME = 1e-14  # relative to the step: how closely a lab event is located
 _MOVING = np.array([0, 1, 2, 3, 4, 5, 7])  # the lab state's entries that move between events
@@ -150,9 +151,11 @@ def _lab_wheel(params, x, phi_s):  # type: ignore[no-untyped-def]
 @njit(cache=True, inline="always")
 def _lab_inputs(params, x, v1, v2):  # type: ignore[no-untyped-def]
     """Eqs. 4-5 with the nominal geometry at the controller's estimate: ``(u1, u2)``."""
-    theta = x[10] if params[_PULSES] > 0 else x[2]
+    if params[_PULSES] > 0:  # the estimate's, fixed between pulses: set by _lab_step past the row
+        s, c = params[_SIN_HAT], params[_COS_HAT]
+    else:
+        s, c = np.sin(x[2]), np.cos(x[2])
     phi = _lab_servo(params, x)
-    s, c = np.sin(theta), np.cos(theta)
     s_phi, c_phi = np.sin(phi), np.cos(phi)
     ell = params[_ELL]
     u1 = v1 / (params[_RHO] * c)
@@ -307,16 +310,19 @@ def _lab_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: i
     cur = x.copy()
     sides = np.empty(3)
     coef = np.empty((2, v1c.shape[0] + 1))
-    pulses = params[_PULSES] > 0
+    p = np.empty(params.shape[0] + 2)  # the row, and the estimate's sine and cosine
+    p[: params.shape[0]] = params
+    pulses = p[_PULSES] > 0
     t, remaining, which = tau, h, -1
     sides[0] = sides[1] = 0.0
     for _ in range(_MAX_EVENTS):
-        phi_s = _lab_servo(params, cur)
-        cur[6] = _lab_wheel(params, cur, phi_s)  # the anchor: the wheel angle now
-        side = -1.0 if abs(cur[3]) > params[_LIMIT] else 1.0
-        rate = _lab_servo_rate(params, cur, poly(v1c, t), poly(v2c, t))
+        p[_SIN_HAT], p[_COS_HAT] = np.sin(cur[10]), np.cos(cur[10])
+        phi_s = _lab_servo(p, cur)
+        cur[6] = _lab_wheel(p, cur, phi_s)  # the anchor: the wheel angle now
+        side = -1.0 if abs(cur[3]) > p[_LIMIT] else 1.0
+        rate = _lab_servo_rate(p, cur, poly(v1c, t), poly(v2c, t))
         direction = 0.0
-        if params[_BACKLASH] > 0:
+        if p[_BACKLASH] > 0:
             direction = 1.0 if rate > 0 else (-1.0 if rate < 0 else 0.0)
         # Past an event by a rounding error only (|phi_c| at the stop to the last bit, the servo's
         # rate not yet of the other sign), the state would fire it again at once, and again (each
@@ -327,30 +333,30 @@ def _lab_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: i
             direction = -direction
         sides[0], sides[1] = side, direction
         gap = direction * (phi_s - cur[6])
-        sides[2] = 1.0 if gap >= 0.5 * params[_BACKLASH] * (1.0 - 1e-12) else 0.0
+        sides[2] = 1.0 if gap >= 0.5 * p[_BACKLASH] * (1.0 - 1e-12) else 0.0
         which, span = -1, remaining
         if pulses:
-            _lab_wheel_speed(params, cur, v1c, coef)
-            which, span = _lab_pulse(params, cur, coef, t, remaining)
-        rk_step_on(rhs, _MOVING, params, cur, t, span, v1c, v2c, out, work)
+            _lab_wheel_speed(p, cur, v1c, coef)
+            which, span = _lab_pulse(p, cur, coef, t, remaining)
+        rk_step_on(rhs, _MOVING, p, cur, t, span, v1c, v2c, out, work)
         first = span
         for j in range(3):
-            g_lo = _lab_event(j, params, cur, t, v1c, v2c, sides)
-            g_hi = _lab_event(j, params, out, t + span, v1c, v2c, sides)
+            g_lo = _lab_event(j, p, cur, t, v1c, v2c, sides)
+            g_hi = _lab_event(j, p, out, t + span, v1c, v2c, sides)
             if not (g_lo <= 0.0 < g_hi):
                 continue
-            state = (params, cur, t, v1c, v2c, probe, work, j, sides)
+            state = (p, cur, t, v1c, v2c, probe, work, j, sides)
             hi = locate(_lab_event_after, rhs, state, g_lo, g_hi, span, _LAB_EVENT_TIME * h, False, True)
             if hi < first:
                 first, which = hi, j
         if which < 0:
             return
         if first < span:
-            rk_step_on(rhs, _MOVING, params, cur, t, first, v1c, v2c, probe, work)
+            rk_step_on(rhs, _MOVING, p, cur, t, first, v1c, v2c, probe, work)
             cur[:] = probe
         else:
             cur[:] = out
-        _lab_jump(which, params, cur)
+        _lab_jump(which, p, cur)
         t += first
         remaining -= first
         if remaining <= 0.0:
