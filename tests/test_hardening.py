@@ -85,7 +85,7 @@ def test_an_internal_error_exits_3_with_one_line_and_a_traceback_only_with_debug
     def broken(*args, **kwargs):
         raise ZeroDivisionError("boom")
 
-    monkeypatch.setattr(cli, "_learn", broken)
+    monkeypatch.setattr(cli, "learn", broken)
     assert main(["run", "forward_parking"]) == 3
     err = one_line_error(capsys)
     assert "internal error: ZeroDivisionError: boom" in err and "report" in err

@@ -9,9 +9,10 @@ at ``speed_gain * v`` and turns at ``turn_gain * omega``:
 
     \dot x = g_s v_1, \quad \dot y = g_s v_1 \tan\theta, \quad \dot\theta = g_t v_2 \cos^2\theta.
 
-Everything a robot needs is here: the map, the compiled field, the chart test and the kernel, the
-plant, the config keys and the drawing. ``tests/test_robot_plugin.py`` registers it with one line
-and runs it through the env, the vector env, ``ilc-steering run``, ``sweep`` and ``compare``.
+Everything a robot needs is here: the map, the compiled field and its chart test (one call of
+:func:`~ilc_steering.core.kernels.trial_kernel` makes the kernel), the plant, the config keys and
+the drawing. ``tests/test_robot_plugin.py`` registers it with one line and runs it through the
+env, the vector env, ``ilc-steering run``, ``sweep`` and ``compare``.
 """
 
 from __future__ import annotations
@@ -22,23 +23,16 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 
+from ilc_steering.core import plants
 from ilc_steering.core.checks import check_factors, require, require_positive
-from ilc_steering.core.plants import (
-    CHART_MARGIN,
-    Kernel,
-    KernelLayout,
-    PlantKind,
-    check_angles,
-    check_magnitude,
-    heading_curvature_cost,
-)
-from ilc_steering.core.stepper import CHART_LIMIT, drive, rk_step
+from ilc_steering.core.kernels import trial_kernel
+from ilc_steering.core.stepper import CHART_LIMIT
 
 Array = npt.NDArray[np.float64]
 
-SKATE = PlantKind("skate", True, ("x [m]", "y [m]", "θ [rad]"), ("v [m/s]", "ω [rad/s]"))
+SKATE = plants.PlantKind("skate", True, ("x [m]", "y [m]", "θ [rad]"), ("v [m/s]", "ω [rad/s]"))
 
 
 @dataclass(frozen=True)
@@ -77,10 +71,10 @@ class SkateMap:
         return [(np.stack([tip, left, right, tip], axis=-2), False)]
 
     def curvature_cost(self, q: Array, dt: Array) -> Array:
-        return heading_curvature_cost(q)
+        return plants.heading_curvature_cost(q)
 
 
-LAYOUT = KernelLayout(("x", "y", "theta"), ("speed_gain", "turn_gain"))
+LAYOUT = plants.KernelLayout(("x", "y", "theta"), ("speed_gain", "turn_gain"))
 _SPEED, _TURN = LAYOUT.index("speed_gain"), LAYOUT.index("turn_gain")
 
 
@@ -93,38 +87,16 @@ def _field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
-    rk_step(rhs, n, params, x, tau, h, v1c, v2c, out, work)
-
-
-@njit(cache=True, inline="always")
 def _chart(params, x):  # type: ignore[no-untyped-def]
     return abs(x[2]) < CHART_LIMIT
 
 
-@njit(cache=True)
-def _trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_field, _step, _chart, 3, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-KERNEL = Kernel("skate", LAYOUT, _serial, _parallel)
+KERNEL = trial_kernel("skate", LAYOUT, __name__, _field, _chart)
 
 
 @dataclass(frozen=True)
-class SkatePlant:
-    kind: ClassVar[PlantKind] = SKATE
+class SkatePlant(plants.ConfigurationState, plants.FactorFamily):
+    kind: ClassVar[plants.PlantKind] = SKATE
     factor_names: ClassVar[tuple[str, str]] = ("speed_gain", "turn_gain")
     steering_limit: ClassVar[None] = None
     speed_gain: float = 1.0
@@ -138,34 +110,19 @@ class SkatePlant:
     def state_dim(self) -> int:
         return 3
 
-    def initial_state(self, q: Array) -> Array:
-        return np.array(q, dtype=np.float64)
-
-    def configuration(self, x: Array) -> Array:
-        return np.asarray(x, dtype=np.float64)
-
-    def estimate(self, x: Array) -> Array:
-        return np.asarray(x, dtype=np.float64)
-
     def check_configuration(self, q: Array) -> None:
         require(bool(np.all(np.isfinite(q))), "configuration", "must be finite")
-        check_magnitude(q)
-        check_angles(q, "|theta|")
+        plants.check_magnitude(q)
+        plants.check_angles(q, "|theta|")
 
     def true_factors(self) -> Array:
         return np.array([self.speed_gain, self.turn_gain])
-
-    def family_names(self) -> tuple[str, ...]:
-        return self.factor_names
-
-    def with_family(self, ratios: Array) -> SkatePlant:
-        return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> SkatePlant:
         f = check_factors(factors, self.factor_names)  # each ratio in FACTOR_RANGE, named with its value
         return replace(self, speed_gain=self.speed_gain * f[0], turn_gain=self.turn_gain * f[1])
 
-    def kernel(self) -> tuple[Kernel, Array]:
+    def kernel(self) -> tuple[plants.Kernel, Array]:
         return KERNEL, LAYOUT.row(speed_gain=self.speed_gain, turn_gain=self.turn_gain)
 
     def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
@@ -176,7 +133,7 @@ class SkatePlant:
             return np.array([speed * np.cos(q[2]), speed * np.sin(q[2]), turn])
 
         def chart(t: float, x: Array) -> float:
-            return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))
+            return float(np.pi / 2 - plants.CHART_MARGIN - abs(x[2]))
 
         return field, np.inf, chart
 
@@ -187,7 +144,7 @@ class SkatePlantConfig:
     true_speed_gain: float = 1.0  # [-] the true skate's speed over the commanded one
     true_turn_gain: float = 1.0  # [-] the true skate's turn rate over the commanded one
 
-    kind: ClassVar[PlantKind] = SKATE
+    kind: ClassVar[plants.PlantKind] = SKATE
     plant_class: ClassVar[type[SkatePlant]] = SkatePlant
     dimension: ClassVar[int] = 3
     steering_limit: ClassVar[None] = None

@@ -1,11 +1,12 @@
 """The boundary into the compiled simulator: a batch of trials of one robot's kernel, every array
 checked against the kernel's layout first.
 
-A robot's compiled field and its batch runners are in its module (:mod:`ilc_steering.core.robots`;
-the car's batched kernel in :mod:`ilc_steering.core.tangent`), built from the integrator's core
-(:mod:`ilc_steering.core.stepper`: the DOP853 step with a fixed step length, the event locator,
-the driver and the chart guard). Every kernel takes a row of parameters per trial, so one call may
-run a batch of different plants. Compiled code reads its arrays by position and checks nothing
+A robot's compiled field is in its module (:mod:`ilc_steering.core.robots`; the car's batched
+kernel in :mod:`ilc_steering.core.tangent`), its batch runners made from it by
+:mod:`ilc_steering.core.kernels` out of the integrator's core (:mod:`ilc_steering.core.stepper`:
+the DOP853 step with a fixed step length, the event locator, the driver and the chart guard).
+Every kernel takes a row of parameters per trial, so one call may run a batch of different
+plants. Compiled code reads its arrays by position and checks nothing
 (numba does no bounds checking): :func:`integrate` checks their shapes, sizes, dtypes and values
 against the kernel's :class:`~ilc_steering.core.plants.KernelLayout` and refuses, with a
 ``ValueError`` that names what is wrong, whatever does not fit.

@@ -28,6 +28,8 @@ from ilc_steering.core.checks import require
 __all__ = [
     "CHART_MARGIN",
     "MAX_COORDINATE",
+    "ConfigurationState",
+    "FactorFamily",
     "Kernel",
     "KernelLayout",
     "Plant",
@@ -176,6 +178,41 @@ class Plant(Protocol):
         steering limit where it has a kink (``inf``: none), and a chart function ``g(t, x)`` that
         falls to 0 where the trial stops (or ``None``)."""
         ...
+
+
+class ConfigurationState:
+    """:class:`Plant`'s state methods for a plant whose state is its configuration, measured
+    exactly: a base class (a plant with more state, the car's servos say, writes its own)."""
+
+    def initial_state(self, q: Array) -> Array:
+        """The state is the configuration."""
+        return np.array(q, dtype=np.float64)
+
+    def configuration(self, x: Array) -> Array:
+        """The state is the configuration."""
+        return np.asarray(x, dtype=np.float64)
+
+    def estimate(self, x: Array) -> Array:
+        """The configuration, measured exactly."""
+        return np.asarray(x, dtype=np.float64)
+
+
+class FactorFamily:
+    """:class:`Plant`'s model family where it is the plant's two true factors (``factor_names``,
+    scaled by ``with_true_factors``): a base class (the trailer, with a third length, writes its own)."""
+
+    factor_names: ClassVar[tuple[str, str]]
+
+    def with_true_factors(self, factors: Array) -> Any:
+        raise NotImplementedError
+
+    def family_names(self) -> tuple[str, ...]:
+        """The true factors' names."""
+        return self.factor_names
+
+    def with_family(self, ratios: Array) -> Any:
+        """The plant with its true factors multiplied by ``ratios``."""
+        return self.with_true_factors(ratios)
 
 
 @runtime_checkable

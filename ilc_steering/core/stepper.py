@@ -8,13 +8,12 @@ measures accuracy and speed against the step). The inputs are piecewise polynomi
 piece's local time (from an input profile), and every piece boundary is a step boundary, so no
 step straddles a jump of ``v1`` or ``v2``.
 
-Everything here is ``inline="always"``: a robot's module compiles its own trial function from
-these pieces and its own field, chart test and step (see :mod:`ilc_steering.core.robots`), so
-that a field, its state dimension and its layout are constants of one compiled function and the
-compiler keeps the state in registers. The field, step and chart functions are handed to the
-pieces as arguments; numba inlines them at compile time, so no function value reaches numba's
-cache (where a second process would misread it), and every compiled entry point is a
-module-level function with a name of its own (two closures of one factory compile to one symbol).
+Everything here is ``inline="always"``: :mod:`ilc_steering.core.kernels` compiles a robot's
+runners from these pieces and the robot's own field, chart test and step, so that a field, its
+state dimension and its layout are constants of one compiled function and the compiler keeps the
+state in registers. The field, step and chart functions are handed to the pieces as arguments;
+numba inlines them at compile time, so no function value reaches numba's cache (where a second
+process would misread it).
 
 Chart guard: a step that ends outside the robot's chart (for the car: ``|theta|`` or ``|phi|``
 within ``CHART_MARGIN`` of ``pi/2``, where eqs. 4-5 break down; a stiff step can throw ``theta``
@@ -42,12 +41,11 @@ __all__ = [
     "announce_compile",
     "drive",
     "finite",
-    "lane_block",
     "lanes_rk",
     "locate",
     "poly",
     "rk_step",
-    "run_lanes",
+    "rk_step_on",
     "step_with_stop",
 ]
 
@@ -58,7 +56,6 @@ CHART_LIMIT = np.pi / 2 - CHART_MARGIN
 MAX_ITERATIONS = 60
 """Of the event locator; a crossing of the steering limit needs about 23."""
 STAGES = dop853.STAGES
-_SINGLE_LANES = 10  # a last, partial block of a lane kernel of at most this many trials runs them one by one
 _A = np.ascontiguousarray(dop853.A)
 _B = np.ascontiguousarray(dop853.B)
 _C = np.ascontiguousarray(dop853.C)
@@ -87,6 +84,30 @@ def rk_step(rhs, n, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-
         t = tau + _C[s] * h
         rhs(params, tmp, poly(v1c, t), poly(v2c, t), work[s])
     for i in range(n):
+        acc = 0.0
+        for s in range(STAGES):
+            acc += _B[s] * work[s, i]
+        out[i] = x[i] + h * acc
+
+
+@njit(cache=True, inline="always")
+def rk_step_on(rhs, moving, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-untyped-def]
+    """:func:`rk_step` of a field whose entries outside ``moving`` (an array of indices) have zero
+    derivative (the lab robot's estimate, between its jumps): those are carried over as they are,
+    the others combined exactly as :func:`rk_step` combines them."""
+    tmp = work[STAGES]
+    for i in range(x.shape[0]):
+        tmp[i] = x[i]
+        out[i] = x[i]
+    for s in range(STAGES):
+        for i in moving:
+            acc = 0.0
+            for j in range(s):
+                acc += _A[s, j] * work[j, i]
+            tmp[i] = x[i] + h * acc
+        t = tau + _C[s] * h
+        rhs(params, tmp, poly(v1c, t), poly(v2c, t), work[s])
+    for i in moving:
         acc = 0.0
         for s in range(STAGES):
             acc += _B[s] * work[s, i]
@@ -192,85 +213,6 @@ def lanes_rk(field, nx, n, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  #
             for i in range(nx):
                 for j in range(n):
                     out[i, j] += bh * kst[st, i, j]
-
-
-@njit(cache=True, inline="always")
-def lane_block(  # type: ignore[no-untyped-def]
-    load, field, chart, store, nx, nparams, n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop
-):
-    """Trials ``start:stop`` (at most ``n``) of a batch on a lane kernel, laid out lane by lane (lanes
-    past ``stop`` repeat its last trial and are dropped): ``load(row, x0, p, x, j)`` puts a trial's
-    parameter row and start state into lane ``j`` of the lanes' parameters ``p`` ``(nparams, n)`` and
-    state ``x`` ``(nx, n)`` (in the kernel's coordinates); ``field`` is :func:`lanes_rk`'s;
-    ``chart(x, j)`` says whether lane ``j``'s state is finite and inside the chart; ``store(x, j,
-    dst)`` writes it back in the robot's state layout. The arguments after ``n`` are those of
-    :func:`ilc_steering.core.integrate.integrate`'s kernels."""
-    p = np.empty((nparams, n))
-    x = np.empty((nx, n))
-    nxt = np.empty((nx, n))
-    tmp = np.empty((nx, n))
-    kst = np.empty((STAGES, nx, n))
-    v1 = np.empty(n)
-    v2 = np.empty(n)
-    coef1 = np.empty((n, v1c.shape[2]))
-    coef = np.empty((n, v2c.shape[2]))
-    alive = np.empty(n, dtype=np.bool_)
-    record = traj.shape[1] > 0
-    used = stop - start
-    for j in range(n):
-        b = start + min(j, used - 1)
-        load(params[b], x0[b], p, x, j)
-        alive[j] = True
-    for j in range(used):
-        status[start + j] = OK
-        if record:
-            store(x, j, traj[start + j, 0])
-    row = 1
-    for piece in range(durations.shape[0]):
-        h = durations[piece] / steps[piece]
-        for j in range(n):
-            b = start + min(j, used - 1)
-            for d in range(coef1.shape[1]):
-                coef1[j, d] = v1c[b, piece, d]
-            for d in range(coef.shape[1]):
-                coef[j, d] = v2c[b, piece, d]
-        for step in range(steps[piece]):
-            lanes_rk(field, nx, n, p, x, step * h, h, coef1, coef, nxt, kst, tmp, v1, v2)
-            for j in range(used):
-                if not alive[j]:
-                    continue
-                if chart(nxt, j):
-                    for i in range(nx):
-                        x[i, j] = nxt[i, j]
-                else:
-                    alive[j] = False
-                    status[start + j] = LEFT_CHART
-            if record:
-                for j in range(used):
-                    store(x, j, traj[start + j, row])
-                row += 1
-    for j in range(used):
-        store(x, j, out[start + j])
-
-
-def run_lanes(blocks: tuple[Any, Any, Any], args: tuple[Any, ...], parallel: bool, name: str, lanes: int) -> None:
-    """A batch of trials on a lane kernel's compiled ``(one, block, shared)``: blocks of ``lanes``
-    trials (shared among numba's threads with ``parallel``), a last partial block of more than a
-    few trials padded, fewer run one by one with ``one``."""
-    one, block, shared = blocks
-    batch = args[1].shape[0]
-    full = batch - batch % lanes if batch % lanes <= _SINGLE_LANES else batch
-    if parallel and full > lanes:
-        announce_compile(shared, name)
-        shared(*args, full)
-    elif full:
-        announce_compile(block, name)
-        for start in range(0, full, lanes):
-            block(*args, start, min(full, start + lanes))
-    if full < batch:
-        announce_compile(one, name)
-        for start in range(full, batch):
-            one(*args, start, start + 1)
 
 
 @njit(cache=True, inline="always")

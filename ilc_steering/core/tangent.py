@@ -9,7 +9,7 @@ integrated in the variables ``(x, y, s, w)`` with ``s = tan(theta)`` and ``w = t
 (``x' = cos(theta) u1 rho~`` with ``u1 = v1 / (rho cos(theta))``; ``s' = theta' / cos^2(theta)``;
 ``w' = phi' / cos^2(phi)`` with eq. 5's ``phi'``). One square root and no trigonometry per
 evaluation, so the compiler vectorizes the field across trials: the trials of a batch are laid
-out lane by lane (:data:`LANES` per block) and every stage of the step runs over the block's
+out lane by lane (:data:`~ilc_steering.core.kernels.LANES` per block) and every stage of the step runs over the block's
 lanes at once.
 
 Steering limit: the fourth state is ``sigma``, a C^1 monotone extension of ``tan(phi_c)`` past
@@ -31,15 +31,14 @@ plants: the robustness sweep's grid of true geometries is one call per trial ind
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 
 from ilc_steering.core import dop853
-from ilc_steering.core.plants import CHART_MARGIN, Kernel, KernelLayout
-from ilc_steering.core.stepper import LEFT_CHART, OK, locate, run_lanes
+from ilc_steering.core.kernels import LANES, block_kernel
+from ilc_steering.core.plants import CHART_MARGIN, KernelLayout
+from ilc_steering.core.stepper import LEFT_CHART, OK, locate
 
 # The compiled blocks read their arrays unchecked: they are reached through KERNEL, by
 # ilc_steering.core.integrate.integrate, which checks them against CAR_LAYOUT first.
@@ -47,9 +46,6 @@ __all__ = ["CAR_LAYOUT", "KERNEL", "LANES"]
 
 Array = npt.NDArray[np.float64]
 
-LANES = 64
-"""Trials per block: one block's stages (12 x 4 x 64 float64, 24 KB) stay in the L1 cache; 32 lanes
-were up to a tenth slower and 128 no faster, in one timing of the kernel at N = 4096."""
 CAR_LAYOUT = KernelLayout(
     ("x", "y", "theta", "phi_c"), ("wheelbase", "wheel_radius", "true_wheelbase", "true_wheel_radius", "steering_limit")
 )
@@ -76,11 +72,12 @@ def _field(k, a, b3, ell, big_w, s, sigma, v1, v2):  # type: ignore[no-untyped-d
     return kv, kv * s, a * v1 * w * r2 * r, -b3 * s * r * w * w * v1 + ell * v2 / (r2 * r)
 
 
-# No closures and no factories here: numba names a compiled function by its qualified name, so
-# two closures of one factory (a block of 1 lane and one of 64) compile to the same symbol, and
-# a process that loads one from the cache and compiles the other links one in place of the
-# other (heap corruption, seen in the wild). Each lane count is its own module-level function
-# around an inlined body, where the count is a constant the compiler folds.
+# No closures here: numba names a compiled function by its qualified name, so two closures of
+# one function (a step of 1 lane and one of 64) compile to the same symbol, and a process that
+# loads one from the cache and compiles the other links one in place of the other (heap
+# corruption, seen in the wild; ilc_steering.core.kernels names each robot's runners apart). Each
+# lane count is its own module-level function around an inlined body, where the count is a
+# constant the compiler folds.
 @njit(cache=True, inline="always")
 def _rk(n, p, x, tau, h, coef1, coef, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
     """One step of length ``h`` from local time ``tau`` of every lane: ``p`` the
@@ -277,35 +274,5 @@ def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, 
         _angle(p, x, j, out[start + j])
 
 
-@njit(cache=True)
-def block_one(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    """One trial: the scalar path (``env.step``), and all a first run compiles."""
-    _block(1, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
-
-
-@njit(cache=True)
-def block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    """A block of :data:`LANES` trials, vectorized across them (a last, partial block is padded)."""
-    _block(LANES, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
-
-
-@njit(cache=True, parallel=True)
-def parallel_batch(params, x0, durations, steps, v1c, v2c, out, status, traj, stop):  # type: ignore[no-untyped-def]
-    """Trials ``0:stop`` of the batch in blocks of :data:`LANES`, shared among numba's threads."""
-    for blk in prange((stop + LANES - 1) // LANES):
-        block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, blk * LANES, min(stop, (blk + 1) * LANES))
-
-
-_BLOCKS = (block_one, block_full, parallel_batch)
-
-
-def _serial(*args: Any) -> None:
-    run_lanes(_BLOCKS, args, False, "batched car", LANES)
-
-
-def _parallel(*args: Any) -> None:
-    run_lanes(_BLOCKS, args, True, "batched car", LANES)
-
-
-KERNEL = Kernel("batched car", CAR_LAYOUT, _serial, _parallel)
+KERNEL = block_kernel("batched car", CAR_LAYOUT, __name__, _block)
 """The car without servo perturbations, in tangent coordinates."""

@@ -26,8 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from importlib import import_module
-from math import isfinite, pi
+from math import isfinite
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -36,6 +35,7 @@ import numpy.typing as npt
 from ilc_steering.core.checks import check_factors, renamed, require, require_length
 from ilc_steering.core.plants import (
     CHART_MARGIN,
+    FactorFamily,
     Kernel,
     PlantKind,
     check_angles,
@@ -43,6 +43,8 @@ from ilc_steering.core.plants import (
     check_magnitude,
     check_steering_limit,
 )
+from ilc_steering.core.robots.chart import check_chart, frame_angle, rotate
+from ilc_steering.core.robots.outline import car_outline
 
 __all__ = [
     "CAR",
@@ -53,15 +55,12 @@ __all__ = [
     "CarModel",
     "CarPlant",
     "CarPlantConfig",
-    "box",
     "car_outline",
     "car_velocity",
     "chained_inputs",
     "check_chart",
-    "direction",
     "frame_angle",
     "rotate",
-    "segment",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -97,8 +96,6 @@ MAX_STEERING_OFFSET = 0.5
 """[rad] the largest ``|steering_offset|`` of a car plant."""
 MAX_LAG = 10.0
 """[s] the largest servo time constant of a car plant."""
-# Proportions of the drawn car, in wheelbases (the paper's car: 0.2 m between the axles).
-BODY_REAR, BODY_FRONT, BODY_HALF_WIDTH, WHEEL_HALF_LENGTH = -0.3, 1.3, 0.35, 0.2
 
 
 @dataclass(frozen=True)
@@ -153,92 +150,8 @@ class CarModel:
         return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
 
 
-def box(origin: Array, heading: Array, normal: Array, size: float, back: float, ahead: float) -> Array:
-    """The closed rectangle ``(..., 5, 2)`` [m] from ``back`` to ``ahead`` along ``heading`` and
-    ``BODY_HALF_WIDTH`` to each side, in units of ``size`` [m] from ``origin`` (each ``(..., 2)``)."""
-    along = np.array([back, ahead, ahead, back, back])[:, None]
-    side = (np.array([-1.0, -1.0, 1.0, 1.0, -1.0]) * BODY_HALF_WIDTH)[:, None]
-    return origin[..., None, :] + size * (along * heading[..., None, :] + side * normal[..., None, :])
-
-
-def direction(angle: Array) -> tuple[Array, Array]:
-    """The unit vector ``(..., 2)`` at ``angle`` [rad] and the one a quarter turn left of it."""
-    heading = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
-    return heading, np.stack([-heading[..., 1], heading[..., 0]], axis=-1)
-
-
-def segment(middle: Array, half: Array) -> Array:
-    """The segment ``(..., 2, 2)`` from ``middle - half`` to ``middle + half``."""
-    return np.stack([middle - half, middle + half], axis=-2)
-
-
-def car_outline(q: Array, wheelbase: float) -> tuple[Array, Array, Array]:
-    """The body polygon ``(..., 5, 2)``, rear wheel ``(..., 2, 2)`` and front wheel ``(..., 2, 2)`` [m]
-    of a car at ``q = (x, y, theta, phi)`` (or configurations ``(..., 4)``) with the given
-    ``wheelbase`` [m]."""
-    q = np.asarray(q, dtype=np.float64)
-    theta, phi = q[..., 2], q[..., 3]
-    heading, normal = direction(theta)
-    rear = q[..., :2]
-    body = box(rear, heading, normal, wheelbase, BODY_REAR, BODY_FRONT)
-    half = WHEEL_HALF_LENGTH * wheelbase
-    front = rear + wheelbase * heading
-    steered, _ = direction(theta + phi)
-    return body, segment(rear, half * heading), segment(front, half * steered)
-
-
-def check_chart(q: Array) -> None:
-    """Raise ``ValueError`` where the chained-form map of eq. 4 is undefined (``|theta|`` or ``|phi| >= pi/2``)."""
-    q = np.asarray(q, dtype=np.float64)
-    if q.shape[-1] != 4:
-        raise ValueError(f"a car configuration is (x, y, theta, phi); got shape {q.shape}")
-    if q.size and float(np.abs(q[..., 2:]).max()) < pi / 2 and np.isfinite(q[..., :2]).all():
-        return  # the common case, in one pass; the checks below say what is wrong
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"configuration must be finite, got {q.tolist()}")
-    theta, phi = q[..., 2], q[..., 3]
-    if np.any(np.abs(theta) >= pi / 2):
-        raise ValueError(
-            f"theta = {np.asarray(theta).tolist()} rad: the chained form needs |theta| < pi/2 "
-            "in the task frame (z3 = tan(theta)); rotate the frame with frame_angle()"
-        )
-    if np.any(np.abs(phi) >= pi / 2):
-        raise ValueError(f"phi = {np.asarray(phi).tolist()} rad: the chained form needs |phi| < pi/2")
-
-
-def frame_angle(*thetas: float) -> float:
-    """The rotation [rad] of the x-y frame that puts all orientations ``thetas`` in ``(-pi/2, pi/2)``.
-
-    Zero when they already are (so the paper's tasks keep their coordinates); otherwise the middle
-    of their range, which works whenever the range is below ``pi`` (end of section 4). Raises
-    ``ValueError`` otherwise, suggesting the intermediate configuration the paper prescribes.
-    """
-    low, high = min(thetas), max(thetas)
-    if high - low >= pi:
-        middle = 0.5 * (low + high)
-        raise ValueError(
-            f"orientations {low:.6g} and {high:.6g} rad are pi or more apart: no frame puts both in the "
-            f"chained-form chart. Split the task at an intermediate configuration with theta = {middle:.6g} rad "
-            "(section 4), or write one orientation 2*pi apart if the same heading by the shorter turn is meant."
-        )
-    if all(abs(t) < pi / 2 for t in thetas):
-        return 0.0
-    return 0.5 * (low + high)
-
-
-def rotate(q: Array, angle: float) -> Array:
-    """Express configurations ``q`` (``(..., 4)``) in a frame rotated by ``angle`` [rad]."""
-    q = np.asarray(q, dtype=np.float64)
-    c, s = np.cos(angle), np.sin(angle)
-    out = q.copy()
-    out[..., 0] = c * q[..., 0] + s * q[..., 1]
-    out[..., 1] = -s * q[..., 0] + c * q[..., 1]
-    out[..., 2] = q[..., 2] - angle
-    return out
-
-
 @dataclass(frozen=True)
-class CarPlant:
+class CarPlant(FactorFamily):
     """The car of eq. (3) with its true geometry, steered through the nominal eqs. (4)-(5).
 
     ``steering_limit`` bounds the wheel angle ``|phi|`` [rad] (``None`` for none). The state's
@@ -374,12 +287,6 @@ class CarPlant:
             [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
         )
 
-    def family_names(self) -> tuple[str, ...]:
-        return self.factor_names
-
-    def with_family(self, ratios: Array) -> CarPlant:
-        return self.with_true_factors(ratios)
-
     def actuator_names(self) -> tuple[str, ...]:
         """The steering servo's parameters a model family may leave free beside :meth:`family_names`:
         the wheel's offset [rad] and the servo's first-order time constant [s]."""
@@ -398,9 +305,9 @@ class CarPlant:
     def kernel(self) -> tuple[Kernel, Array]:
         """The batched kernel of :mod:`~ilc_steering.core.tangent`, or with a servo perturbation or
         a lab imperfection on, the servo's or the lab's of :mod:`~ilc_steering.core.robots.car_fields`."""
-        fields = import_module("ilc_steering.core.robots.car_fields")
-        kernel: tuple[Kernel, Array] = fields.car_kernel(self)
-        return kernel
+        from ilc_steering.core.robots.car_fields import car_kernel  # numba, loaded when a car is first simulated
+
+        return car_kernel(self)
 
     def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
         """Eqs. 4-5 with the nominal geometry from the measured wheel angle (the clipped command, or

@@ -25,10 +25,13 @@ located to rounding; the total is ``2 pi k / N + psi``), the controller's estima
 count ``k``. The wheel turns to ``phi_w = clip(A, phi_s - b/2, phi_s + b/2)``: on a stretch where
 ``phi_s`` is monotone, that is the play operator exactly, given ``A`` = the wheel angle at its
 start; ``A`` is refreshed at every (sub)step. Eqs. 4-5 use ``theta_hat`` and ``phi_s``. Events,
-each located inside the step (:func:`~ilc_steering.core.stepper.locate`) and the step split there:
-the steering limit; the play engaging; ``phi_s`` turning back (its rate changes sign, so the clip
-formula restarts); and each encoder pulse, ``psi`` leaving ``[0, 2 pi / N]``, which jumps the
-estimate by the nominal odometry of an arc of ``2 pi rho_nominal / N``.
+each located inside the step and the step split there: the steering limit; the play engaging;
+``phi_s`` turning back (its rate changes sign, so the clip formula restarts), these three by
+regula falsi on substeps (:func:`~ilc_steering.core.stepper.locate`); and each encoder pulse,
+``psi`` leaving ``[0, 2 pi / N]``, which jumps the estimate by the nominal odometry of an arc of
+``2 pi rho_nominal / N``, found in closed form (between pulses ``psi`` is the integral of a linear
+servo's response to a polynomial: :func:`_lab_pulse`), so a step with a pulse costs two
+Runge-Kutta steps, not seven (``benchmarks/robots.py``).
 """
 
 from __future__ import annotations
@@ -37,11 +40,12 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 
 from ilc_steering.core import tangent
+from ilc_steering.core.kernels import trial_kernel
 from ilc_steering.core.plants import Kernel, KernelLayout
-from ilc_steering.core.stepper import CHART_LIMIT, drive, locate, poly, rk_step, step_with_stop
+from ilc_steering.core.stepper import CHART_LIMIT, MAX_ITERATIONS, locate, poly, rk_step_on, step_with_stop
 from ilc_steering.core.tangent import CAR_LAYOUT
 
 __all__ = ["ANGLE_KERNEL", "LAB_KERNEL", "SERVO_KERNEL", "car_kernel", "closed_loop_velocity"]
@@ -60,21 +64,14 @@ _ELL, _RHO, _TRUE_ELL, _TRUE_RHO, _LIMIT = (LAB_LAYOUT.index(name) for name in C
 _OFFSET, _STEERING_LAG, _SPEED_LAG = (LAB_LAYOUT.index(n) for n in ("steering_offset", "steering_lag", "speed_lag"))
 _BACKLASH, _PULSES = LAB_LAYOUT.index("steering_backlash"), LAB_LAYOUT.index("encoder_pulses")
 _PHI_C = CAR_LAYOUT.state.index("phi_c")
+_SIN_HAT, _COS_HAT = len(LAB_LAYOUT.params), len(LAB_LAYOUT.params) + 1  # _lab_step's, past the row
 _MAX_EVENTS = 10_000  # events within one step of the lab robot before it gives up locating them
 _LAB_EVENT_TIME = 1e-14  # relative to the step: how closely a lab event is located
+_MOVING = np.array([0, 1, 2, 3, 4, 5, 7])  # the lab state's entries that move between events
 
 
 @njit(cache=True, inline="always")
-def closed_loop_velocity(  # type: ignore[no-untyped-def]
-    theta,
-    phi,
-    v1,
-    v2,
-    wheelbase,
-    wheel_radius,
-    true_wheelbase,
-    true_wheel_radius,
-):
+def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheelbase, true_wheel_radius):  # type: ignore[no-untyped-def]
     """Eq. (3) of a car with the true geometry, driven by eqs. (4)-(5) with the nominal one:
     ``(dx, dy, dtheta, dphi)`` [m/s, m/s, rad/s, rad/s].
 
@@ -154,9 +151,11 @@ def _lab_wheel(params, x, phi_s):  # type: ignore[no-untyped-def]
 @njit(cache=True, inline="always")
 def _lab_inputs(params, x, v1, v2):  # type: ignore[no-untyped-def]
     """Eqs. 4-5 with the nominal geometry at the controller's estimate: ``(u1, u2)``."""
-    theta = x[10] if params[_PULSES] > 0 else x[2]
+    if params[_PULSES] > 0:  # the estimate's, fixed between pulses: set by _lab_step past the row
+        s, c = params[_SIN_HAT], params[_COS_HAT]
+    else:
+        s, c = np.sin(x[2]), np.cos(x[2])
     phi = _lab_servo(params, x)
-    s, c = np.sin(theta), np.cos(theta)
     s_phi, c_phi = np.sin(phi), np.cos(phi)
     ell = params[_ELL]
     u1 = v1 / (params[_RHO] * c)
@@ -233,46 +232,131 @@ def _lab_jump(j, params, x):  # type: ignore[no-untyped-def]
 @njit(cache=True, inline="always")
 def _lab_event_after(rhs, state, s):  # type: ignore[no-untyped-def]
     """Event ``j``'s value after a substep of length ``s`` from ``cur`` at local time ``t``."""
-    n, params, cur, t, v1c, v2c, probe, work, j, sides = state
-    rk_step(rhs, n, params, cur, t, s, v1c, v2c, probe, work)
+    params, cur, t, v1c, v2c, probe, work, j, sides = state
+    rk_step_on(rhs, _MOVING, params, cur, t, s, v1c, v2c, probe, work)
     return _lab_event(j, params, probe, t + s, v1c, v2c, sides)
+
+
+@njit(cache=True, inline="always")
+def _lab_wheel_speed(params, x, v1c, coef):  # type: ignore[no-untyped-def]
+    """Between pulses (the estimate fixed) the driving wheel's speed follows ``k v1(t)``, ``k = 1 /
+    (rho cos(theta_hat))`` (eq. 4), through the speed servo: into ``coef[0]`` the polynomial ``q`` its
+    speed tends to (``q' + q / lag = k v1 / lag``: ``q = k sum_m (-lag)^m v1^(m)``; ``k v1`` without a
+    lag), into ``coef[1]`` its integral from 0 (in local time)."""
+    lag, k = params[_SPEED_LAG], 1.0 / (params[_RHO] * np.cos(x[10]))
+    degree = v1c.shape[0] - 1
+    coef[0, degree + 1] = 0.0  # q is of v1's degree; the row is one longer, for its integral
+    coef[1, 0] = 0.0
+    for i in range(degree + 1):
+        acc, weight = 0.0, 1.0  # weight: (-lag)^m (i + m)! / i!
+        for m in range(degree - i + 1):
+            acc += weight * v1c[i + m]
+            weight *= -lag * (i + m + 1)
+        coef[0, i] = k * acc
+        coef[1, i + 1] = k * acc / (i + 1)
+
+
+@njit(cache=True, inline="always")
+def _lab_turn(params, x, coef, t, s):  # type: ignore[no-untyped-def]
+    """The wheel's rotation [rad] over ``s`` [s] from local time ``t`` and its speed [rad/s] then,
+    in closed form between pulses (:func:`_lab_wheel_speed`): ``omega = q + (omega_0 - q(t))
+    e^(-s / lag)``."""
+    lag, q, big_q = params[_SPEED_LAG], coef[0], coef[1]
+    rotation = poly(big_q, t + s) - poly(big_q, t)
+    if lag <= 0:
+        return rotation, poly(q, t + s)
+    gap = x[5] - poly(q, t)
+    return rotation - gap * lag * np.expm1(-s / lag), poly(q, t + s) + gap * np.exp(-s / lag)
+
+
+@njit(cache=True, inline="always")
+def _lab_pulse(params, x, coef, t, span):  # type: ignore[no-untyped-def]
+    """The encoder pulse within ``span`` [s] of local time ``t``: ``(3, s)`` forward (``psi`` reaching
+    one pitch) or ``(4, s)`` backward (``psi`` falling below 0) at ``s``, or ``(-1, span)``. The
+    wheel's rotation is known in closed form (:func:`_lab_turn`), so the pulse is found by Newton's
+    method on it, bracketed, to rounding: no Runge-Kutta substep is spent on locating it."""
+    pitch, psi = 2.0 * np.pi / params[_PULSES], x[7]
+    end = psi + _lab_turn(params, x, coef, t, span)[0]
+    if psi <= pitch < end:
+        which, sign, level = 3, 1.0, pitch
+    elif psi >= 0.0 > end:
+        which, sign, level = 4, -1.0, 0.0
+    else:
+        return -1, span
+    lo, hi = 0.0, span
+    g_lo, g_hi = sign * (psi - level), sign * (end - level)
+    s = span * -g_lo / (g_hi - g_lo)
+    for _ in range(MAX_ITERATIONS):
+        rotation, speed = _lab_turn(params, x, coef, t, s)
+        g = sign * (psi + rotation - level)
+        if g > 0:
+            hi = s
+        else:
+            lo = s
+        nxt = s - g / (sign * speed) if speed * sign > 0 else 0.5 * (lo + hi)
+        if not (lo <= nxt <= hi):
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - s) <= 1e-12 * span or g == 0.0:  # the rotation is known to about 1e-14 rad
+            return which, nxt
+        s = nxt
+    return which, hi
 
 
 @njit(cache=True, inline="always")
 def _lab_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
     """One step of the lab robot from local time ``tau``, split at each event (see the module
-    docstring) in the order they happen."""
+    docstring) in the order they happen: the steering events located by regula falsi on Runge-Kutta
+    substeps, the encoder pulses in closed form (:func:`_lab_pulse`)."""
     cur = x.copy()
     sides = np.empty(3)
-    active = 5 if params[_PULSES] > 0 else 3  # the two pulse events only with encoders
-    t, remaining = tau, h
+    coef = np.empty((2, v1c.shape[0] + 1))
+    p = np.empty(params.shape[0] + 2)  # the row, and the estimate's sine and cosine
+    p[: params.shape[0]] = params
+    pulses = p[_PULSES] > 0
+    t, remaining, which = tau, h, -1
+    sides[0] = sides[1] = 0.0
     for _ in range(_MAX_EVENTS):
-        phi_s = _lab_servo(params, cur)
-        cur[6] = _lab_wheel(params, cur, phi_s)  # the anchor: the wheel angle now
-        sides[0] = -1.0 if abs(cur[3]) > params[_LIMIT] else 1.0
-        rate = _lab_servo_rate(params, cur, poly(v1c, t), poly(v2c, t))
+        p[_SIN_HAT], p[_COS_HAT] = np.sin(cur[10]), np.cos(cur[10])
+        phi_s = _lab_servo(p, cur)
+        cur[6] = _lab_wheel(p, cur, phi_s)  # the anchor: the wheel angle now
+        side = -1.0 if abs(cur[3]) > p[_LIMIT] else 1.0
+        rate = _lab_servo_rate(p, cur, poly(v1c, t), poly(v2c, t))
         direction = 0.0
-        if params[_BACKLASH] > 0:
+        if p[_BACKLASH] > 0:
             direction = 1.0 if rate > 0 else (-1.0 if rate < 0 else 0.0)
-        sides[1] = direction
+        # Past an event by a rounding error only (|phi_c| at the stop to the last bit, the servo's
+        # rate not yet of the other sign), the state would fire it again at once, and again (each
+        # time a step of 1e-14 h, under the clock's rounding): it is on the other side.
+        if which == 0 and side == sides[0]:
+            side = -side
+        if which == 2 and direction == sides[1]:
+            direction = -direction
+        sides[0], sides[1] = side, direction
         gap = direction * (phi_s - cur[6])
-        sides[2] = 1.0 if gap >= 0.5 * params[_BACKLASH] * (1.0 - 1e-12) else 0.0
-        rk_step(rhs, n, params, cur, t, remaining, v1c, v2c, out, work)
-        first, which = remaining, -1
-        for j in range(active):
-            g_lo = _lab_event(j, params, cur, t, v1c, v2c, sides)
-            g_hi = _lab_event(j, params, out, t + remaining, v1c, v2c, sides)
+        sides[2] = 1.0 if gap >= 0.5 * p[_BACKLASH] * (1.0 - 1e-12) else 0.0
+        which, span = -1, remaining
+        if pulses:
+            _lab_wheel_speed(p, cur, v1c, coef)
+            which, span = _lab_pulse(p, cur, coef, t, remaining)
+        rk_step_on(rhs, _MOVING, p, cur, t, span, v1c, v2c, out, work)
+        first = span
+        for j in range(3):
+            g_lo = _lab_event(j, p, cur, t, v1c, v2c, sides)
+            g_hi = _lab_event(j, p, out, t + span, v1c, v2c, sides)
             if not (g_lo <= 0.0 < g_hi):
                 continue
-            state = (n, params, cur, t, v1c, v2c, probe, work, j, sides)
-            hi = locate(_lab_event_after, rhs, state, g_lo, g_hi, remaining, _LAB_EVENT_TIME * h, False, True)
+            state = (p, cur, t, v1c, v2c, probe, work, j, sides)
+            hi = locate(_lab_event_after, rhs, state, g_lo, g_hi, span, _LAB_EVENT_TIME * h, False, True)
             if hi < first:
                 first, which = hi, j
         if which < 0:
             return
-        rk_step(rhs, n, params, cur, t, first, v1c, v2c, probe, work)
-        cur[:] = probe
-        _lab_jump(which, params, cur)
+        if first < span:
+            rk_step_on(rhs, _MOVING, p, cur, t, first, v1c, v2c, probe, work)
+            cur[:] = probe
+        else:
+            cur[:] = out
+        _lab_jump(which, p, cur)
         t += first
         remaining -= first
         if remaining <= 0.0:
@@ -287,64 +371,10 @@ def _lab_chart(params, x):  # type: ignore[no-untyped-def]
     return max(abs(x[2]), abs(x[10]), abs(phi_s), abs(wheel)) < CHART_LIMIT
 
 
-# One compiled trial function per field, and its two batch runners; numba cannot share the runner
-# loops (a prange loop inside an inlined function is not parallelized, and a function passed to a
-# compiled one is keyed in the cache by its address), so each field has its own, three lines each.
-@njit(cache=True)
-def _angle_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_car_field, _limit_step, _car_chart, 4, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _servo_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_servo_field, _limit_step, _servo_chart, 6, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _lab_trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_lab_field, _lab_step, _lab_chart, 12, params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _angle_serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _angle_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _angle_parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _angle_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True)
-def _servo_serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _servo_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _servo_parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _servo_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True)
-def _lab_serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _lab_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _lab_parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _lab_trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-ANGLE_KERNEL = Kernel("car (angles)", CAR_LAYOUT, _angle_serial, _angle_parallel)
+ANGLE_KERNEL = trial_kernel("car (angles)", CAR_LAYOUT, __name__, _car_field, _car_chart, _limit_step)
 """The car without servo perturbations in ``(x, y, theta, phi_c)``: the kernel the batched one replaced."""
-SERVO_KERNEL = Kernel("car-servo", SERVO_LAYOUT, _servo_serial, _servo_parallel)
-LAB_KERNEL = Kernel("car-lab", LAB_LAYOUT, _lab_serial, _lab_parallel)
+SERVO_KERNEL = trial_kernel("car-servo", SERVO_LAYOUT, __name__, _servo_field, _servo_chart, _limit_step)
+LAB_KERNEL = trial_kernel("car-lab", LAB_LAYOUT, __name__, _lab_field, _lab_chart, _lab_step)
 
 
 def car_kernel(plant: Any) -> tuple[Kernel, Array]:

@@ -14,12 +14,12 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 
 from ilc_steering.core.chained_form import ChainedForm
 from ilc_steering.core.checks import check_factors, require
-from ilc_steering.core.plants import Kernel, KernelLayout, PlantKind, check_magnitude
-from ilc_steering.core.stepper import drive, rk_step
+from ilc_steering.core.kernels import trial_kernel
+from ilc_steering.core.plants import ConfigurationState, FactorFamily, Kernel, KernelLayout, PlantKind, check_magnitude
 
 __all__ = ["CHAINED", "KERNEL", "MAX_DIMENSION", "ChainedPlant", "ChainedPlantConfig"]
 
@@ -43,38 +43,11 @@ def _field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
         out[i] = x[i - 1] * w1
 
 
-@njit(cache=True, inline="always")
-def _step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
-    rk_step(rhs, n, params, x, tau, h, v1c, v2c, out, work)
-
-
-@njit(cache=True, inline="always")
-def _chart(params, x):  # type: ignore[no-untyped-def]
-    return True
-
-
-@njit(cache=True)
-def _trial(params, x0, durations, steps, v1c, v2c, out, traj):  # type: ignore[no-untyped-def]
-    return drive(_field, _step, _chart, x0.shape[0], params, x0, durations, steps, v1c, v2c, out, traj)
-
-
-@njit(cache=True)
-def _serial(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in range(x0.shape[0]):
-        status[b] = _trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-@njit(cache=True, parallel=True)
-def _parallel(params, x0, durations, steps, v1c, v2c, out, status, traj):  # type: ignore[no-untyped-def]
-    for b in prange(x0.shape[0]):
-        status[b] = _trial(params[b], x0[b], durations, steps, v1c[b], v2c[b], out[b], traj[b])
-
-
-KERNEL = Kernel("chained-form", LAYOUT, _serial, _parallel)
+KERNEL = trial_kernel("chained-form", LAYOUT, __name__, _field)
 
 
 @dataclass(frozen=True)
-class ChainedPlant:
+class ChainedPlant(ConfigurationState, FactorFamily):
     """The chained form of eq. (1) with true input gains: ``v1_gain * v1`` drives every
     ``v1`` term and ``v2_gain * v2`` drives ``z2`` (a perturbation of the form of eq. 37)."""
 
@@ -106,18 +79,6 @@ class ChainedPlant:
     def state_dim(self) -> int:
         return self.dimension
 
-    def initial_state(self, q: Array) -> Array:
-        """The state is the configuration."""
-        return np.array(q, dtype=np.float64)
-
-    def configuration(self, x: Array) -> Array:
-        """The state is the configuration."""
-        return np.asarray(x)
-
-    def estimate(self, x: Array) -> Array:
-        """The state is the configuration, known exactly."""
-        return np.asarray(x)
-
     def check_configuration(self, q: Array) -> None:
         q = np.asarray(q, dtype=np.float64)
         require(q.shape[-1] == self.dimension, "z", f"needs {self.dimension} values, got shape {q.shape}")
@@ -126,12 +87,6 @@ class ChainedPlant:
 
     def true_factors(self) -> Array:
         return np.array([self.v1_gain, self.v2_gain])
-
-    def family_names(self) -> tuple[str, ...]:
-        return self.factor_names
-
-    def with_family(self, ratios: Array) -> ChainedPlant:
-        return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> ChainedPlant:
         f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product

@@ -39,11 +39,14 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 
 from ilc_steering.core.checks import check_factors, renamed, require_length
+from ilc_steering.core.kernels import lane_kernel
 from ilc_steering.core.plants import (
     CHART_MARGIN,
+    ConfigurationState,
+    FactorFamily,
     Kernel,
     KernelLayout,
     PlantKind,
@@ -51,8 +54,8 @@ from ilc_steering.core.plants import (
     check_magnitude,
     heading_curvature_cost,
 )
-from ilc_steering.core.robots.car import direction, segment
-from ilc_steering.core.stepper import CHART_LIMIT, lane_block, run_lanes
+from ilc_steering.core.robots.outline import direction, segment
+from ilc_steering.core.stepper import CHART_LIMIT
 
 __all__ = [
     "KERNEL",
@@ -141,10 +144,9 @@ _RHO, _B, _TRUE_RHO, _TRUE_B = (LAYOUT.index(name) for name in LAYOUT.params)
 
 # The closed loop in (x, y, s) with s = tan(theta) is linear: with k = rho~/rho, g = k b / b~,
 #     x' = k v1,   y' = k v1 s,   s' = theta' / cos^2(theta) = g v2,
-# no trigonometry, so the Runge-Kutta step vectorizes across trials (LANES per block), as the car's
+# no trigonometry, so the Runge-Kutta step vectorizes across trials (a lane kernel), as the car's
 # batched kernel does (ilc_steering.core.tangent). The chart |theta| < pi/2 - CHART_MARGIN is
 # |s| < tan(pi/2 - CHART_MARGIN).
-LANES = 64
 _T_CHART = float(np.tan(CHART_LIMIT))
 
 
@@ -173,64 +175,11 @@ def _store(x, j, dst):  # type: ignore[no-untyped-def]
     dst[0], dst[1], dst[2] = x[0, j], x[1, j], np.arctan(x[2, j])
 
 
-@njit(cache=True, inline="always")
-def _block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    lane_block(
-        _load,
-        _lane_field,
-        _lane_chart,
-        _store,
-        3,
-        2,
-        n,
-        params,
-        x0,
-        durations,
-        steps,
-        v1c,
-        v2c,
-        out,
-        status,
-        traj,
-        start,
-        stop,
-    )
-
-
-@njit(cache=True)
-def _block_one(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    _block(1, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
-
-
-@njit(cache=True)
-def _block_full(params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    _block(LANES, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop)
-
-
-@njit(cache=True, parallel=True)
-def _block_shared(params, x0, durations, steps, v1c, v2c, out, status, traj, stop):  # type: ignore[no-untyped-def]
-    for blk in prange((stop + LANES - 1) // LANES):
-        _block_full(
-            params, x0, durations, steps, v1c, v2c, out, status, traj, blk * LANES, min(stop, (blk + 1) * LANES)
-        )
-
-
-_BLOCKS = (_block_one, _block_full, _block_shared)
-
-
-def _serial(*args: Any) -> None:
-    run_lanes(_BLOCKS, args, False, "unicycle", LANES)
-
-
-def _parallel(*args: Any) -> None:
-    run_lanes(_BLOCKS, args, True, "unicycle", LANES)
-
-
-KERNEL = Kernel("unicycle", LAYOUT, _serial, _parallel)
+KERNEL = lane_kernel("unicycle", LAYOUT, __name__, (_load, _lane_field, _lane_chart, _store), (3, 2))
 
 
 @dataclass(frozen=True)
-class UnicyclePlant:
+class UnicyclePlant(ConfigurationState, FactorFamily):
     """A differential-drive robot with its true wheel radius and axle width, its commanded forward
     speed and turn rate turned into wheel speeds with the nominal ones. The state is the
     configuration ``(x, y, theta)``."""
@@ -250,18 +199,6 @@ class UnicyclePlant:
     def state_dim(self) -> int:
         return 3
 
-    def initial_state(self, q: Array) -> Array:
-        """The state is the configuration."""
-        return np.array(q, dtype=np.float64)
-
-    def configuration(self, x: Array) -> Array:
-        """The state is the configuration."""
-        return np.asarray(x, dtype=np.float64)
-
-    def estimate(self, x: Array) -> Array:
-        """The configuration, measured exactly."""
-        return np.asarray(x, dtype=np.float64)
-
     def check_configuration(self, q: Array) -> None:
         """The chart (``|theta| < pi/2`` in the task frame)."""
         check_unicycle_chart(q)
@@ -272,12 +209,6 @@ class UnicyclePlant:
         return np.array(
             [self.true.wheel_radius / self.nominal.wheel_radius, self.true.axle_width / self.nominal.axle_width]
         )
-
-    def family_names(self) -> tuple[str, ...]:
-        return self.factor_names
-
-    def with_family(self, ratios: Array) -> UnicyclePlant:
-        return self.with_true_factors(ratios)
 
     def with_true_factors(self, factors: Array) -> UnicyclePlant:
         f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product
