@@ -82,7 +82,11 @@ def _installed_layout(tmp_path: Path) -> Path:
     """A copy of the package as a wheel lays it out (agents, envs, configs under ilc_steering)."""
     site = tmp_path / "site"
     package = site / "ilc_steering"
-    shutil.copytree(ROOT / "ilc_steering", package, ignore=shutil.ignore_patterns("__pycache__", "*.nb*"))
+    shutil.copytree(
+        ROOT / "ilc_steering",
+        package,
+        ignore=shutil.ignore_patterns("__pycache__", "*.nb*", "agents", "envs", "configs"),
+    )
     for name in ("agents", "envs", "configs"):
         shutil.copytree(ROOT / name, package / name, ignore=shutil.ignore_patterns("__pycache__", "*.nb*"))
     return site

@@ -670,7 +670,7 @@ def test_a_users_learner_in_the_working_directory_is_found_by_the_installed_scri
 
     (tmp_path / "here_learners.py").write_text("from ilc_steering.agents.ilc import make_ilc as make\n")
     script = Path(sys.executable).with_name("ilc-steering")
-    run = [str(script), "run", "forward_parking", "--learner", "here_learners:make", "--trials", "5"]
+    run = [str(script), "run", "forward_parking", "--learner", "here_learners:make", "--trials", "6"]
     result = subprocess.run(run, capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert result.returncode == 0 and "converged at trial" in result.stdout, result.stderr
     compare = [str(script), "compare", "--methods", "here_learners:make", "--priors", "nominal", "--seeds", "0"]
