@@ -76,6 +76,7 @@ def test_rl_cell_says_which_implementation_made_it(backend: str, monkeypatch: py
     assert cell["implementation"].split()[0] == expected
 
 
+@pytest.mark.slow  # imports JAX and SBX: about 10 s
 @pytest.mark.extra("rl", "rl-jax")
 def test_sbx_is_the_default_backend_where_installed(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(rl_settings.BACKEND_VARIABLE, raising=False)

@@ -43,6 +43,7 @@ def test_on_the_nominal_plant_the_first_update_lands_on_the_goal():
     assert error[0] < 1e-9
 
 
+@pytest.mark.slow  # about 8 s of identification
 def test_where_the_nominal_solution_leaves_the_chart_it_identifies_the_plant_and_converges():
     # A wheelbase of half the nominal: the nominal solution jackknifes the true car; newton_ilc
     # never recovers, robust_ilc aims nearer the start, identifies the car and parks it.
