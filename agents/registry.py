@@ -16,8 +16,7 @@ spec names its optimizer ``optimizer(env, context)``, which
 :func:`ilc_steering.agents.blackbox.make_learner` runs as a learner; an RL spec holds its
 algorithm (:class:`RLAlgorithm`: the class and module that implement it, the shape of its actor),
 which :mod:`ilc_steering.agents.rl` builds. The family modules read the spec; the registry names
-them by their entry strings only, so that they may import it. Installed packages add learners as
-entry points of the group :data:`GROUP`, as robots are added (``docs/learners.md``).
+them by their entry strings only, so that they may import it.
 :meth:`LearnerSpec.make` attaches the config's ``learning.cost``
 (:func:`ilc_steering.agents.costs.with_cost`) to every learner it builds, so no command can drop it.
 """
@@ -34,7 +33,6 @@ from ilc_steering.entries import load_entry
 __all__ = [
     "DEFAULT_METHODS",
     "FAMILIES",
-    "GROUP",
     "METHODS",
     "REGISTRY",
     "Budgets",
@@ -48,8 +46,6 @@ __all__ = [
 
 FAMILIES = ("model-based", "black-box", "RL", "yours")
 """The families the comparison's figures colour by; ``yours``: a user's ``module:attr``."""
-GROUP = "ilc_steering.learners"
-"""The entry-point group in which an installed package names its learners (``id = "module:make"``)."""
 _RL = "ilc_steering.agents.rl"
 _RL_SETTINGS = "ilc_steering.agents.rl_settings"
 _BLACKBOX = "ilc_steering.agents.blackbox"
