@@ -27,6 +27,7 @@ __all__ = [
     "broyden_update",
     "final_chained",
     "gauss_newton",
+    "in_scatter_band",
     "law_step",
     "levenberg_marquardt",
     "measure",
@@ -255,3 +256,29 @@ def within_scatter(q: Array, goal_q: Array, sigma: Array, groups: tuple[tuple[in
 BAND = FLOOR
 """A learner that knows the scatter averages once a trial lands within this many times it (per
 coordinate): there, what it measures is mostly the scatter, which no step can take back."""
+
+
+def in_scatter_band(
+    model: NominalModel,
+    family: ModelFamily,
+    theta: Array,
+    trials: list[Trial],
+    goal_q: Array,
+    band: list[Trial],
+    trial: Trial,
+) -> tuple[Array | None, bool]:
+    """The scatter estimated from ``trials`` on the refit model (None: no estimate yet), and
+    whether ``trial`` is (still) in its band: within :data:`BAND` times it, or within twice that
+    once the band has begun. ``band`` holds the band's trials: ``trial`` is appended, or the band
+    is emptied."""
+    groups = scatter_groups(model)
+    scatter = trial_scatter(family, theta, trials, groups)
+    inside = scatter is not None and (
+        within_scatter(trial.q, goal_q, scatter, groups, BAND)
+        or (bool(band) and within_scatter(trial.q, goal_q, scatter, groups, 2 * BAND))
+    )
+    if inside:
+        band.append(trial)
+    else:
+        band.clear()
+    return scatter, inside

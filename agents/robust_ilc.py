@@ -80,19 +80,16 @@ import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.model_based import (
-    BAND,
     Trial,
     box,
     broyden_update,
     final_chained,
     gauss_newton,
+    in_scatter_band,
     law_step,
     levenberg_marquardt,
     measure,
     newton_solve,
-    scatter_groups,
-    trial_scatter,
-    within_scatter,
 )
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
@@ -261,17 +258,10 @@ class RobustILC:
 
     def _averaging(self, trial: Trial) -> bool:
         """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4)."""
-        groups = scatter_groups(self.model)
-        self.scatter = trial_scatter(self.family, self.theta, self._trials, groups)
-        if self.scatter is None:
-            self._band = []
-            return False
-        inside = within_scatter(trial.q, self._goal_q, self.scatter, groups, BAND)
-        if inside or (self._band and within_scatter(trial.q, self._goal_q, self.scatter, groups, 2 * BAND)):
-            self._band.append(trial)
-            return True
-        self._band = []
-        return False
+        self.scatter, inside = in_scatter_band(
+            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial
+        )
+        return inside
 
     def _average(self, trial: Trial) -> None:
         """The next trial from the mean offset of the band's trials, on the refit model (step 4)."""

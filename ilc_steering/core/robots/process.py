@@ -190,15 +190,6 @@ class ProcessPlant(ExternalPlantBase):
             self.nominal, self.kind, self.dimension, float(angle), self._link,
         )  # fmt: skip
 
-    def configuration(self, x: Array) -> Array:
-        return np.array(x, dtype=np.float64)
-
-    def estimate(self, x: Array) -> Array:
-        return np.array(x, dtype=np.float64)
-
-    def initial_state(self, q: Array) -> Array:
-        return np.array(q, dtype=np.float64)
-
     def check_configuration(self, q: Array) -> None:
         self.nominal.check_configuration(q)
 
