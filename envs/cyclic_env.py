@@ -155,6 +155,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Array, dict[str, Any]]:
         super().reset(seed=seed)
+        if seed is not None:  # an external plant's own scatter follows the env's seed
+            self._scenario.reseed(seed)
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
         unknown = sorted(set(options or {}) - {"start"})

@@ -2,17 +2,13 @@ r"""A car-like robot in MuJoCo as an external plant: wheels that roll on contact
 
 ## Description
 
-The car is written as MJCF (:func:`mjcf`, a template filled from the config's geometry): a
-chassis on a free joint, four wheels touching a floor plane through MuJoCo's soft contacts with
-Coulomb friction (elliptic cones), a position-controlled steering linkage on the front wheels
-(one hinge per wheel about the vertical, its angle set by the Ackermann rule :func:`ackermann`
-from the bicycle angle ``phi``) and velocity-controlled rear wheels (an electronic differential:
-each wheel's speed is the one that rolls it without slip on the bicycle's turn). The wheels are
-thin ellipsoids, which touch the floor at one point: a cylinder touches it at its two rims,
-whose friction scrubs in every turn (with cylinders the nominal forward parking ended 3.1 cm
-from the kinematic car's end, with ellipsoids 1.8 cm). At the paper's scale: wheelbase ``ell``
-= 0.2 m, wheel radius ``rho`` = 0.02 m, track 0.12 m, a 1 kg chassis on 30 g wheels
-(section 5, ``configs/forward_parking.yaml``).
+The car's body is :mod:`ilc_steering.envs.mujoco_model`: an MJCF (:func:`~ilc_steering.envs.mujoco_model.mjcf`)
+of a chassis on a free joint, four wheels on MuJoCo's soft contacts with Coulomb friction, a
+position-controlled Ackermann steering linkage on the front wheels and velocity-controlled rear
+wheels (an electronic differential: each wheel's speed is the one that rolls it without slip on
+the bicycle's turn), at the paper's scale (wheelbase ``ell`` = 0.2 m, wheel radius ``rho`` =
+0.02 m, track 0.12 m, a 1 kg chassis on 30 g wheels). This module is the plant that drives it
+and its config keys.
 
 :class:`MujocoCarPlant` runs one trial as highway's adapter does (:mod:`ilc_steering.envs.highway`):
 every ``control_period`` it measures the car (the rear axle's midpoint [m], the chassis' heading
@@ -22,7 +18,7 @@ loop (eqs. 3-5 with the nominal geometry, RK4 over the period from the measured 
 steering command it integrates from ``u2``): the steering target is the command at the period's
 end, the rear wheels' speed is ``u1`` [rad/s] of eq. 5 at mid-period. MuJoCo then steps the
 physics (``timestep``, implicit-in-velocity ``implicitfast``). The final configuration is the
-measured one: the pose and the linkage's bicycle angle (:func:`bicycle_angle`).
+measured one: the pose and the linkage's bicycle angle (:func:`~ilc_steering.envs.mujoco_model.bicycle_angle`).
 
 **The controller's nominal car** is the MJCF's geometry (:class:`~ilc_steering.core.robots.car.CarModel`
 of ``wheelbase``, ``wheel_radius``). What differs is everything outside a geometry: the car
@@ -34,34 +30,40 @@ solution ends 1.8 cm and 12 mrad from where the kinematic car of eqs. 3-5 ends.
 ## Scatter
 
 With ``friction_spread`` > 0 every trial draws each wheel's friction coefficient anew, log-normal
-around ``friction`` with that relative spread, from a generator seeded by the config's ``seed``:
-near the grip limit the car slides a little differently each time, so the same commands end a
-few millimetres apart. A run is reproducible (a fresh plant replays the same draws); the trials
-within a run differ. With ``friction_spread`` = 0 the plant repeats itself bit for bit.
-
-## Why a template string
-
-The MJCF lives in this module as a string filled from the config (wheelbase, wheel radius,
-track, friction, contact stiffness): the geometry the controller is told and the one MuJoCo
-simulates are then the same numbers by construction, and the robot stays one module
-(``docs/robots.md``); ``mjcf(config)`` prints the file for MuJoCo's own viewer.
+around ``friction`` with that relative spread: near the grip limit the car slides a little
+differently each time, so the same commands end a few millimetres apart. The draws come from a
+generator of the plant's own, seeded by the config's ``seed`` until the env is reset with a seed
+(``reset(seed=s)``: ``run_ilc(seed=s)``, each of ``compare``'s seeds), which restarts it from ``s``
+and ``seed`` together (:meth:`MujocoCarPlant.reseed`,
+:func:`~ilc_steering.core.external.plant_generator`, a stream apart from the env's measurement
+noise): the same seed gives the same trials, another seed another draw; the trials within a run
+differ. With ``friction_spread`` = 0 the plant repeats itself bit for bit.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from math import atan, cos, isfinite, pi, sin, tan
+from math import cos, isfinite, pi, sin, tan
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require, require_length
-from ilc_steering.core.external import ExternalPlantBase
+from ilc_steering.core.external import ExternalPlantBase, plant_generator
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
+from ilc_steering.envs.mujoco_model import (
+    STEER_JOINT_RANGE,
+    WHEEL_HALF_WIDTH,
+    WHEELS,
+    MujocoSim,
+    ackermann,
+    bicycle_angle,
+    mjcf,
+)
 
 __all__ = ["MUJOCO_CAR", "MujocoCarConfig", "MujocoCarPlant", "ackermann", "bicycle_angle", "mjcf"]
 
@@ -71,10 +73,6 @@ MUJOCO_CAR = PlantKind("mujoco_car", True, CAR.coordinates, CAR.inputs)
 """A car (the library's configuration, rear axle first), stepped by MuJoCo."""
 SUBSTEPS = 2
 """RK4 steps of the nominal closed loop over one control period (the adapter's prediction)."""
-STEER_JOINT_RANGE = 1.5
-"""[rad] the front wheels' hinge stops (past any wheel angle :func:`ackermann` asks within the limit)."""
-WHEEL_HALF_WIDTH = 0.4
-"""A wheel's half-width, in wheel radii."""
 MASS_RANGE = (0.01, 100.0)
 """[kg] the chassis' mass a config may give."""
 MAX_FRICTION = 5.0
@@ -89,153 +87,15 @@ MAX_STEPS_PER_PERIOD = 1000
 """The most MuJoCo steps in one control period."""
 
 
-def ackermann(phi: float, wheelbase: float, track: float) -> tuple[float, float]:
-    r"""The left and right front wheels' angles [rad] of a bicycle angle ``phi`` [rad] (Ackermann:
-    both wheels' axes through the turn's centre on the rear axle, :math:`\cot\delta_{l,r} =
-    \cot\phi \mp w / (2\ell)`), for ``wheelbase`` ``ell`` and ``track`` ``w`` [m]."""
-    t = tan(phi)
-    half = 0.5 * track
-    return atan(wheelbase * t / (wheelbase - half * t)), atan(wheelbase * t / (wheelbase + half * t))
-
-
-def bicycle_angle(left: float, right: float, wheelbase: float, track: float) -> float:
-    """The bicycle angle ``phi`` [rad] of measured front wheel angles [rad] (:func:`ackermann`
-    inverted for each wheel, averaged)."""
-    half = 0.5 * track
-    tl, tr = tan(left), tan(right)
-    return 0.5 * (atan(wheelbase * tl / (wheelbase + half * tl)) + atan(wheelbase * tr / (wheelbase - half * tr)))
-
-
-_MJCF = """<mujoco model="ilc_steering car">
-  <compiler angle="radian" autolimits="true"/>
-  <option timestep="{timestep}" integrator="implicitfast" cone="elliptic"/>
-  <default>
-    <geom contype="0" conaffinity="0"/>
-    <default class="wheel">
-      <geom type="ellipsoid" size="{rho} {rho} {half_width}" zaxis="0 1 0" mass="{wheel_mass}" contype="1"
-            conaffinity="0" friction="{friction} 0 0" condim="3" solref="{contact_time} 1"/>
-    </default>
-  </default>
-  <worldbody>
-    <geom name="floor" type="plane" size="0 0 1" conaffinity="1" friction="0 0 0" solref="{contact_time} 1"/>
-    <body name="chassis" pos="0 0 {rho}">
-      <freejoint name="root"/>
-      <geom name="body" type="box" pos="{body_x} 0 {body_z}" size="{body_half} {body_width} 0.008" mass="{mass}"/>
-      <body name="rear_left" pos="0 {half_track} 0">
-        <joint name="rear_left" axis="0 1 0" armature="{drive_armature}"/>
-        <geom name="rear_left" class="wheel"/>
-      </body>
-      <body name="rear_right" pos="0 -{half_track} 0">
-        <joint name="rear_right" axis="0 1 0" armature="{drive_armature}"/>
-        <geom name="rear_right" class="wheel"/>
-      </body>
-      <body name="steer_left" pos="{ell} {half_track} 0">
-        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
-        <joint name="steer_left" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
-        <body name="front_left">
-          <joint name="front_left" axis="0 1 0"/>
-          <geom name="front_left" class="wheel"/>
-        </body>
-      </body>
-      <body name="steer_right" pos="{ell} -{half_track} 0">
-        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
-        <joint name="steer_right" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
-        <body name="front_right">
-          <joint name="front_right" axis="0 1 0"/>
-          <geom name="front_right" class="wheel"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <position name="steer_left" joint="steer_left" kp="{steer_kp}" dampratio="1"/>
-    <position name="steer_right" joint="steer_right" kp="{steer_kp}" dampratio="1"/>
-    <velocity name="drive_left" joint="rear_left" kv="{drive_kv}" forcerange="-{drive_torque} {drive_torque}"/>
-    <velocity name="drive_right" joint="rear_right" kv="{drive_kv}" forcerange="-{drive_torque} {drive_torque}"/>
-  </actuator>
-</mujoco>
-"""
-WHEELS = ("rear_left", "rear_right", "front_left", "front_right")
-"""The wheels' geom names, in the order of a trial's logged friction coefficients."""
-# The robot's build, beside its config keys: a 1 kg chassis on 30 g wheels, motors through gearboxes.
-WHEEL_MASS = 0.03
-"""[kg] each wheel."""
-DRIVE_KV = 0.05
-"""[N m s/rad] the rear wheels' velocity servo gain (torque per rad/s of speed error)."""
-DRIVE_TORQUE = 0.1
-"""[N m] the rear motors' torque limit."""
-DRIVE_ARMATURE = 1e-5
-"""[kg m²] the drive gearbox's reflected inertia on each rear wheel's axle."""
-STEER_KP = 20.0
-"""[N m/rad] the steering servos' stiffness (critically damped)."""
-STEER_ARMATURE = 1e-4
-"""[kg m²] the steering gearbox's reflected inertia on each kingpin."""
-
-
-def mjcf(config: MujocoCarConfig) -> str:
-    """The car's MJCF (MuJoCo's XML) for ``config``: its geometry, contact and build (see the module)."""
-    ell, rho = config.wheelbase, config.wheel_radius
-    return _MJCF.format(
-        timestep=config.timestep,
-        rho=rho,
-        half_width=WHEEL_HALF_WIDTH * rho,
-        wheel_mass=WHEEL_MASS,
-        friction=config.friction,
-        contact_time=config.contact_time,
-        body_x=0.5 * ell,
-        body_z=0.5 * rho,
-        body_half=0.65 * ell,
-        body_width=0.5 * config.track - 0.6 * rho,
-        mass=config.mass,
-        half_track=0.5 * config.track,
-        ell=ell,
-        steer_range=STEER_JOINT_RANGE,
-        drive_armature=DRIVE_ARMATURE,
-        steer_armature=STEER_ARMATURE,
-        steer_kp=STEER_KP,
-        drive_kv=DRIVE_KV,
-        drive_torque=DRIVE_TORQUE,
-    )
-
-
-def _load_mujoco() -> Any:
-    try:
-        import mujoco
-    except ImportError:
-        raise ValueError('mujoco_car needs MuJoCo: pip install "ilc-steering[mujoco]"') from None
-    return mujoco
-
-
-class _Sim:
-    """MuJoCo's model and data of one plant, with the addresses the adapter reads and writes."""
-
-    def __init__(self, config: MujocoCarConfig) -> None:
-        mujoco = _load_mujoco()
-        self.mujoco = mujoco
-        self.model = mujoco.MjModel.from_xml_string(mjcf(config))
-        self.data = mujoco.MjData(self.model)
-        model = self.model
-        self.chassis = model.body("chassis").id
-        self.steer = [model.joint(name).qposadr[0] for name in ("steer_left", "steer_right")]
-        self.wheels = [model.geom(name).id for name in WHEELS]
-        self.height = self._settle(config)
-
-    def _settle(self, config: MujocoCarConfig) -> float:
-        """The chassis' height [m] at rest on its tyres (they sink into the soft floor): the car is
-        dropped from ``rho`` and held still for 0.5 s, once per plant."""
-        mujoco, data = self.mujoco, self.data
-        mujoco.mj_resetData(self.model, data)
-        mujoco.mj_step(self.model, data, nstep=round(0.5 / config.timestep))
-        return float(data.qpos[2])
-
-
 @dataclass
 class _Shared:
     """What a plant and its copies in other frames share: the simulator (made on first use), the
     scatter's generator and the counts of trials run and of MuJoCo steps taken."""
 
-    sims: list[_Sim] = field(default_factory=list)
+    sims: list[MujocoSim] = field(default_factory=list)
     rng: list[np.random.Generator] = field(default_factory=list)
+    env_seed: int | None = None
+    """The env's seed the generator was last restarted from (``None``: the config's ``seed`` alone)."""
     trials: int = 0
     steps: int = 0
 
@@ -252,17 +112,17 @@ class MujocoCarPlant(ExternalPlantBase):
     config: MujocoCarConfig
     frame: float = 0.0
     shared: _Shared = field(default_factory=_Shared, compare=False, repr=False)
-    """The simulator, the scatter's generator (seeded by ``config.seed``) and the counts."""
+    """The simulator, the scatter's generator (``config.seed``; :meth:`reseed` restarts it) and the counts."""
 
     @property
     def steering_limit(self) -> float:
         return self.config.steering_limit
 
     @property
-    def sim(self) -> _Sim:
+    def sim(self) -> MujocoSim:
         """MuJoCo's model and data of this car (made on first use)."""
         if not self.shared.sims:
-            self.shared.sims.append(_Sim(self.config))
+            self.shared.sims.append(MujocoSim(self.config))
         return self.shared.sims[0]
 
     def with_frame(self, angle: float) -> MujocoCarPlant:
@@ -280,14 +140,20 @@ class MujocoCarPlant(ExternalPlantBase):
         config = self.config
         if not config.friction_spread:
             return np.full(len(WHEELS), config.friction)
-        if not self.shared.rng:
+        if not self.shared.rng:  # no env seed given yet: the config's seed alone
             self.shared.rng.append(np.random.default_rng(config.seed))
         return config.friction * np.exp(config.friction_spread * self.shared.rng[0].standard_normal(len(WHEELS)))
+
+    def reseed(self, seed: int) -> None:
+        """Restart the scatter's draws from the env's ``seed`` and the config's ``seed`` together
+        (:func:`~ilc_steering.core.external.plant_generator`), for this plant and its copies in other frames."""
+        self.shared.rng[:] = [plant_generator(seed, self.config.seed)]
+        self.shared.env_seed = int(seed)
 
     def control_period(self) -> float:
         return float(self.config.control_period)
 
-    def _measure(self, sim: _Sim) -> Array:
+    def _measure(self, sim: MujocoSim) -> Array:
         """The car's configuration in the task frame: the rear axle's midpoint [m], the chassis'
         heading wrapped to ``(-pi, pi]`` and the linkage's bicycle angle [rad]."""
         data, config = sim.data, self.config
@@ -298,7 +164,7 @@ class MujocoCarPlant(ExternalPlantBase):
         q[2] = np.angle(np.exp(1j * q[2]))
         return q
 
-    def _place(self, sim: _Sim, q: Array) -> None:
+    def _place(self, sim: MujocoSim, q: Array) -> None:
         """The car at rest at world configuration ``q``, its tyres sunk to their resting depth."""
         mujoco, model, data, config = sim.mujoco, sim.model, sim.data, self.config
         mujoco.mj_resetData(model, data)
@@ -343,7 +209,7 @@ class MujocoCarPlant(ExternalPlantBase):
             q = self._measure(sim)
             states.append(q)
         final = q if status == OK else halted
-        log = {"seed": config.seed, "friction": friction.tolist()}
+        log = {"seed": config.seed, "env_seed": self.shared.env_seed, "friction": friction.tolist()}
         return final, status, np.array(states), log
 
     def _follow(self, v1s: Array, v2s: Array, first: int, q: Array) -> tuple[float, float, float]:
@@ -389,7 +255,7 @@ class MujocoCarConfig:
     contact_time: float = 0.005  # [s] MuJoCo's contact time constant (solref): the tyres' softness
     timestep: float = 0.001  # [s] MuJoCo's step
     control_period: float = 0.01  # [s] the adapter measures and commands once per period
-    seed: int = 0  # the scatter's generator (friction_spread)
+    seed: int = 0  # the scatter's generator (friction_spread), with the env's seed
 
     kind: ClassVar[PlantKind] = MUJOCO_CAR
     plant_class: ClassVar[type] = MujocoCarPlant

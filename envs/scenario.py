@@ -143,6 +143,13 @@ class Scenario:
             jitter,
         )
 
+    def reseed(self, seed: int) -> None:
+        """Hand the env's ``seed`` (``reset(seed=...)``) to an external plant, whose scatter is its
+        own draw (:meth:`~ilc_steering.core.external.ExternalPlant.reseed`); a simulated plant's
+        disturbances are drawn from the env's generator and need nothing."""
+        if self.external is not None:
+            self.external.reseed(seed)
+
     def draw_noise(self, rng: np.random.Generator, count: int) -> Array | None:
         """Measurement errors of ``count`` trials ``(count, nq)`` drawn from ``rng``, or ``None``
         (and nothing drawn) when the scenario measures exactly."""

@@ -274,6 +274,8 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
+        if seed is not None:  # an external plant's own scatter follows the env's seed
+            self._scenario.reseed(seed)
         if options:  # a trial starts where the task says; start_error draws its homing errors
             raise ValueError(
                 f"options: the one-trial env takes none, got {sorted(map(str, options))}; its trials start at "

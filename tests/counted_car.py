@@ -3,8 +3,8 @@
 It stands for a real robot: every call of ``run_trials`` is a drive, and :data:`DRIVES` keeps the
 batch size of each, so a test can check that nothing drives it more often than the trials counted.
 ``scatter`` adds Gaussian noise of that standard deviation to the true final pose (x, y [m], theta
-[rad]; the wheel angle is left exact), drawn from a generator seeded by ``seed``: a robot that does
-not repeat itself.
+[rad]; the wheel angle is left exact), drawn from a generator seeded by ``seed``, restarted from
+the env's seed and ``seed`` on ``reset(seed=...)`` (``reseed``): a robot that does not repeat itself.
 
 Registered as ``counted_car`` (``tests/test_scatter.py``); its config keys are the car's plus
 ``scatter`` and ``seed``.
@@ -18,7 +18,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
+from ilc_steering.core.external import ExternalPlantBase, ExternalTrials, plant_generator
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarPlant, CarPlantConfig
@@ -65,6 +65,9 @@ class CountedCarPlant(ExternalPlantBase):
     def initial_state(self, q: Array) -> Array:
         return self.car.initial_state(q)
 
+    def reseed(self, seed: int) -> None:
+        self._rng[:] = [plant_generator(seed, self.seed)]  # the env's seed restarts the scatter
+
     def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
         DRIVES.append(int(c.shape[0]))
         trials = simulate(self.car, profile, x0, c, 1 / 32, record)
@@ -98,6 +101,7 @@ plant:
   true_wheelbase: 0.22
   true_wheel_radius: 0.022
   scatter: {scatter}
+  seed: {seed}
 task:
   start: [-1.0, 0.0, 0.7853981633974483, 0.0]
   goal:  [0.0, 0.0, 0.7853981633974483, 0.0]

@@ -47,16 +47,38 @@ def test_it_is_a_robot_of_the_entry_point_group() -> None:
         plant.family_names()
 
 
-def test_gymnasiums_check_env_passes_without_scatter() -> None:
-    """Gymnasium's checks, rendering and step determinism included (with scatter the same env
-    seed does not give the same draws: the protocol does not hand a plant the env's seed)."""
+@pytest.mark.parametrize("config", ["mujoco_forward_parking", "mujoco_forward_parking_scatter"])
+def test_gymnasiums_check_env_passes(config: str) -> None:
+    """Gymnasium's checks, rendering and step determinism included: with scatter too, the same env
+    seed gives the same draws (the env hands the plant its seed)."""
     import gymnasium as gym
     from gymnasium.utils.env_checker import check_env
 
     import ilc_steering  # noqa: F401  (registers the envs)
 
-    env = gym.make("ilc_steering/ChainedSteering-v0", config="mujoco_forward_parking", render_mode="rgb_array")
+    env = gym.make("ilc_steering/ChainedSteering-v0", config=config, render_mode="rgb_array")
     check_env(env.unwrapped, skip_render_check=False)
+
+
+def test_the_scatter_follows_the_env_s_seed() -> None:
+    """The friction draws of ``reset(seed=s)``: the same for the same ``s`` (on a fresh env, and on
+    the same env reset again), others for another seed, and in each trial's log."""
+    import gymnasium as gym
+
+    import ilc_steering  # noqa: F401  (registers the envs)
+
+    def draws(env: Any, seed: int) -> list[Any]:
+        env.reset(seed=seed)
+        c = env.unwrapped.nominal_model.solve()
+        return [env.step(c)[4]["plant"] for _ in range(2)]
+
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="mujoco_forward_parking_scatter")
+    first = draws(env, 3)
+    assert first[0]["env_seed"] == 3 and first[0]["friction"] != first[1]["friction"]
+    assert draws(env, 3) == first
+    assert draws(gym.make("ilc_steering/ChainedSteering-v0", config="mujoco_forward_parking_scatter"), 3) == first
+    other = draws(env, 4)
+    assert all(a["friction"][i] != b["friction"][i] for a, b in zip(first, other) for i in range(4))
 
 
 def test_bad_keys_are_refused_by_name() -> None:

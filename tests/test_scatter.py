@@ -23,8 +23,8 @@ ENV = "ilc_steering/ChainedSteering-v0"
 
 @pytest.fixture
 def counted(tmp_path, monkeypatch):
-    """A function ``(scatter, trials, tolerance) -> YAML path`` of forward parking on the counted
-    car, registered in this process, its drive log emptied."""
+    """A function ``(scatter, trials, tolerance, seed) -> YAML path`` of forward parking on the
+    counted car (``seed`` its scatter's plant seed), registered in this process, its drive log emptied."""
     monkeypatch.syspath_prepend(str(HERE))
     robots.names()  # the installed packages' robots are read into the table this test copies
     monkeypatch.setattr(robots, "ROBOTS", dict(robots.ROBOTS))
@@ -34,9 +34,9 @@ def counted(tmp_path, monkeypatch):
 
     counted_car.DRIVES.clear()
 
-    def write(scatter: float = 0.0, trials: int = 3, tolerance: float = 5e-4) -> Path:
-        path = tmp_path / f"counted_{scatter:g}_{trials}_{tolerance:g}.yaml"
-        path.write_text(counted_car.CONFIG.format(scatter=scatter, trials=trials, tolerance=tolerance))
+    def write(scatter: float = 0.0, trials: int = 3, tolerance: float = 5e-4, seed: int = 0) -> Path:
+        path = tmp_path / f"counted_{scatter:g}_{trials}_{tolerance:g}_{seed}.yaml"
+        path.write_text(counted_car.CONFIG.format(scatter=scatter, trials=trials, tolerance=tolerance, seed=seed))
         return path
 
     write.drives = counted_car.DRIVES  # type: ignore[attr-defined]
@@ -89,6 +89,41 @@ def test_the_env_drives_an_external_plant_once_per_step(counted):
     rollout = run_trials(env, ILCAgent(env.unwrapped.nominal_model), 4, seed=0)
     assert len(rollout) == 4 and counted.drives == [1, 1, 1, 1]
     assert rollout.infos[-1]["cartesian_error"] == pytest.approx(1e-4, rel=0.01)  # eqs. 33-34: tenfold a trial
+
+
+def test_the_vector_envs_drive_an_external_plant_once_per_counted_trial(counted):
+    """The vector env runs a step's trials in one call of the plant, one drive each; Gymnasium's
+    sync vector env of one-trial envs drives each env's plant once; resets drive nothing."""
+    import numpy as np
+
+    path = str(counted())
+    envs = gym.make_vec(ENV, num_envs=3, vectorization_mode="vector_entry_point", config=path)
+    envs.reset(seed=0)
+    c = np.tile(envs.unwrapped.nominal_model.solve(), (3, 1))
+    envs.step(c)
+    envs.step(c)
+    assert counted.drives == [3, 3]
+    counted.drives.clear()
+    sync = gym.make_vec(ENV, num_envs=2, vectorization_mode="sync", config=path)
+    sync.reset(seed=0)
+    sync.step(c[:2])
+    assert counted.drives == [1, 1]
+
+
+def test_the_cyclic_env_drives_an_external_plant_once_per_segment(counted, tmp_path):
+    """A cycle of two segments on the counted car: one drive per step (a segment, a counted trial)."""
+    import numpy as np
+
+    from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
+
+    cyclic = (HERE.parent / "configs/cyclic_home_goal.yaml").read_text()
+    plant = counted().read_text().split("task:")[0].split("plant:")[1]
+    path = tmp_path / "cyclic_counted.yaml"
+    path.write_text(cyclic.split("plant:")[0] + "plant:" + plant + "task:" + cyclic.split("task:")[1])
+    env = gym.make("ilc_steering/CyclicSteering-v0", config=str(path))
+    rollout = run_trials(env, CyclicILCAgent(env.unwrapped.nominal_models), 4, seed=0)
+    assert len(rollout) == 4 and counted.drives == [1, 1, 1, 1]
+    assert np.all(np.isfinite([info["error_norm"] for info in rollout.infos]))
 
 
 # 3. No learner repeats a failing trial ------------------------------------------------------------
@@ -191,12 +226,13 @@ def test_an_estimate_far_above_what_the_last_trials_measure_is_not_the_plant_s()
 
 def test_run_says_a_tolerance_below_the_plant_s_scatter_is_its_floor(counted, capsys, tmp_path):
     """The counted car scattered by 1 mm / 1 mrad, a tolerance of 0.5 mm / 0.5 mrad, the paper's law:
-    one trial within it (11), out again; the estimated scatter and the floor are reported, exit 5."""
+    one trial within it (11; plant seed 2, run's env seed 1), out again; the estimated scatter and the
+    floor are reported, exit 5."""
     import json
 
     from ilc_steering.cli import main
 
-    path, out = counted(scatter=1e-3, trials=15, tolerance=5e-4), tmp_path / "run.json"
+    path, out = counted(scatter=1e-3, trials=15, tolerance=5e-4, seed=2), tmp_path / "run.json"
     assert main(["run", str(path), "--json", str(out)]) == 5
     lines = capsys.readouterr().out.splitlines()
     assert "relapsed: within the tolerance at trial 11, out again at trial 12" in lines
@@ -226,11 +262,11 @@ def test_a_tolerance_below_the_scatter_is_said_also_when_the_run_ends_outside_it
 def test_every_relapse_is_reported_on_one_line(counted, capsys):
     from ilc_steering.cli import main
 
-    assert main(["run", str(counted(scatter=3e-3, trials=15, tolerance=5e-3))]) == 5
+    assert main(["run", str(counted(scatter=3e-3, trials=15, tolerance=5e-3, seed=2))]) == 5
     relapses = [line for line in capsys.readouterr().out.splitlines() if line.startswith("relapsed")]
     assert relapses == [
-        "relapsed: within the tolerance at trial 5, out again at trial 6; at trial 9, out again at trial 10; "
-        "at trials 11-13, out again at trial 14"
+        "relapsed: within the tolerance at trial 4, out again at trial 5; at trials 7-8, out again at trial 9; "
+        "at trials 11-12, out again at trial 13"
     ]
 
 
@@ -289,3 +325,78 @@ def test_learners_that_know_the_scatter_stop_chasing_it(learner):
             assert SIGMA / 1.5 < scatter[key] < 1.5 * SIGMA, (seed, key, scatter[key] / SIGMA)
         rms.append(np.sqrt(np.mean([t.cartesian_error**2 for t in last])))
     assert np.mean(rms) < 0.75 * SIGMA, np.array(rms) / SIGMA
+
+
+# The scatter's seed follows the env's seed ---------------------------------------------------------
+
+
+def _finals(env, seed, steps=3):
+    """The true final configurations of ``steps`` trials of the nominal solution after ``reset(seed=seed)``."""
+    import numpy as np
+
+    env.reset(seed=seed)
+    c = env.unwrapped.nominal_model.solve()
+    return np.array([env.step(c)[4]["q_final"] for _ in range(steps)])
+
+
+def test_an_external_plant_s_scatter_follows_the_env_s_seed(counted):
+    """The same env seed gives the same trials (on a fresh env, and on the same env reset again),
+    another seed another draw; the scatter is not the env's own stream of that seed."""
+    import counted_car
+    import numpy as np
+    from gymnasium.utils import seeding
+
+    path = str(counted(scatter=1e-3))
+    first = _finals(gym.make(ENV, config=path), 5)
+    again = gym.make(ENV, config=path)
+    assert np.array_equal(_finals(again, 5), first)
+    assert np.array_equal(_finals(again, 5), first)  # reset(seed=5) restarts the draws
+    other = _finals(gym.make(ENV, config=path), 6)
+    assert np.all(np.abs(other[:, :3] - first[:, :3]) > 1e-9)  # every coordinate of every trial moved
+    assert np.ptp(first[:, :3], axis=0).min() > 1e-5  # the trials within a run differ (1 mm of scatter)
+    env_stream = seeding.np_random(5)[0].standard_normal(6)
+    plant_stream = counted_car.plant_generator(5, 0).standard_normal(6)
+    assert np.all(env_stream != plant_stream)
+
+
+def test_run_and_compare_seeds_reach_an_external_plant(counted, tmp_path):
+    """``run``'s seed (``run_ilc(seed=...)``) and each of ``compare``'s seeds restart the plant's
+    scatter: same seed, same trials; another seed, another draw."""
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.cells import run_cell
+    from ilc_steering.runner import run_ilc
+
+    path = counted(scatter=1e-3, trials=4)
+
+    def finals(seed):
+        return [r.final_state for r in run_ilc(path, seed=seed).trials]
+
+    assert finals(1) == finals(1)
+    assert finals(1)[1:] != finals(2)[1:]
+    args = Args(methods=("ilc",), scenarios=(str(path),), seeds=(0, 1), model_trials=4, out=tmp_path / "c")
+    curves = [run_cell(args, "nominal", "ilc", str(path), seed)["curve"] for seed in (0, 0, 1)]
+    assert curves[0] == curves[1] and curves[0] != curves[2]
+
+
+def test_a_plant_written_before_reseed_keeps_working(counted):
+    """An ``ExternalPlantBase`` subclass without a ``reseed`` of its own (the base's does nothing)
+    still runs, its scatter its own seed's whatever the env's seed."""
+    import counted_car
+    import numpy as np
+
+    from ilc_steering.core.external import ExternalPlantBase, is_external
+
+    class Older(counted_car.CountedCarPlant):
+        reseed = ExternalPlantBase.reseed
+
+    def env_of_older():
+        env = gym.make(ENV, config=str(counted(scatter=1e-3)))
+        scenario = env.unwrapped._scenario
+        scenario.external = scenario.plant = Older(scenario.external.car, 1e-3, 0)
+        assert is_external(scenario.external)
+        return env
+
+    older = env_of_older()
+    five = _finals(older, 5)
+    assert np.array_equal(_finals(env_of_older(), 6), five)  # the env's seed does not reach it
+    assert not np.array_equal(_finals(older, 5), five)  # nor restarts its draws

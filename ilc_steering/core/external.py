@@ -13,6 +13,13 @@ equations is refused with one line, never faked: the compiled kernel (``kernel``
 (``with_true_factors``: ``parameter_jitter``, a vector env's ``true_factors``, a robustness map,
 ``sweep --axis``), a model family (``with_family``) and the ``solve_ivp`` reference
 (``reference_field``). :class:`ExternalPlantBase` holds those refusals.
+
+A plant that scatters its trials (a simulated rough floor, a scatter drawn per trial) draws from a
+generator of its own; the env's seed reaches it through :meth:`ExternalPlant.reseed`, which the
+envs call on ``reset(seed=...)`` (so ``ilc-steering run``'s seed and each of ``compare``'s seeds): the same
+seed gives the same trials, another seed another draw. :func:`plant_generator` makes that
+generator, a stream apart from the env's own. :class:`ExternalPlantBase`'s ``reseed`` does
+nothing (a real robot, a plant that repeats itself), so a subclass written before it keeps working.
 """
 
 from __future__ import annotations
@@ -29,7 +36,7 @@ from ilc_steering.core.plants import Kernel, PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials
 
-__all__ = ["ExternalPlant", "ExternalPlantBase", "ExternalTrials", "is_external"]
+__all__ = ["PLANT_STREAM", "ExternalPlant", "ExternalPlantBase", "ExternalTrials", "is_external", "plant_generator"]
 
 Array = npt.NDArray[np.float64]
 
@@ -79,6 +86,30 @@ class ExternalPlant(Protocol):
         states at ``times`` with ``record``, and each trial's log."""
         ...
 
+    def reseed(self, seed: int) -> None:
+        """Start the plant's own random draws (a simulated scatter) afresh from the env's ``seed``
+        (``reset(seed=...)``: ``run``'s seed, each of ``compare``'s seeds): the same seed gives the
+        same trials, another seed another draw (:func:`plant_generator`). A plant that draws
+        nothing of its own (a real robot) does nothing."""
+        ...
+
+
+PLANT_STREAM = 48
+"""The spawn key of an external plant's own generator (:func:`plant_generator`): it sets the
+plant's draws apart from the env's ``np_random`` of the same seed."""
+
+
+def plant_generator(seed: int, plant_seed: int = 0) -> np.random.Generator:
+    """The generator of an external plant's own draws for the env's ``seed`` and the plant's own
+    ``plant_seed`` (a config key, 0 if it has none): a stream of its own, independent of the
+    env's ``np_random`` seeded by the same ``seed`` (which draws the measurement noise, the
+    start error), so the plant's scatter and the env's noise are not one sequence of numbers
+    twice. ``ValueError`` naming the seeds unless both are integers >= 0."""
+    for name, value in (("seed", seed), ("plant seed", plant_seed)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise ValueError(f"an external plant's {name} must be an integer >= 0, got {value!r:.40}")
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(plant_seed)], spawn_key=(PLANT_STREAM,)))
+
 
 def is_external(plant: object) -> bool:
     """Whether ``plant`` runs its own trials (an :class:`ExternalPlant`) rather than a compiled field."""
@@ -102,6 +133,10 @@ class ExternalPlantBase:
     def initial_state(self, q: Array) -> Array:
         """The state a trial starts from at configuration ``q``: ``q`` itself."""
         return np.array(q, dtype=np.float64)
+
+    def reseed(self, seed: int) -> None:
+        """Nothing: a plant that draws random numbers of its own (a simulated scatter) overrides
+        this to restart its generator from ``plant_generator(seed, ...)`` (see the protocol)."""
 
     def control_period(self) -> float:
         """[s] the period at which the plant takes a new input (a trial's length is a whole number

@@ -84,7 +84,9 @@ PLANT_METHODS = (
     "with_true_factors", "true_factors", "family_names", "with_family", "reference_field",
 )  # fmt: skip
 """What a robot's plant class must provide (:class:`~ilc_steering.core.plants.Plant`)."""
-EXTERNAL_METHODS = ("configuration", "estimate", "check_configuration", "initial_state", "with_frame", "run_trials")
+EXTERNAL_METHODS = (
+    "configuration", "estimate", "check_configuration", "initial_state", "with_frame", "run_trials", "reseed",
+)  # fmt: skip
 """What a plant that runs its own trials must provide instead
 (:class:`~ilc_steering.core.external.ExternalPlant`: someone else's simulator or a real robot)."""
 
