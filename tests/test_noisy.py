@@ -1,0 +1,66 @@
+"""benchmarks/noisy.py (issue 48's 100 seeded runs of a noisy in-family plant): its plant and
+tolerance, its summary, and docs/noisy.md quoting the committed artifact and its Done-when."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+_SPEC = importlib.util.spec_from_file_location("noisy_benchmark", ROOT / "benchmarks/noisy.py")
+assert _SPEC is not None and _SPEC.loader is not None
+noisy = importlib.util.module_from_spec(_SPEC)  # a script of benchmarks/, not a package
+sys.modules[_SPEC.name] = noisy  # dataclasses look their module up by name
+_SPEC.loader.exec_module(noisy)
+
+
+def test_the_plant_is_forward_parking_with_the_noise_and_a_tolerance_of_four_sigma() -> None:
+    config = noisy.noisy_config("forward_parking", 2e-3, 4.0, 15)
+    assert config.simulation.measurement_noise == (2e-3,) * 4
+    assert config.learning.tolerance.cartesian == config.learning.tolerance.orientation == pytest.approx(8e-3)
+    assert config.learning.trials == 15
+    assert config.plant.true_wheelbase == pytest.approx(1.1 * config.plant.wheelbase)  # in the model family
+
+
+def test_the_summary_counts_holds_and_ratios() -> None:
+    def run(seed: int, holds: bool, cartesian: float, orientation: float) -> dict[str, object]:
+        return {
+            "learner": "x",
+            "seed": seed,
+            "holds_last": holds,
+            "converged_at": 2 if holds else None,
+            "scatter_cartesian": cartesian,
+            "scatter_orientation": orientation,
+            "worst_last_m": 1e-3 * seed,
+            "worst_last_rad": 2e-3,
+            "seconds": 1.0,
+        }
+
+    runs = [run(1, True, 1.0, 0.5), run(2, True, 1.4, 1.2), run(3, False, math.nan, math.nan), run(4, True, 2.0, 1.0)]
+    row = noisy.summarize(runs, "x")
+    assert row["hold_share"] == 0.75 and row["converged_share"] == 0.75 and row["estimated"] == 3
+    assert row["within_1_5"] == 4 / 8  # NaN (no estimate) is not within
+    assert row["runs_within_1_5"] == 1 / 4
+    assert (row["cartesian_median"], row["cartesian_min"], row["cartesian_max"]) == (1.4, 1.0, 2.0)
+    assert row["worst_last_m"] == pytest.approx(4e-3)
+
+
+def test_the_page_quotes_its_artifact_and_the_done_when_holds() -> None:
+    page = (ROOT / "docs/noisy.md").read_text()
+    assert (ROOT / "docs/noisy/noisy.md").read_text().strip() in page
+    rows = {r["learner"]: r for r in json.loads((ROOT / "docs/noisy/noisy.json").read_text())["rows"]}
+    assert set(rows) == {"robust_ilc", "newton_ilc", "ilc_paper"}
+    for name in ("robust_ilc", "newton_ilc"):
+        row = rows[name]
+        assert row["runs"] == 100 and row["hold_share"] >= 0.95  # the last five trials hold 4 sigma
+        assert 1 / 1.5 <= row["cartesian_median"] <= 1.5 and 1 / 1.5 <= row["orientation_median"] <= 1.5
+    runs = json.loads((ROOT / "docs/noisy/noisy_runs.json").read_text())["rows"]
+    below = [sum(r["below_floor"] for r in runs if r["learner"] == name) for name in rows]
+    relapsed = [sum(r["relapses"] > 0 for r in runs if r["learner"] == name) for name in rows]
+    assert f"In {below[0]}, {below[1]} and {below[2]} runs" in " ".join(page.split())
+    assert f"in {relapsed[0]}, {relapsed[1]} and {relapsed[2]} runs of the hundred" in " ".join(page.split())
