@@ -400,3 +400,14 @@ def test_a_plant_written_before_reseed_keeps_working(counted):
     five = _finals(older, 5)
     assert np.array_equal(_finals(env_of_older(), 6), five)  # the env's seed does not reach it
     assert not np.array_equal(_finals(older, 5), five)  # nor restarts its draws
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, True, "3"])
+def test_a_bad_plant_seed_is_refused_in_one_line(seed):
+    from ilc_steering.core.external import plant_generator
+
+    with pytest.raises(ValueError, match=r"^an external plant's seed must be an integer >= 0, got") as error:
+        plant_generator(seed)
+    assert "\n" not in str(error.value)
+    with pytest.raises(ValueError, match="plant seed"):
+        plant_generator(0, seed)
