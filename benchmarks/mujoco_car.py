@@ -10,12 +10,16 @@ Two tables, for each of the packaged MuJoCo configs:
   the first trial: the first within 1 cm / 0.01 rad, whether the last five all stay inside, their
   worst errors;
 - **scatter sweep**: the scatter config with each ``friction_spread`` of ``spreads``: its
-  repeatability and the learners' runs, to see where the scatter outgrows the target.
+  repeatability and the learners' runs, to see where the scatter outgrows the target;
+- **floor**: issue 48's Done-when on the scatter config: ``floor_learners`` asked to reach and hold
+  (the last ``last`` trials) a tolerance ``FLOOR_FACTOR`` times the measured scatter (the std of
+  the repeats per coordinate: ``x`` and ``y`` pooled, ``theta``) within ``floor_within`` trials,
+  on the env seeds ``floor_seeds``.
 
     python benchmarks/mujoco_car.py [--quick] [--out DIR]
 
-writes ``mujoco_repeatability``, ``mujoco_learners`` and ``mujoco_spread`` ``.{csv,json,md}`` (committed in
-``docs/mujoco``, quoted by ``docs/mujoco.md``).
+writes ``mujoco_repeatability``, ``mujoco_learners``, ``mujoco_spread`` and ``mujoco_floor``
+``.{csv,json,md}`` (committed in ``docs/mujoco``, quoted by ``docs/mujoco.md``).
 """
 
 from __future__ import annotations
@@ -37,6 +41,8 @@ __all__ = ["Args", "main"]
 
 CM, RAD = 0.01, 0.01
 """The target [m], [rad]."""
+FLOOR_FACTOR = 4.0
+"""The floor table's tolerance, in units of the measured scatter per coordinate."""
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 
@@ -63,6 +69,12 @@ class Args:
     """The config whose ``friction_spread`` the sweep varies."""
     spreads: tuple[float, ...] = (0.1, 0.2, 0.4, 0.8)
     """The sweep's ``friction_spread`` values (relative spread of each wheel's friction per trial)."""
+    floor_learners: tuple[str, ...] = ("robust_ilc", "newton_ilc")
+    """The learners asked to hold ``FLOOR_FACTOR`` times the scatter."""
+    floor_seeds: tuple[int, ...] = (1, 2, 3, 4, 5)
+    """The env seeds of the floor table's runs (1 is ``ilc-steering run``'s)."""
+    floor_within: int = 6
+    """The trial by which the final stretch within the tolerance must have started."""
     out: Path = Path("docs/mujoco")
     """Where the tables go."""
 
@@ -127,7 +139,37 @@ def learner_run(name: str, learner: str, trials: int, last: int, spread: float |
     }
 
 
-def main(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
+def floor_run(name: str, learner: str, seed: int, trials: int, cartesian: float, orientation: float) -> dict[str, Any]:
+    """A run of ``learner`` on config ``name`` with env seed ``seed`` and the tolerance ``cartesian``
+    [m] / ``orientation`` [rad]: where it first met it, where its final stretch within it starts
+    (the run's verdict), how long it holds, and the scatter the run estimated."""
+    loaded = config(name)
+    tolerance = replace(loaded.learning.tolerance, cartesian=cartesian, orientation=orientation)
+    result = run_ilc(
+        replace(loaded, learning=replace(loaded.learning, tolerance=tolerance)), trials, learner=learner, seed=seed
+    )
+    verdict = result.verdict
+    inside = [
+        not r.left_chart and (r.cartesian_error or 0.0) <= cartesian and (r.orientation_error or 0.0) <= orientation
+        for r in result.trials
+    ]
+    scatter = verdict.scatter or {}
+    return {
+        "learner": learner,
+        "seed": seed,
+        "first_inside": next((k + 1 for k, flag in enumerate(inside) if flag), None),
+        "stretch_from": verdict.converged_at,
+        "held": verdict.held,
+        "relapses": len(verdict.relapses),
+        "run_scatter_m": scatter.get("cartesian"),
+        "run_scatter_rad": scatter.get("orientation"),
+        "says_floor": bool(verdict.below),
+    }
+
+
+def main(
+    args: Args,
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
     configs, learners, repeats, trials, last = args.configs, args.learners, args.repeats, args.trials, args.last
     spreads = args.spreads
     if args.quick:
@@ -239,10 +281,65 @@ def main(args: Args) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[d
         f"solution, and {trials} trials per run.\n",
         {"repeats": repeats, "trials": trials, "last": last, "config": args.scatter},
     )
+    floors, floored = floor_table(args, spread, repeats, trials, last)
     print(table)
     print(results)
     print(swept)
-    return spread, runs, sweep
+    print(floored)
+    return spread, runs, sweep, floors
+
+
+def floor_table(
+    args: Args, spread: list[dict[str, Any]], repeats: int, trials: int, last: int
+) -> tuple[list[dict[str, Any]], str]:
+    """The floor table (see the module), written as ``mujoco_floor``: its rows and its Markdown."""
+    scattered = next((r for r in spread if r["config"] == args.scatter), None) or repeatability(args.scatter, repeats)
+    plane = float(np.hypot(scattered["std_x_m"], scattered["std_y_m"]) / np.sqrt(2))  # per coordinate
+    cartesian, orientation = FLOOR_FACTOR * plane, FLOOR_FACTOR * scattered["std_theta_rad"]
+    learners, seeds = args.floor_learners, args.floor_seeds
+    if args.quick:
+        learners, seeds = learners[:1], seeds[:1]
+    floors = []
+    for learner in learners:
+        for seed in seeds:
+            row = floor_run(args.scatter, learner, seed, trials, cartesian, orientation)
+            stretch = row["stretch_from"]
+            row["met"] = stretch is not None and stretch <= args.floor_within and row["held"] >= last
+            floors.append(row)
+            print(row, flush=True)
+    floored = markdown_table(
+        ["learner", "env seed", "first inside", "final stretch from", "held (trials)", "relapses",
+         "met", "run's scatter [mm]", "run's scatter [mrad]", "says below the floor"],
+        [
+            [
+                r["learner"],
+                str(r["seed"]),
+                str(r["first_inside"] or f"> {trials}"),
+                str(r["stretch_from"] or "-"),
+                str(r["held"]),
+                str(r["relapses"]),
+                "yes" if r["met"] else "no",
+                "-" if r["run_scatter_m"] is None else f"{1e3 * r['run_scatter_m']:.2f}",
+                "-" if r["run_scatter_rad"] is None else f"{1e3 * r['run_scatter_rad']:.2f}",
+                "yes" if r["says_floor"] else "no",
+            ]
+            for r in floors
+        ],
+        [False] + [True] * 9,
+    )  # fmt: skip
+    met = sum(r["met"] for r in floors)
+    floored += (
+        f"\n{args.scatter}: tolerance {FLOOR_FACTOR:g} times the scatter measured by {repeats} repeats "
+        f"({1e3 * plane:.2f} mm per coordinate in x and y, {1e3 * scattered['std_theta_rad']:.2f} mrad in θ): "
+        f"{1e3 * cartesian:.2f} mm / {1e3 * orientation:.2f} mrad, {trials} trials per run. Met: the final stretch "
+        f"within it starts by trial {args.floor_within} and holds at least the last {last} trials "
+        f"({met} of {len(floors)} runs).\n"
+    )
+    extra = {"repeats": repeats, "trials": trials, "last": last, "factor": FLOOR_FACTOR, "within": args.floor_within}
+    write_results(
+        floors, args.out, "mujoco_floor", floored, {**extra, "cartesian_m": cartesian, "orientation_rad": orientation}
+    )
+    return floors, floored
 
 
 if __name__ == "__main__":

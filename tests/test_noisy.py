@@ -1,5 +1,6 @@
-"""benchmarks/noisy.py (issue 48's 100 seeded runs of a noisy in-family plant): its plant and
-tolerance, its summary, and docs/noisy.md quoting the committed artifact and its Done-when."""
+"""Issue 48's measured Done-whens: benchmarks/noisy.py (100 seeded runs of a noisy in-family plant:
+its plant and tolerance, its summary, docs/noisy.md quoting the committed artifact) and the MuJoCo
+scatter config's floor table in docs/mujoco.md."""
 
 from __future__ import annotations
 
@@ -64,3 +65,13 @@ def test_the_page_quotes_its_artifact_and_the_done_when_holds() -> None:
     relapsed = [sum(r["relapses"] > 0 for r in runs if r["learner"] == name) for name in rows]
     assert f"In {below[0]}, {below[1]} and {below[2]} runs" in " ".join(page.split())
     assert f"in {relapsed[0]}, {relapsed[1]} and {relapsed[2]} runs of the hundred" in " ".join(page.split())
+
+
+def test_the_mujoco_page_quotes_its_floor_table() -> None:
+    """benchmarks/mujoco_car.py's floor table (issue 48's Done-when on the scatter config), as written."""
+    page = (ROOT / "docs/mujoco.md").read_text()
+    assert (ROOT / "docs/mujoco/mujoco_floor.md").read_text().strip() in page
+    rows = json.loads((ROOT / "docs/mujoco/mujoco_floor.json").read_text())["rows"]
+    met = sum(r["met"] for r in rows)
+    assert f"met in {met} of {len(rows)} runs" in " ".join(page.split())
+    assert all(r["first_inside"] <= 3 and r["held"] >= 9 for r in rows)
