@@ -4,9 +4,11 @@ A black-box optimizer (scipy, ``cma``) or an RL algorithm (Stable-Baselines3) *p
 ``env.step`` when it wants a trial. The trial loop *pushes*: it asks ``act`` for an action and
 hands the result to ``learn``. :class:`PullLearner` joins the two: the optimizer runs in a worker
 thread against :class:`TrialPort`, a one-trial Gymnasium env whose ``step`` hands the action to
-``act`` and waits for ``learn``'s ``info``. Exactly one of the two threads runs at a time, so a
-run is as deterministic as the optimizer. When the loop ends, ``close()`` stops the optimizer
-inside its pending ``step``.
+``act`` and waits for ``learn``'s ``info``. ``learn`` then waits for the optimizer's next action
+(or its end), so exactly one thread runs at a time, among all the learners of a sweep's row too: a
+run is as deterministic as the optimizer, and an optimizer that uses a process-wide state (``cma``
+draws from numpy's global RNG) never runs beside another. When the loop ends, ``close()`` stops the
+optimizer inside its pending ``step``.
 
 The port serves one-trial tasks: its observation is the last one ``act`` was given (constant
 for ``ChainedSteering-v0``), its reward minus :func:`~ilc_steering.core.score.trial_cost`.
@@ -78,6 +80,7 @@ class PullLearner:
         self._spaces = (action_space, observation_space)
         self._port = TrialPort(*self._spaces)
         self._thread: threading.Thread | None = None
+        self._next: Array | _Finished | None = None
 
     def _main(self) -> None:
         try:
@@ -94,7 +97,8 @@ class PullLearner:
         if self._thread is None:
             self._thread = threading.Thread(target=self._main, name="pull-learner", daemon=True)
             self._thread.start()
-        action = self._port.actions.get()
+        action = self._port.actions.get() if self._next is None else self._next
+        self._next = None
         if isinstance(action, _Finished):
             if action.error is not None:
                 raise action.error
@@ -103,11 +107,13 @@ class PullLearner:
 
     def learn(self, info: Mapping[str, Any]) -> None:
         self._port.infos.put(info)
+        self._next = self._port.actions.get()  # the optimizer runs to its next trial now, alone
 
     def reset(self) -> None:
         """Stop the optimizer; the next ``act`` starts it afresh."""
         self.close()
         self._port = TrialPort(*self._spaces)
+        self._next = None
 
     def close(self) -> None:
         """Stop the optimizer inside its pending trial and wait for its thread."""

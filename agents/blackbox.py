@@ -80,14 +80,43 @@ def cma_es(env: gym.Env[Any, Any], context: LearnerContext, sigma0: float = 0.1)
 
     size = context.model.profile.num_coefficients
     options = {"bounds": [[-1.0] * size, [1.0] * size], "verbose": -9}
+    own = OwnGlobalRandom()
     for restart in count():
         start = context.start_point(restart)
         if restart == 0:
             _trial(env, start)  # the first trial is the start (the nominal solution, under that prior)
-        strategy = cma.CMAEvolutionStrategy(start, sigma0, {**options, "seed": context.seed + 1000 * restart + 1})
-        while not strategy.stop():
-            candidates = strategy.ask()
-            strategy.tell(candidates, [_trial(env, x)[0] for x in candidates])
+        with own:  # seeds numpy's global RNG: this run's own state, not its neighbours'
+            strategy = cma.CMAEvolutionStrategy(start, sigma0, {**options, "seed": context.seed + 1000 * restart + 1})
+        while True:
+            with own:
+                if strategy.stop():
+                    break
+                candidates = strategy.ask()
+            costs = [_trial(env, x)[0] for x in candidates]
+            with own:
+                strategy.tell(candidates, costs)
+
+
+class OwnGlobalRandom:
+    """numpy's global RNG (``np.random``) with a state of one optimizer's own inside ``with``.
+
+    ``cma`` seeds and draws from the global RNG; two CMA-ES learners stepped together (a sweep's
+    row) would draw from one stream, each learner's samples depending on its neighbours. Inside
+    ``with`` the global RNG holds this optimizer's state; outside, whatever it held before. The
+    optimizer's own draws are then those of a run alone (bit for bit: ``tests/test_purity.py``).
+    Never held across a trial, where other learners run."""
+
+    def __init__(self) -> None:
+        self._state: Any = None
+
+    def __enter__(self) -> None:
+        self._outside = np.random.get_state()
+        if self._state is not None:
+            np.random.set_state(self._state)
+
+    def __exit__(self, *exc: object) -> None:
+        self._state = np.random.get_state()
+        np.random.set_state(self._outside)
 
 
 def nelder_mead(env: gym.Env[Any, Any], context: LearnerContext, step: float = 0.1) -> None:

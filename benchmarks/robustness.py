@@ -40,15 +40,16 @@ MAPS: dict[str, tuple[str, tuple[tuple[str, float, float], ...], int | None]] = 
     ),
     "parallel_parking_lag": (
         "parallel_parking_lag",
-        (("steering_lag", 0.0125, 0.1), ("steering_offset", -0.03, 0.03)),
+        (("steering_lag", 0.0, 0.1), ("steering_offset", -0.03, 0.03)),
         9,
     ),
 }
 """Map name: config, axes (empty: wheelbase and wheel radius, or the robot's two factors, as
 ratios 0.5-1.5 to the nominal ones; else two plant keys with their ranges) and its own grid (None:
 ``--grid``; the servo car's maps are coarser, its kernel being the slowest). The lag map starts
-at a lag of 0.0125 s, not 0: the vector env measures every plant of a map as the config's plant
-does (the lagging wheel's angle), which a lag-free plant does not have."""
+at a lag of 0 s, the lag-free car: the vector env and the oracle measure every plant of a map as
+that plant does (a lag-free car its commanded wheel angle, a lagging one its wheel's lag state),
+as the single env with that plant would (``tests/test_vector_env.py``)."""
 
 
 @dataclass(frozen=True)

@@ -27,13 +27,36 @@ from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.simulate import Trials, simulate
 from ilc_steering.core.trajectory import Trajectory
 
-__all__ = ["Scenario"]
+__all__ = ["PlantGroups", "Scenario"]
 
 Array = npt.NDArray[np.float64]
 
 
 START_DRAWS = 100
 """Draws of a trial's start (``start_error``) before one outside the chart is an error."""
+
+
+class PlantGroups:
+    """True plants, one per trial of a batch, grouped by the compiled kernel they run on: each group's
+    parameters stacked once, so a batch costs one compiled call per kernel. Plants of one robot may
+    need two kernels (a car with a steering offset or lag runs on the servo kernel, one with neither
+    on the plain one) and may measure differently on one (a lag-free car reads its commanded wheel
+    angle, a lagging one its wheel's lag state): :meth:`Scenario.run_groups` runs and measures each
+    trial as a scenario of its own plant would."""
+
+    def __init__(self, plants: Sequence[Plant]) -> None:
+        self.plants = list(plants)
+        kernels = [plant.kernel() for plant in self.plants]
+        members: dict[int, list[int]] = {}
+        for i, (field, _) in enumerate(kernels):
+            members.setdefault(id(field), []).append(i)
+        self.groups = [
+            (np.array(index), PlantBatch.from_rows(kernels[index[0]][0], np.array([kernels[i][1] for i in index])))
+            for index in members.values()
+        ]
+
+    def __len__(self) -> int:
+        return len(self.plants)
 
 
 class Scenario:
@@ -243,6 +266,23 @@ class Scenario:
         true = self.plant if plant is None else plant
         return simulate(true, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
 
+    def run_groups(self, c: Array, plants: PlantGroups, parallel: bool = False) -> tuple[Array, npt.NDArray[np.int64]]:
+        """Trial ``i`` with coefficients ``c[i]`` on ``plants.plants[i]``, from that plant's state at
+        rest at the start, one compiled call per kernel: the final configurations (task frame, each
+        measured as its own plant measures it) ``(B, nq)`` and the statuses ``(B,)``."""
+        if len(plants) != len(c):
+            raise ValueError(f"plants: one plant per trial is needed ({len(c)}), got {len(plants)}")
+        start = self.to_task(self.waypoints[0])
+        q = np.empty((len(c), start.shape[0]))
+        status = np.empty(len(c), dtype=np.int64)
+        for index, batch in plants.groups:
+            members = [plants.plants[i] for i in index]
+            x0 = np.ascontiguousarray([plant.initial_state(start) for plant in members], dtype=np.float64)
+            trials = self.run(np.ascontiguousarray(c[index]), x0, parallel=parallel, plant=batch)
+            q[index] = [plant.configuration(x) for plant, x in zip(members, trials.final)]
+            status[index] = trials.status
+        return q, status
+
     def trajectory(self, trials: Trials, c: Array, index: int = 0, leg: int = 0) -> Trajectory:
         """The recorded motion of trial ``index`` of ``trials`` (from ``run(..., record=True)``
         with coefficients ``c`` ``(B, 1 + q)`` on leg ``leg``), in the world frame.
@@ -278,8 +318,14 @@ class Scenario:
         pose, ``cartesian_error`` [m] and ``orientation_error`` [rad]; and the same errors of the
         true configuration as ``true_error_norm``, ``true_cartesian_error``, ``true_orientation_error``.
         """
+        return self.measure_configurations(self.plant.configuration(final), status, leg, noise)
+
+    def measure_configurations(
+        self, q_task: Array, status: npt.NDArray[np.int64], leg: int = 0, noise: Array | None = None
+    ) -> dict[str, Array]:
+        """:meth:`measure` of final configurations ``q_task`` ``(B, nq)`` (task frame), each already
+        read from its state by its own plant (:meth:`run_groups`)."""
         target = (leg + 1) % len(self.waypoints)
-        q_task = self.plant.configuration(final)
         q_world = self.to_world(q_task)
         z = self.to_chained(q_task)
         out = self._errors(z, q_world, target, "true_")

@@ -15,8 +15,8 @@ from gymnasium.vector.utils import batch_space
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import Plant, PlantBatch
-from ilc_steering.envs.scenario import Scenario
+from ilc_steering.core.plants import Plant
+from ilc_steering.envs.scenario import PlantGroups, Scenario
 from ilc_steering.envs.steering_env import (
     action_names,
     check_action,
@@ -85,7 +85,11 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     multiplied by row ``i`` (each ratio in :data:`~ilc_steering.core.checks.FACTOR_RANGE`), still
     one compiled call per step (``ilc-steering sweep`` maps a learner over such a grid);
     ``true_plants``, a plant per env of the config's kind, gives them outright (a map over any
-    plant key, a steering offset say). The learner's nominal model is the same for all.
+    plant key, a steering offset say). Each env's trial starts from its own plant's state at rest
+    and is measured as its own plant measures it, exactly as the single env with that plant does
+    (a lag-free car under a lagging config included; tested bit for bit); plants that need other
+    kernels (a car with and without a servo) cost a compiled call per kernel. The learner's nominal
+    model is the same for all.
 
     Every episode is one step long, so the env resets in the same step
     (``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``) and every step is a trial: the
@@ -137,9 +141,11 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
         if true_factors is not None and true_plants is not None:
             raise ValueError("true_factors and true_plants: give one of them, not both")
-        self._plants = None if true_factors is None else self._vary(true_factors)
+        self._plants: PlantGroups | None = None  # stacked once for every step
+        if true_factors is not None:
+            self._plants = PlantGroups(self._vary(true_factors))
         if true_plants is not None:
-            self._plants = self._own_plants(true_plants)
+            self._plants = PlantGroups(self._own_plants(true_plants))
 
     @property
     def nominal_model(self) -> NominalModel:
@@ -162,11 +168,16 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ) -> tuple[npt.NDArray[np.float32], Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
         c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")
         applied = np.clip(c, self._low, self._high)
-        trials = self._scenario.run(applied, parallel=self.parallel, plant=self._plants)
-        noise = draw_noise(self._scenario, self.np_random, self._streams, self.num_envs)
-        final_info = trial_infos(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
-        if isinstance(trials, ExternalTrials):  # what the external plant logged, one dict per env
-            final_info["plant"] = np.array(trials.logs, dtype=object)
+        if self._plants is None:
+            trials = self._scenario.run(applied, parallel=self.parallel)
+            noise = draw_noise(self._scenario, self.np_random, self._streams, self.num_envs)
+            final_info = trial_infos(self._scenario.measure(trials.final, trials.status, noise=noise), applied, c)
+            if isinstance(trials, ExternalTrials):  # what the external plant logged, one dict per env
+                final_info["plant"] = np.array(trials.logs, dtype=object)
+        else:  # each env's trial started and measured as a single env with its plant does
+            q, status = self._scenario.run_groups(applied, self._plants, parallel=self.parallel)
+            noise = draw_noise(self._scenario, self.np_random, self._streams, self.num_envs)
+            final_info = trial_infos(self._scenario.measure_configurations(q, status, noise=noise), applied, c)
         rewards = np.asarray(reward(final_info), dtype=np.float64)
         everyone = np.ones(self.num_envs, dtype=np.bool_)
         final_obs = np.empty(self.num_envs, dtype=object)
@@ -180,9 +191,9 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         }
         return self._observations.copy(), rewards, everyone.copy(), np.zeros(self.num_envs, dtype=np.bool_), info
 
-    def _vary(self, true_factors: Any) -> PlantBatch:
+    def _vary(self, true_factors: Any) -> list[Plant]:
         """One true plant per env: the config's with its two parameters scaled by a row of
-        ``true_factors``, stacked once for every step."""
+        ``true_factors``."""
         plant = self._scenario.plant
         names = f"(num_envs = {self.num_envs}, ({', '.join(plant.factor_names)}))"
         factors = check_action(true_factors, (self.num_envs, 2), names, what="true_factors")
@@ -192,18 +203,19 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
                 plants.append(plant.with_true_factors(row))
             except ValueError as error:
                 raise ValueError(f"true_factors[{i}]: {error}") from None
-        return PlantBatch(plants)
+        return plants
 
-    def _own_plants(self, plants: Sequence[Plant]) -> PlantBatch:
-        """One given true plant per env, of the config's plant's kind and state size."""
+    def _own_plants(self, plants: Sequence[Plant]) -> list[Plant]:
+        """One given true plant per env, of the config's plant's kind (a car with or without servos,
+        on whichever kernel each needs)."""
         plants = list(plants)
         if len(plants) != self.num_envs:
             raise ValueError(f"true_plants: one plant per env is needed ({self.num_envs}), got {len(plants)}")
-        state_dim = self._scenario.plant.state_dim
+        kind = self._scenario.plant.kind
         for plant in plants:
-            if not isinstance(plant, Plant) or plant.state_dim != state_dim:
-                raise ValueError(f"true_plants: every entry must be a Plant of state size {state_dim}, got {plant!r}")
-        return PlantBatch(plants)
+            if not isinstance(plant, Plant) or plant.kind != kind:
+                raise ValueError(f"true_plants: every entry must be a Plant of kind {kind.name!r}, got {plant!r}")
+        return plants
 
     def _reset_info(self) -> dict[str, Any]:
         everyone = np.ones(self.num_envs, dtype=np.bool_)

@@ -28,8 +28,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.integrate import OK
-from ilc_steering.core.plants import Plant, PlantBatch
-from ilc_steering.envs.scenario import Scenario
+from ilc_steering.core.plants import Plant
+from ilc_steering.envs.scenario import PlantGroups, Scenario
 
 __all__ = ["SOLVED", "oracle_map", "solve_plants"]
 
@@ -44,44 +44,44 @@ _CONVERGED = 1e-10
 """[m or rad] the configuration error where a search stops."""
 
 
-def _errors(scenario: Scenario, rows: Array, field: object, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
-    """The final configuration errors (task frame, m and rad) of trials ``c`` on the plants ``rows``:
-    better conditioned than the chained coordinates' far from the goal, and zero at the same place."""
-    trials = scenario.run(c, plant=PlantBatch.from_rows(field, rows))  # type: ignore[arg-type]
-    error = scenario.plant.configuration(trials.final) - scenario.to_task(scenario.goal)
-    ok = (trials.status == OK) & np.all(np.isfinite(error), axis=1)
+def _errors(scenario: Scenario, plants: PlantGroups, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
+    """The final configuration errors (task frame, m and rad) of trials ``c`` on ``plants``, each
+    started and measured as its own plant is: better conditioned than the chained coordinates' far
+    from the goal, and zero at the same place."""
+    q, status = scenario.run_groups(c, plants)
+    error = q - scenario.to_task(scenario.goal)
+    ok = (status == OK) & np.all(np.isfinite(error), axis=1)
     return np.where(ok[:, None], error, np.inf), ok
 
 
 def final_errors(scenario: Scenario, plants: Sequence[Plant], c: Array) -> Array:
     """The learner's measure of reaching the goal: the norm of ``z^d - z(T)`` (nominal chained
     coordinates, noise-free) of trial ``c[k]`` on ``plants[k]``; inf off the chart."""
-    trials = scenario.run(np.ascontiguousarray(c), plant=PlantBatch(list(plants)))
-    measured = scenario.measure(trials.final, trials.status)
+    q, status = scenario.run_groups(np.ascontiguousarray(c), PlantGroups(plants))
+    measured = scenario.measure_configurations(q, status)
     return np.where(measured["left_chart"], np.inf, measured["true_error_norm"])
 
 
 def solve_plants(scenario: Scenario, plants: Sequence[Plant], starts: Array) -> tuple[Array, Array]:
     """Levenberg-Marquardt on each plant's true final error from ``starts`` ``(M, 1 + q)``; returns
     the coefficients reached ``(M, 1 + q)`` and their final error norms ``(M,)`` (inf off the chart)."""
-    field = plants[0].kernel()[0]
-    rows = np.array([plant.kernel()[1] for plant in plants])
     low, high = scenario_box(scenario)
     scale = scenario.nominal.action_scale()
     m, p = starts.shape
     c = np.clip(starts, low, high)
-    r, _ = _errors(scenario, rows, field, c)
+    groups = PlantGroups(plants)
+    probe_groups = PlantGroups([plant for plant in plants for _ in range(p + 1)])
+    r, _ = _errors(scenario, groups, c)
     cost = np.einsum("ij,ij->i", r, r)
     damping = np.full(m, 1e-3)
     h = 1e-7 * scale
-    probe_rows = np.repeat(rows, p + 1, axis=0)
     active = np.isfinite(cost) & (cost > _CONVERGED**2)
     for _ in range(_ITERATIONS):
         if not active.any():
             break
         probes = np.repeat(c, p + 1, axis=0).reshape(m, p + 1, p)
         probes[:, 1:, :] += np.diag(h)
-        values, _ = _errors(scenario, probe_rows, field, probes.reshape(-1, p))
+        values, _ = _errors(scenario, probe_groups, probes.reshape(-1, p))
         values = values.reshape(m, p + 1, -1)
         with np.errstate(invalid="ignore"):  # a probe off the chart: inf - inf, that plant waits
             J = np.swapaxes(values[:, 1:, :] - values[:, :1, :], 1, 2) / h  # (m, n, p)
@@ -102,7 +102,7 @@ def solve_plants(scenario: Scenario, plants: Sequence[Plant], starts: Array) -> 
                 step = -np.linalg.solve(system, gradient[..., None])[..., 0]
                 damping *= 4
             candidate = np.clip(c + step, low, high)
-            r_new, _ = _errors(scenario, rows, field, candidate)
+            r_new, _ = _errors(scenario, groups, candidate)
             cost_new = np.einsum("ij,ij->i", r_new, r_new)
             accept = active & ~improved & finite & (cost_new < cost)
             c[accept], r[accept], cost[accept] = candidate[accept], r_new[accept], cost_new[accept]

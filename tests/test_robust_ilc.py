@@ -162,7 +162,6 @@ def test_sweep_over_plant_keys(tmp_path):
         (["--axis", "true_wheelbase", "0.3", "0.1", "--axis", "true_wheel_radius", "0.01", "0.03"], "LOW < HIGH"),
         (["--axis", "true_wheelbase", "a", "0.3", "--axis", "true_wheel_radius", "0.01", "0.03"], "must be numbers"),
         (["--axis", "true_wheelbase", "0.1", "0.3"], "exactly two"),
-        (["--axis", "steering_offset", "-0.01", "0.01", "--axis", "true_wheel_radius", "0.01", "0.03"], "another kind"),
         (["--axis", "true_wheelbase", "-0.1", "0.3", "--axis", "true_wheel_radius", "0.01", "0.03"], "invalid plant"),
     ],
 )

@@ -1,6 +1,7 @@
 """The natively batched env against Gymnasium's SyncVectorEnv of scalar envs, and SB3 on top of it."""
 
 import doctest
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -11,6 +12,7 @@ from gymnasium.wrappers import RescaleAction
 from gymnasium.wrappers.vector import RescaleAction as VectorRescaleAction
 
 import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.config import load_config
 from ilc_steering.envs import steering_vector_env
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 
@@ -78,6 +80,39 @@ def test_parallel_batches_equal_serial_ones():
     c = actions(serial.single_action_space, rng, 80, spread=0.5)
     serial.reset(seed=0), parallel.reset(seed=0)
     assert data_equivalence(serial.step(c), parallel.step(c), exact=True)
+
+
+def lagged(config, lag, offset):
+    """``config`` with its car's steering lag [s] and offset [rad] replaced."""
+    return replace(config, plant=replace(config.plant, steering_lag=lag, steering_offset=offset))
+
+
+@pytest.mark.parametrize("config_lag", [0.036, 0.0])
+def test_each_true_plant_is_measured_as_the_single_env_with_it_bit_for_bit(config_lag):
+    """Plants with and without a steering lag (and one with no servo at all, on the plain kernel)
+    under a lagging config and under a lag-free one: env ``i`` of the vector env gives what the
+    single env of plant ``i`` gives, noise included. (A lag-free car on the servo kernel reads its
+    commanded wheel angle; the vector env once read every plant as the config's, the lag state.)"""
+    config = lagged(load_config("parallel_parking_lag"), config_lag, 1e-4)
+    points = [(0.0, 1e-4), (0.0125, 1e-4), (0.05, -0.02), (0.0, 0.0), (0.1, 0.0), (0.0, 0.03)]
+    singles = [lagged(config, lag, offset) for lag, offset in points]
+    envs = ChainedSteeringVectorEnv(
+        len(points), config, measurement_noise=1e-4, true_plants=[c.plant.plant() for c in singles]
+    )
+    seeds = list(range(10, 10 + len(points)))
+    envs.reset(seed=seeds)
+    rng = np.random.default_rng(4)
+    c = envs.nominal_model.solve() * (1 + 0.05 * rng.standard_normal((len(points), envs.single_action_space.shape[0])))
+    final = envs.step(c)[4]["final_info"]
+    measured_phi = []
+    for i, single in enumerate(singles):
+        env = gym.make(ENV_ID, config=single, measurement_noise=1e-4)
+        env.reset(seed=seeds[i])
+        info = env.step(c[i])[4]
+        for key in ("error", "q_final", "z_final", "error_norm", "true_error_norm", "true_cartesian_error"):
+            np.testing.assert_array_equal(final[key][i], info[key], err_msg=f"{points[i]}: {key}")
+        measured_phi.append(info["q_final"][3])
+    assert all(phi != 0.0 for phi in measured_phi)  # no wheel angle read from a state that never moved
 
 
 def test_bad_input_is_named():
