@@ -4,6 +4,7 @@ folder, every failure named on stderr (issue 34, classes 1, 7 and 8)."""
 import math
 import os
 import time
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -179,7 +180,8 @@ def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
     from ilc_steering.compare.against import read_committed
 
     (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
-    cell = {"prior": "nominal", "method": "ilc", "scenario": "forward_parking", "seed": 0}
+    committed = Path(__file__).resolve().parents[1] / "docs" / "compare" / "compare.json"
+    cell = json.loads(committed.read_text())["cells"][0]  # a whole cell: the schema checks it first
     (tmp_path / "compare.json").write_text(json.dumps({"cells": [cell, {**cell, "best_error": 1.0}]}))
     with pytest.raises(ValueError, match="holds the cell .* twice"):
         read_committed(tmp_path)

@@ -57,13 +57,14 @@ from ilc_steering.compare.cells import (
     cell_path,
     implementation,
     read_cell,
+    read_report,
     run_cell,
 )
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
 from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, run_grid
 from ilc_steering.output import write_json
-from ilc_steering.readers import is_file, read_json
+from ilc_steering.readers import is_file
 
 __all__ = ["main", "main_with_failures", "method_families", "parse", "run_all", "run_cells", "validate"]
 
@@ -87,10 +88,6 @@ def validate(args: Args) -> dict[str, str]:
     return plan(args).names
 
 
-MAX_REPORT_BYTES = 256 << 20
-"""The largest ``compare.json`` read back to restore a clone's cells [bytes]."""
-
-
 def _restore_cells(folder: Path) -> None:
     """Write back the cells that the folder's ``compare.json`` holds and ``cells/`` lacks (a clone of a
     run whose cells were not kept): the settings matched, so they are the cells this run would compute.
@@ -99,17 +96,13 @@ def _restore_cells(folder: Path) -> None:
     if not is_file(report):
         return
     try:
-        data = read_json(report, MAX_REPORT_BYTES)
-        cells = data.get("cells", []) if isinstance(data, dict) else []
+        cells = read_report(report)["cells"]
     except ValueError as error:
         raise ValueError(f"{error}; use another --out folder") from None
     restored = 0
     seen: set[Path] = set()
-    for cell in cells if isinstance(cells, list) else []:
-        try:
-            path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
-        except (KeyError, TypeError, ValueError):
-            raise ValueError(f"{report}: holds a cell without its key; use another --out folder") from None
+    for cell in cells:
+        path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
         if path in seen:
             raise ValueError(f"{report}: holds the cell {path.stem} twice; use another --out folder")
         seen.add(path)
