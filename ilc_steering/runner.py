@@ -175,12 +175,10 @@ def _run_json(config: SteeringConfig, kind: str, records: list[Any], result: Ver
     }
 
 
-@dataclass(frozen=True)
-class RunResult:
-    """A run of one-trial ILC: the JSON that ``ilc-steering run --json`` writes and ``plot`` reads."""
+class _Judged:
+    """What a run and a cyclic run share: their config's name, and where their verdict says they converged."""
 
     config: SteeringConfig
-    trials: list[TrialRecord]
     verdict: Verdict
 
     @property
@@ -189,8 +187,17 @@ class RunResult:
 
     @property
     def converged_at(self) -> int | None:
-        """The first trial of the stretch within the tolerance the run ends with, if it held."""
+        """The first trial (or cycle) of the stretch within the tolerance the run ends with, if it held."""
         return self.verdict.converged_at
+
+
+@dataclass(frozen=True)
+class RunResult(_Judged):
+    """A run of one-trial ILC: the JSON that ``ilc-steering run --json`` writes and ``plot`` reads."""
+
+    config: SteeringConfig
+    trials: list[TrialRecord]
+    verdict: Verdict
 
     def to_json(self) -> dict[str, Any]:
         return _run_json(self.config, "trials", self.trials, self.verdict)
@@ -273,21 +280,12 @@ class CycleRecord:
 
 
 @dataclass(frozen=True)
-class CyclicRunResult:
+class CyclicRunResult(_Judged):
     """A run of cyclic ILC, with the same JSON conventions as :class:`RunResult`."""
 
     config: SteeringConfig
     cycles: list[CycleRecord]
     verdict: Verdict
-
-    @property
-    def name(self) -> str:
-        return self.config.name
-
-    @property
-    def converged_at(self) -> int | None:
-        """The first cycle of the stretch of cycles within the tolerance the run ends with, if it held."""
-        return self.verdict.converged_at
 
     def to_json(self) -> dict[str, Any]:
         return _run_json(self.config, "cycles", self.cycles, self.verdict)

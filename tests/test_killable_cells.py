@@ -9,45 +9,9 @@ import pytest
 
 from ilc_steering import cli
 
-EXITING = """
-import sys
-
-from ilc_steering.agents.base import BaseLearner
-from ilc_steering.agents.ilc import ILCAgent
-
-
-class Exiting(BaseLearner):
-    def __init__(self, context):
-        super().__init__()
-        self.inner = ILCAgent(context.model, context.nu_a, context.nu_b, start=context.first_action())
-
-    def act(self, observation=None):
-        return self.inner.act(observation)
-
-    def learn(self, info):
-        sys.exit(0)
-
-    def reset(self):
-        self.inner.reset()
-
-
-def make(context):
-    return Exiting(context)
-"""
-
-
-def test_a_learner_that_raises_system_exit_in_run_is_its_failure(tmp_path, monkeypatch, capsys):
-    (tmp_path / "exiting_learners.py").write_text(EXITING)
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    code = cli.main(["run", "forward_parking", "--learner", "exiting_learners:make", "--trials", "4"])
-    err = capsys.readouterr().err
-    assert code == 4
-    assert "SystemExit" in err and "exiting_learners:make" in err
-
-
-# A user's learner that ends its process, and one that never returns from nogil compiled code, each
-# on one trial's update: under compare, even with one worker, each is its cell's failure.
+# A user's learner that breaks on one trial's update (``broken()``): one that calls sys.exit() under
+# run, and under compare, even with one worker, one that ends its process and one that never
+# returns from nogil compiled code, each its cell's failure.
 WRAPPER = """
 from ilc_steering.agents.base import BaseLearner
 from ilc_steering.agents.ilc import ILCAgent
@@ -71,6 +35,19 @@ class Wrapped(BaseLearner):
 def make(context):
     return Wrapped(context)
 """
+EXITING = "import sys\n\n\ndef broken():\n    sys.exit(0)\n" + WRAPPER
+
+
+def test_a_learner_that_raises_system_exit_in_run_is_its_failure(tmp_path, monkeypatch, capsys):
+    (tmp_path / "exiting_learners.py").write_text(EXITING)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    code = cli.main(["run", "forward_parking", "--learner", "exiting_learners:make", "--trials", "4"])
+    err = capsys.readouterr().err
+    assert code == 4
+    assert "SystemExit" in err and "exiting_learners:make" in err
+
+
 OS_EXIT = "import os\n\n\ndef broken():\n    os._exit(3)\n" + WRAPPER
 NOGIL_LOOP = (
     """
