@@ -30,7 +30,7 @@ __all__ = [
     "committed_cells",
     "copy_committed",
     "describe",
-    "joint_grid",
+    "joint_cells",
     "read_committed",
     "resolve_settings",
 ]
@@ -238,7 +238,7 @@ def committed_cells(
     return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
 
 
-def joint_grid(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
+def joint_cells(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
     """The cells of an ``--against`` run, in the report's order: every committed one, and those of
     ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
     from ilc_steering.agents.base import PRIORS

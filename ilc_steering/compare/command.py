@@ -62,7 +62,7 @@ from ilc_steering.compare.cells import (
 )
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
-from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, run_grid
+from ilc_steering.engine.runs import Cells, RunFolder, add_cell_options, compute_cells
 from ilc_steering.output import write_json
 from ilc_steering.readers import is_file
 
@@ -144,7 +144,7 @@ def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
 
 def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Every cell of the run, computing only those not yet in the run folder, on the engine
-    (:func:`~ilc_steering.engine.runs.run_grid`; with a custom ``runner``, in this process, called as
+    (:func:`~ilc_steering.engine.runs.compute_cells`; with a custom ``runner``, in this process, called as
     it is: a test's hook); returns the finished cells and the failed ones, each in the run's order."""
     return execute(plan(args), runner)
 
@@ -186,7 +186,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         prior, method, name, seed = cell
         return f"{prior:7s} {name:26s} {method:13s} seed {seed}"
 
-    grid = Grid(
+    cells = Cells(
         keys=the_plan.grid,
         name=lambda cell: cell_name(*cell),
         read=lambda path, cell: read_cell(path, the_plan.key(cell) if cell in the_plan.held else made_by(cell)),
@@ -213,9 +213,9 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         paths = {cell: folder.path(cell_name(*cell)) for cell in the_plan.grid}
         with folder.locked():
             copy_committed(the_plan.held, paths, lambda path, cell: read_cell(path, the_plan.key(cell)))
-    outcome = run_grid(
+    outcome = compute_cells(
         folder,
-        grid,
+        cells,
         runner,
         backend=args.backend,
         workers=args.workers,
@@ -319,7 +319,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help=f"prior=none, the ablation, runs the first K seeds (default: {Args.ablation_seeds})",
     )
-    add_grid_options(parser, "cell")
+    add_cell_options(parser, "cell")
     bar = parser.add_mutually_exclusive_group()
     bar.add_argument("--progress-bar", action="store_true", help="SB3's progress bar on RL cells (one worker)")
     bar.add_argument("--no-progress-bar", action="store_true", help="no progress bar (the default)")

@@ -22,7 +22,7 @@ from ilc_steering.compare.against import Cell, CommittedRun
 from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
 from ilc_steering.compare.cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
-from ilc_steering.engine.runs import check_grid_options
+from ilc_steering.engine.runs import check_cell_options
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -99,7 +99,7 @@ def check_options(args: Args) -> None:
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
     MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s."""
-    check_grid_options(args.backend, args.workers, args.cell_timeout)
+    check_cell_options(args.backend, args.workers, args.cell_timeout)
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:
@@ -185,10 +185,10 @@ def plan(args: Args) -> Plan:
             (p, m, n, s) for p in args.priors for n in names.values() for m in args.methods for s in seeds_of(args, p)
         ]
     else:
-        from ilc_steering.compare.against import committed_cells, joint_grid
+        from ilc_steering.compare.against import committed_cells, joint_cells
 
         held, configs = committed_cells(args, committed, configs, budget)
-        grid = joint_grid(args, list(names.values()), held)
+        grid = joint_cells(args, list(names.values()), held)
         for cell in grid:
             budget(*cell[:3])
     return Plan(args, names, configs, tuple(grid), table, warnings, committed, held)

@@ -11,7 +11,7 @@ every config loaded and hashed, every cell's key and budget known. The engine th
    (:func:`~ilc_steering.output.check_run_settings`);
 2. holds an exclusive lock on it (:meth:`RunFolder.locked`): two runs never share a folder;
 3. reads every finished result back through the command's checker (a resume never trusts a file
-   it did not check) and runs only the others (:func:`run_grid`), in worker processes or Ray
+   it did not check) and runs only the others (:func:`compute_cells`), in worker processes or Ray
    tasks (:mod:`~ilc_steering.engine.backends`);
 4. writes each result the moment it arrives (finish), or its error under ``failed/`` (fail,
    named on stderr too); a resume computes the failed ones again.
@@ -46,12 +46,12 @@ from ilc_steering.output import (
 __all__ = [
     "DEFAULT_CELL_TIMEOUT",
     "MAX_CELL_TIMEOUT",
-    "Grid",
+    "Cells",
     "Outcome",
     "Progress",
     "RunFolder",
     "check_timeout",
-    "run_grid",
+    "compute_cells",
     "timeout_help",
 ]
 
@@ -72,7 +72,7 @@ def timeout_help(what: str) -> str:
     )
 
 
-def add_grid_options(parser: argparse.ArgumentParser, what: str) -> None:
+def add_cell_options(parser: argparse.ArgumentParser, what: str) -> None:
     """The options every command over a grid of cells shares, with one help each: ``--backend``,
     ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
     from ilc_steering.engine.backends import MAX_WORKERS
@@ -94,7 +94,7 @@ def add_grid_options(parser: argparse.ArgumentParser, what: str) -> None:
     )
 
 
-def check_grid_options(backend: str, workers: int, timeout: float | None) -> None:
+def check_cell_options(backend: str, workers: int, timeout: float | None) -> None:
     """The shared options' rules, checked once, before any cell: ``ValueError`` naming the option."""
     from ilc_steering.engine.backends import check_backend, check_workers
 
@@ -162,8 +162,8 @@ class RunFolder:
 
 
 @dataclass(frozen=True)
-class Grid(Generic[K]):
-    """What the engine needs of a command's grid: its keys, in the report's order, and per key."""
+class Cells(Generic[K]):
+    """What the engine needs of a command's cells: their keys, in the report's order, and per key."""
 
     keys: Sequence[K]
     """Every cell, in order."""
@@ -226,9 +226,9 @@ class Outcome(Generic[K]):
         return [self.done[k] for k in keys if k in self.done], [self.failed[k] for k in keys if k in self.failed]
 
 
-def run_grid(
+def compute_cells(
     folder: RunFolder,
-    grid: Grid[K],
+    cells: Cells[K],
     function: Callable[..., dict[str, Any]],
     *,
     backend: str = "local",
@@ -237,8 +237,8 @@ def run_grid(
     inline: bool = False,
     before: Callable[[Mapping[K, Path]], None] | None = None,
 ) -> Outcome[K]:
-    """Every cell of ``grid`` in ``folder`` (prepared), under its lock: the finished ones read back
-    through ``grid.read``, the others computed by ``function(*grid.call(key))`` on ``backend``
+    """Every cell of ``cells`` in ``folder`` (prepared), under its lock: the finished ones read back
+    through ``cells.read``, the others computed by ``function(*cells.call(key))`` on ``backend``
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
     ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`). On the local backend
     the cells always run in worker processes that are killed at it, one worker included, so a
@@ -249,16 +249,16 @@ def run_grid(
     outcome: Outcome[K] = Outcome()
     with folder.locked():
         todo: dict[K, Path] = {}
-        for key in grid.keys:
-            path = folder.path(grid.name(key))
+        for key in cells.keys:
+            path = folder.path(cells.name(key))
             if path.exists():
-                outcome.done[key] = grid.read(path, key)
+                outcome.done[key] = cells.read(path, key)
             else:
                 todo[key] = path
         if before is not None:
             before(todo)
-        if grid.cost is not None:  # the longest first
-            expected = {key: float(grid.cost(key)) for key in todo}
+        if cells.cost is not None:  # the longest first
+            expected = {key: float(cells.cost(key)) for key in todo}
             todo = dict(sorted(todo.items(), key=lambda item: -expected[item[0]]))
         else:
             expected = {key: 1.0 for key in todo}
@@ -267,27 +267,27 @@ def run_grid(
         started, clock = datetime.now(timezone.utc), time.monotonic()
 
         def finish(key: K, result: dict[str, Any]) -> None:
-            cell = {**result, **grid.stamp(key)}
-            write_json(folder.path(grid.name(key)), cell)
-            folder.path(grid.name(key), failed=True).unlink(missing_ok=True)
+            cell = {**result, **cells.stamp(key)}
+            write_json(folder.path(cells.name(key)), cell)
+            folder.path(cells.name(key), failed=True).unlink(missing_ok=True)
             outcome.done[key] = cell
             text = progress.line(key)
-            print(text if grid.progress is None else f"{text} {grid.progress(cell)}", flush=True)
+            print(text if cells.progress is None else f"{text} {cells.progress(cell)}", flush=True)
 
         def fail(key: K, message: str) -> None:
-            outcome.failed[key] = grid.failure(key, message)
-            path = folder.path(grid.name(key), failed=True)
+            outcome.failed[key] = cells.failure(key, message)
+            path = folder.path(cells.name(key), failed=True)
             path.parent.mkdir(exist_ok=True)
             write_json(path, outcome.failed[key])
-            line = f"{grid.describe(key)}: FAILED, recorded in {path}: {message}"
+            line = f"{cells.describe(key)}: FAILED, recorded in {path}: {message}"
             print(f"{progress.line(key)} {line}", flush=True)
             print(f"ilc-steering: {' '.join(line.split())}", file=sys.stderr, flush=True)
 
         if inline:
             for key in todo:
-                finish(key, function(*grid.call(key)))
+                finish(key, function(*cells.call(key)))
         else:
-            calls = {key: grid.call(key) for key in todo}
+            calls = {key: cells.call(key) for key in todo}
             bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
             if backend == "ray" and calls:
                 print(

@@ -65,7 +65,7 @@ class SweepArgs:
     nu_b: tuple[float, ...] = ()
     """Gains of eq. 34 to map (each a map); empty: the config's."""
     grid: int = 41
-    """Points per axis."""
+    """Points per axis of the map (``--grid``): GRID x GRID true plants, a row of them a cell of the run."""
     low: float = 0.5
     """Smallest ratio true / nominal on both axes."""
     high: float = 1.5
