@@ -76,7 +76,11 @@ def committed_lines(out: Path, name: str) -> dict[str, dict[str, Any]]:
         if not (folder / "sweep.json").exists():
             continue
         summary = read_report(folder / "sweep.json")
-        settings = {k: v for k, v in summary["settings"].items() if k not in ("methods", "oracle", "out", "workers")}
+        settings = {
+            k: v
+            for k, v in summary["settings"].items()
+            if k not in ("methods", "oracle", "out", "workers", "cell_timeout")
+        }
         if first is not None and settings != first:
             raise ValueError(f"{folder}: not a run of {out / name}'s settings; it cannot complete that map")
         first = first or settings

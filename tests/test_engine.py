@@ -11,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ilc_steering.engine.backends import run_calls
-from ilc_steering.engine.runs import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
+from ilc_steering.engine.options import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, check_timeout
+from ilc_steering.engine.runs import RunFolder
 
 # Calls a worker can run, as (function, args) importable in a spawned process, and what each must give.
 KINDS = {
@@ -192,7 +193,7 @@ def test_the_help_of_cell_timeout_states_the_engines_default_bound(command, caps
     """``--cell-timeout``'s help reads :data:`DEFAULT_CELL_TIMEOUT` (it once said "no limit" while
     six hours applied): a changed default changes the help."""
     from ilc_steering import cli
-    from ilc_steering.engine import runs as engine
+    from ilc_steering.engine import options as engine
 
     for seconds, shown in ((DEFAULT_CELL_TIMEOUT, f"default: {DEFAULT_CELL_TIMEOUT / 3600:g} h"), (5400.0, "1.5 h")):
         monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", seconds)

@@ -82,14 +82,14 @@ def test_a_learner_that_exits_or_hangs_in_compiled_code_is_its_cells_failure_und
     other cell is written and so is the report. Without the option the engine's default bound ends
     the loop; it is shortened here to :data:`LIMIT`, as ``--cell-timeout`` shortens it on the command line."""
     from ilc_steering.compare.cells import cell_name
-    from ilc_steering.engine import runs as engine
+    from ilc_steering.engine import options as engine
 
     source, expected = BROKEN[kind]
     module = f"{kind}_learners"
     (tmp_path / f"{module}.py").write_text(source)
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", LIMIT)  # read when the run starts
+    monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", LIMIT)  # read when the plan is made
     out = tmp_path / "run"
     argv = ["compare", "--methods", "ilc", f"{module}:make", "--priors", "nominal", "--seeds", "0"]
     argv += ["--scenarios", "forward_parking", "--model-trials", "3", "--custom-trials", "3", "--workers", "1"]

@@ -13,10 +13,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import gymnasium as gym
 import numpy as np
+from pydantic import Field
 
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import Learner, LearnerContext, update_times
@@ -187,6 +188,10 @@ def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int, fold
     return out / folder / f"{cell_name(prior, method, scenario, seed)}.json"
 
 
+Number = Annotated[float, Field(allow_inf_nan=True)]
+"""A number whose range :func:`check_cell` checks, naming the value (a NaN included)."""
+
+
 @dataclass(frozen=True)
 class CellRecord:
     """A cell's file (``cells/*.json``, and each of ``compare.json``'s ``cells``), as its schema:
@@ -198,16 +203,16 @@ class CellRecord:
     seed: int
     budget: int  # [trials]
     trials: int  # run [trials]
-    off_chart_fraction: float
+    off_chart_fraction: Number
     trials_to: dict[str, int | None]  # level of LADDER -> the first trial within it, or null
     fragile: tuple[str, ...]  # levels of LADDER
-    best_error: float  # the best true cost
-    wall_s: float  # [s]
-    curve: tuple[tuple[int, float], ...]  # [trial, best true cost] at every trial that improved it
+    best_error: Number  # the best true cost
+    wall_s: Number  # [s]
+    curve: tuple[tuple[int, Number], ...]  # [trial, best true cost] at every trial that improved it
     config_sha: str  # the content hash of its config
     version: str  # the ilc-steering version that computed it
     update_s: float | None = None  # [s] the median update of a learner that times its updates
-    clipped_fraction: float = 0.0
+    clipped_fraction: Number = 0.0
     implementation: str | None = None  # what made it (RL: the backend and its version)
 
 

@@ -62,7 +62,8 @@ from ilc_steering.compare.cells import (
 )
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
-from ilc_steering.engine.runs import Cells, RunFolder, add_cell_options, compute_cells
+from ilc_steering.engine.options import add_cell_options
+from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.output import write_json
 from ilc_steering.readers import is_file
 
@@ -219,7 +220,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         runner,
         backend=args.backend,
         workers=args.workers,
-        timeout=args.cell_timeout,
+        timeout=the_plan.cell_timeout,
         inline=inline,
         before=before,
     )
@@ -338,7 +339,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
-        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
     )
     return replace(args, **budgets)
 

@@ -19,9 +19,7 @@ every config loaded and hashed, every cell's key and budget known. The engine th
 
 from __future__ import annotations
 
-import argparse
 import fcntl
-import math
 import os
 import sys
 import time
@@ -33,6 +31,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ilc_steering.engine.backends import run_calls
+from ilc_steering.engine.options import DEFAULT_CELL_TIMEOUT
 from ilc_steering.engine.provenance import check_code, machine, provenance
 from ilc_steering.output import (
     check_output_dir,
@@ -44,73 +43,14 @@ from ilc_steering.output import (
 )
 
 __all__ = [
-    "DEFAULT_CELL_TIMEOUT",
-    "MAX_CELL_TIMEOUT",
     "Cells",
     "Outcome",
     "Progress",
     "RunFolder",
-    "check_timeout",
     "compute_cells",
-    "timeout_help",
 ]
 
 K = TypeVar("K", bound=Hashable)
-MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
-"""The longest ``--cell-timeout`` [s]: a week. A longer one is no bound a timer can hold."""
-DEFAULT_CELL_TIMEOUT = 6 * 3600.0
-"""[s] the bound on a cell when ``--cell-timeout`` is not given: six hours, far above any cell of the
-packaged comparison, so that a learner that never returns fails its cell instead of hanging the run.
-This is where the default is stated; ``--cell-timeout``'s help (:func:`timeout_help`) reads it."""
-
-
-def timeout_help(what: str) -> str:
-    """The help of ``--cell-timeout`` for a command whose unit of work is ``what`` (a cell, a row)."""
-    return (
-        f"stop a {what} still running after this, its worker process ended, and record it as failed "
-        f"(default: {DEFAULT_CELL_TIMEOUT / 3600:g} h; at most {MAX_CELL_TIMEOUT / 86400:g} days)"
-    )
-
-
-def add_cell_options(parser: argparse.ArgumentParser, what: str) -> None:
-    """The options every command over a grid of cells shares, with one help each: ``--backend``,
-    ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
-    from ilc_steering.engine.backends import MAX_WORKERS
-
-    parser.add_argument(
-        "--backend",
-        default="local",
-        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
-    )
-    parser.add_argument(
-        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
-    )
-    parser.add_argument(
-        "--cell-timeout",
-        type=float,
-        default=argparse.SUPPRESS,  # the engine's bound, DEFAULT_CELL_TIMEOUT, stated in the help
-        metavar="SECONDS",
-        help=timeout_help(what),
-    )
-
-
-def check_cell_options(backend: str, workers: int, timeout: float | None) -> None:
-    """The shared options' rules, checked once, before any cell: ``ValueError`` naming the option."""
-    from ilc_steering.engine.backends import check_backend, check_workers
-
-    check_backend(backend)
-    check_workers(workers)
-    check_timeout(timeout)
-
-
-def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
-    """``timeout`` if it is None or a time in ``(0, MAX_CELL_TIMEOUT]`` seconds; ``ValueError`` otherwise."""
-    if timeout is None:
-        return None
-    number = isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
-    if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
-        raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
-    return float(timeout)
 
 
 @dataclass(frozen=True)
@@ -233,14 +173,15 @@ def compute_cells(
     *,
     backend: str = "local",
     workers: int = 0,
-    timeout: float | None = None,
+    timeout: float = DEFAULT_CELL_TIMEOUT,
     inline: bool = False,
     before: Callable[[Mapping[K, Path]], None] | None = None,
 ) -> Outcome[K]:
     """Every cell of ``cells`` in ``folder`` (prepared), under its lock: the finished ones read back
     through ``cells.read``, the others computed by ``function(*cells.call(key))`` on ``backend``
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
-    ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`). On the local backend
+    ``timeout`` [s] bounds each cell (the plan's bound:
+    :func:`~ilc_steering.engine.options.check_cell_options`). On the local backend
     the cells always run in worker processes that are killed at it, one worker included, so a
     cell stuck in compiled code or one whose learner ends its process (``os._exit``) is that
     cell's failure (:func:`~ilc_steering.engine.backends.run_calls`); on Ray the bound is a Python alarm
@@ -288,16 +229,15 @@ def compute_cells(
                 finish(key, function(*cells.call(key)))
         else:
             calls = {key: cells.call(key) for key in todo}
-            bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
             if backend == "ray" and calls:
                 print(
-                    f"ilc-steering: --backend ray: each cell's time limit ({bound:g} s) is a Python alarm in its "
+                    f"ilc-steering: --backend ray: each cell's time limit ({timeout:g} s) is a Python alarm in its "
                     "Ray task, which cannot stop compiled code; --backend local can",
                     file=sys.stderr,
                     flush=True,
                 )
             try:
-                run_calls(function, calls, finish, backend, workers, fail, bound)
+                run_calls(function, calls, finish, backend, workers, fail, timeout)
             finally:
                 _session(folder, todo, outcome, started, clock, count, backend)
     return outcome

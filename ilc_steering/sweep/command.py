@@ -37,7 +37,8 @@ from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine.runs import Cells, RunFolder, add_cell_options, check_cell_options, compute_cells
+from ilc_steering.engine.options import add_cell_options, check_cell_options
+from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
 from ilc_steering.readers import read_json
@@ -81,6 +82,14 @@ class Plan:
     warning: str | None = None
 
     @property
+    def cell_timeout(self) -> float:
+        """The bound on each row [s]: ``--cell-timeout``, or the engine's default, checked once
+        (:func:`~ilc_steering.engine.options.check_cell_options`) when the plan was made."""
+        bound = self.args.cell_timeout
+        assert bound is not None, "a Plan made by plan() holds the bound"
+        return bound
+
+    @property
     def settings(self) -> dict[str, Any]:
         """What ``run.json`` records and a resume must match."""
         skip = ("out", "methods", "nu_b", "backend", "workers", "cell_timeout", "oracle")
@@ -101,6 +110,7 @@ def plan(args: SweepArgs) -> Plan:
 
     config = load_config(args.config)
     names = _validate(args, config)
+    args = replace(args, cell_timeout=check_cell_options(args.backend, args.workers, args.cell_timeout))
     gains: list[float | None] = list(args.nu_b) or [None]
     given = {config.learning.nu_b if g is None else g: g for g in gains}
     rows = tuple((m, gain, r) for m in args.methods for gain in given for r in range(args.grid))
@@ -134,7 +144,6 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
             raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
-    check_cell_options(args.backend, args.workers, args.cell_timeout)
     if not args.methods:
         raise ValueError("--methods: give at least one")
     mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
@@ -248,7 +257,7 @@ def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]
         describe=lambda row: f"{row[0]} nu_b {gain_text(row[1])} row {row[2]}",
     )
     outcome = compute_cells(
-        folder, cells, run_row, backend=args.backend, workers=args.workers, timeout=args.cell_timeout, before=oracle
+        folder, cells, run_row, backend=args.backend, workers=args.workers, timeout=the_plan.cell_timeout, before=oracle
     )
     maps: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for method, gain, row in the_plan.rows:
@@ -350,5 +359,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         out=ns.out,
         backend=ns.backend,
         workers=ns.workers,
-        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
     )

@@ -82,7 +82,7 @@ class SweepArgs:
     """Seed of every learner's own randomness."""
     cell_timeout: float | None = None
     """[s] a row still running after this is stopped and recorded as failed; None:
-    :data:`~ilc_steering.engine.DEFAULT_CELL_TIMEOUT`."""
+    :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`."""
     axes: tuple[tuple[str, float, float], ...] = ()
     """Two plant keys with their ranges ``(key, low, high)`` [the key's unit], e.g.
     ``("steering_offset", -0.03, 0.03)``; empty: the plant's two ``factor_names`` as ratios
