@@ -22,7 +22,7 @@ from ilc_steering.compare.against import Cell, CommittedRun
 from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
 from ilc_steering.compare.cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
-from ilc_steering.engine.options import check_cell_options
+from ilc_steering.engine.options import CellBound, check_cell_options
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -52,7 +52,7 @@ def run_settings(args: Args) -> dict[str, Any]:
 
 
 @dataclass(frozen=True)
-class Plan:
+class Plan(CellBound):
     """A comparison as it will run: read by every stage, recomputed by none."""
 
     args: Args
@@ -71,14 +71,6 @@ class Plan:
     """The committed run of ``--against``."""
     held: dict[Cell, dict[str, Any]] = field(default_factory=dict)
     """The committed run's cells, each checked."""
-
-    @property
-    def cell_timeout(self) -> float:
-        """The bound on each cell [s]: ``--cell-timeout``, or the engine's default, checked once
-        (:func:`~ilc_steering.engine.options.check_cell_options`) when the plan was made."""
-        bound = self.args.cell_timeout
-        assert bound is not None, "a Plan made by plan() holds the bound"
-        return bound
 
     @property
     def settings(self) -> dict[str, Any]:

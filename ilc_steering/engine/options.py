@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Any
 
 __all__ = [
     "DEFAULT_CELL_TIMEOUT",
     "MAX_CELL_TIMEOUT",
+    "CellBound",
     "add_cell_options",
     "check_cell_options",
     "check_timeout",
@@ -83,3 +85,16 @@ def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> floa
     if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
         raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
     return float(timeout)
+
+
+class CellBound:
+    """A command's plan's bound on each cell [s] (compare's and sweep's ``Plan``): the
+    ``cell_timeout`` of its arguments, which ``plan()`` set through :func:`check_cell_options`."""
+
+    args: Any
+
+    @property
+    def cell_timeout(self) -> float:
+        bound = self.args.cell_timeout
+        assert bound is not None, "a Plan made by plan() holds the bound"
+        return float(bound)

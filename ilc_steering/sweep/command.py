@@ -37,7 +37,7 @@ from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine.options import add_cell_options, check_cell_options
+from ilc_steering.engine.options import CellBound, add_cell_options, check_cell_options
 from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
@@ -65,7 +65,7 @@ Row = tuple[str, float, int]
 
 
 @dataclass(frozen=True)
-class Plan:
+class Plan(CellBound):
     """A sweep as it will run, resolved and checked once: read by every stage, recomputed by none."""
 
     args: SweepArgs
@@ -80,14 +80,6 @@ class Plan:
     given: dict[float, float | None]
     """Each gain of the rows -> the gain as given (None: the config's)."""
     warning: str | None = None
-
-    @property
-    def cell_timeout(self) -> float:
-        """The bound on each row [s]: ``--cell-timeout``, or the engine's default, checked once
-        (:func:`~ilc_steering.engine.options.check_cell_options`) when the plan was made."""
-        bound = self.args.cell_timeout
-        assert bound is not None, "a Plan made by plan() holds the bound"
-        return bound
 
     @property
     def settings(self) -> dict[str, Any]:
