@@ -18,9 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.output import MAX_RESULT_BYTES
-from ilc_steering.readers import read_json
 from ilc_steering.sweep.command import main as sweep
+from ilc_steering.sweep.report import read_report
 from ilc_steering.sweep.rows import SweepArgs
 from ilc_steering.tables import markdown_table, write_results
 
@@ -77,8 +76,12 @@ def committed_lines(out: Path, name: str) -> dict[str, dict[str, Any]]:
     for folder in (out / name, out / f"{name}_others"):
         if not (folder / "sweep.json").exists():
             continue
-        summary = read_json(folder / "sweep.json", MAX_RESULT_BYTES)
-        settings = {k: v for k, v in summary["settings"].items() if k not in ("methods", "oracle", "out", "workers")}
+        summary = read_report(folder / "sweep.json")
+        settings = {
+            k: v
+            for k, v in summary["settings"].items()
+            if k not in ("methods", "oracle", "out", "workers", "cell_timeout")
+        }
         if first is not None and settings != first:
             raise ValueError(f"{folder}: not a run of {out / name}'s settings; it cannot complete that map")
         first = first or settings
@@ -120,7 +123,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         row: dict[str, Any] = {
             "map": name,
             "grid": size,
-            "axes": " x ".join(read_json(args.out / name / "sweep.json", MAX_RESULT_BYTES)["axes"]),
+            "axes": " x ".join(read_report(args.out / name / "sweep.json")["axes"]),
             "solvable": by_method["oracle"]["converged_fraction"],
         }
         for method in METHODS:
@@ -171,4 +174,10 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    import sys
+
+    try:
+        main(parse())
+    except ValueError as error:  # a committed map of the wrong shape (--report), named in one line
+        print(f"robustness: {error}", file=sys.stderr)
+        sys.exit(2)

@@ -1,14 +1,10 @@
 """Runs of the paper's learners on a config, as records for the CLI, JSON and figures.
 
-Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`.
-
-A run has converged when its last trials *hold* the tolerance: the last
-:data:`~ilc_steering.core.scatter.HOLD` trials (or cycles) in a row, by default, within it
-(:class:`Verdict`). A stretch within the tolerance that ended before the run did is a relapse,
-reported with its trials. A one-trial run also estimates the plant's scatter from its own trials
-(:func:`ilc_steering.core.scatter.estimate`); when the tolerance is below the repeatability that
-scatter allows, the run says so, and a run whose last trials are within that repeatability has
-converged to the plant's floor.
+Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`. Before the first
+trial, :func:`check_task` refuses a task that is ill-posed for its nominal model and
+:func:`step_warning` says when the integrator's step is too coarse for it. When a run has
+converged, and whether the plant's scatter allowed it to, is its verdict
+(:mod:`ilc_steering.verdict`).
 """
 
 from __future__ import annotations
@@ -27,12 +23,11 @@ from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core import scatter as scatter_
 from ilc_steering.core.external import is_external
-from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.errors import LearnerError, LimitError, PlantError
 from ilc_steering.loop import run_trials
+from ilc_steering.verdict import Verdict, verdict, with_scatter
 
 __all__ = [
     "DEFAULT_LEARNER",
@@ -40,13 +35,11 @@ __all__ = [
     "CyclicRunResult",
     "RunResult",
     "TrialRecord",
-    "Verdict",
     "check_task",
     "learner_spec",
     "run_cyclic_ilc",
     "run_ilc",
     "step_warning",
-    "verdict",
 ]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
@@ -169,109 +162,6 @@ class TrialRecord:
         return {k: v for k, v in record.items() if v is not None}
 
 
-@dataclass(frozen=True)
-class Verdict:
-    """What a run's trials (or cycles) say: whether it converged, and how well it could.
-
-    ``converged_at`` is the first trial of the stretch within the tolerance that the run ends
-    with, when that stretch is at least ``hold`` trials long (None otherwise): one trial within it
-    may be the scatter's luck, and a learner that chases the scatter leaves again (see
-    :data:`~ilc_steering.core.scatter.HOLD`)."""
-
-    converged_at: int | None
-    hold: int
-    """Trials in a row within the tolerance, at the end, that convergence needs."""
-    held: int
-    """Trials in a row within the tolerance at the end of the run."""
-    relapses: list[list[int]] = dataclasses.field(default_factory=list)
-    """``[first, last]`` trial of each stretch within the tolerance that the run left again."""
-    scatter: dict[str, float] | None = None
-    """The plant's scatter estimated from the run's trials, per coordinate (``cartesian`` [m] of
-    x and y, ``orientation`` [rad]; ``error`` for a plant without a pose) and ``dof``, the
-    residual degrees of freedom; None when too few trials qualify (a cyclic run: never)."""
-    below: dict[str, list[float]] = dataclasses.field(default_factory=dict)
-    """Each bound of the tolerance that is below the plant's repeatability
-    (:data:`~ilc_steering.core.scatter.FLOOR` times its scatter): ``[bound, repeatability]``."""
-    floor: bool = False
-    """Not converged, but the tolerance is below the repeatability and the last ``hold`` trials
-    are within the repeatability: converged to the plant's floor."""
-
-    def to_json(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-
-
-def _stretches(met: list[bool]) -> list[list[int]]:
-    """``[first, last]`` (1-based) of each run of ``True`` in ``met``."""
-    out: list[list[int]] = []
-    for k, inside in enumerate(met, start=1):
-        if inside and out and out[-1][1] == k - 1:
-            out[-1][1] = k
-        elif inside:
-            out.append([k, k])
-    return out
-
-
-def verdict(met: list[bool], hold: int = scatter_.HOLD) -> Verdict:
-    """The :class:`Verdict` of a run whose trial ``k`` met the tolerance when ``met[k - 1]``
-    (before any scatter is estimated)."""
-    stretches = _stretches(met)
-    held = stretches[-1][1] - stretches[-1][0] + 1 if stretches and stretches[-1][1] == len(met) else 0
-    relapses = stretches[:-1] if held else stretches
-    converged_at = stretches[-1][0] if held >= hold else None
-    return Verdict(converged_at, hold, held, relapses)
-
-
-def _scatter(config: SteeringConfig, model: NominalModel, records: list[TrialRecord], result: Verdict) -> Verdict:
-    """``result`` with the plant's scatter estimated from ``records`` (their residuals against
-    ``model``, the nominal model's eq. 23, in the world frame), the bounds of the tolerance
-    below its repeatability and whether the run converged to the plant's floor."""
-    import numpy as np
-
-    if len(records) < 2:
-        return result
-    errors = np.array([np.inf if r.left_chart else float(np.linalg.norm(r.error)) for r in records])
-    tolerance = config.learning.tolerance
-    predicted = np.array([model.final_state(np.asarray(r.action)) for r in records])
-    groups: tuple[tuple[int, ...], ...]
-    names: tuple[str, ...]
-    bounds: tuple[float | None, ...]
-    if config.plant.kind.has_pose:
-        predicted = model.chained_map.from_chained(predicted)
-        if config.frame():
-            predicted = rotate(predicted, -config.frame())
-        goal = np.asarray(config.points()[1][1], dtype=np.float64)[:3]
-        deviations = np.array([r.final_state[:3] for r in records]) - goal
-        outcomes = np.array([r.final_state[:3] for r in records]) - predicted[:, :3]
-        groups, names = ((0, 1), (2,)), ("cartesian", "orientation")
-        bounds = (tolerance.cartesian, tolerance.orientation)
-        true = np.array([[r.cartesian_error or 0.0, r.orientation_error or 0.0] for r in records])
-    else:
-        deviations = np.array([r.error for r in records])
-        outcomes = deviations - (model.z_goal - predicted)
-        groups, names = (tuple(range(outcomes.shape[1])),), ("error",)
-        bounds = (tolerance.error,)
-        true = np.array([[r.error_norm] for r in records])
-    found = scatter_.estimate(outcomes, errors, groups)
-    if found is None:
-        return result
-    sigma, dof = found
-    estimate = {name: float(value) for name, value in zip(names, sigma)}
-    reach = [scatter_.repeatability(value) for value in sigma]
-    if not scatter_.consistent(deviations[-result.hold :], sigma, groups):
-        reach = [None for _ in sigma]  # the last trials land well inside it: the learner's moves, not the plant's
-    below = {
-        name: [bound, r]
-        for name, bound, r in zip(names, bounds, reach)
-        if bound is not None and r is not None and bound < r
-    }
-    floor = False
-    if below and result.converged_at is None and len(records) >= result.hold:
-        ceiling = np.array([max(b or np.inf, r or 0.0) for b, r in zip(bounds, reach)])
-        last = records[-result.hold :]
-        floor = not any(r.left_chart for r in last) and bool(np.all(true[-result.hold :] <= ceiling))
-    return dataclasses.replace(result, scatter={**estimate, "dof": dof}, below=below, floor=floor)
-
-
 def _run_json(config: SteeringConfig, kind: str, records: list[Any], result: Verdict) -> dict[str, Any]:
     """A run as plain data: ``kind`` (``"trials"`` or ``"cycles"``) names the list of records,
     the verdict's fields come at the top level, and the config comes along whole (``load_config``
@@ -285,12 +175,10 @@ def _run_json(config: SteeringConfig, kind: str, records: list[Any], result: Ver
     }
 
 
-@dataclass(frozen=True)
-class RunResult:
-    """A run of one-trial ILC: the JSON that ``ilc-steering run --json`` writes and ``plot`` reads."""
+class _Judged:
+    """What a run and a cyclic run share: their config's name, and where their verdict says they converged."""
 
     config: SteeringConfig
-    trials: list[TrialRecord]
     verdict: Verdict
 
     @property
@@ -299,8 +187,17 @@ class RunResult:
 
     @property
     def converged_at(self) -> int | None:
-        """The first trial of the stretch within the tolerance the run ends with, if it held (:class:`Verdict`)."""
+        """The first trial (or cycle) of the stretch within the tolerance the run ends with, if it held."""
         return self.verdict.converged_at
+
+
+@dataclass(frozen=True)
+class RunResult(_Judged):
+    """A run of one-trial ILC: the JSON that ``ilc-steering run --json`` writes and ``plot`` reads."""
+
+    config: SteeringConfig
+    trials: list[TrialRecord]
+    verdict: Verdict
 
     def to_json(self) -> dict[str, Any]:
         return _run_json(self.config, "trials", self.trials, self.verdict)
@@ -334,7 +231,7 @@ def run_ilc(
     """Run a learner (default: the paper's eqs. 33-34; any id of the registry or ``module:attr``,
     :func:`learner_spec`) for ``trials`` trials (default: the config's), with ``seed`` for the
     env's noise and the learner. It has converged when its last ``hold`` trials are within the
-    tolerance (:class:`Verdict`).
+    tolerance (:class:`~ilc_steering.verdict.Verdict`).
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
@@ -363,11 +260,11 @@ def run_ilc(
     try:
         run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
     except (LearnerError, PlantError, LimitError) as error:  # the trials before it are kept
-        error.partial = RunResult(config, records, _scatter(config, model, records, verdict(met, hold)))
+        error.partial = RunResult(config, records, with_scatter(config, model, records, verdict(met, hold)))
         raise
     finally:
         env.close()
-    return RunResult(config, records, _scatter(config, model, records, verdict(met, hold)))
+    return RunResult(config, records, with_scatter(config, model, records, verdict(met, hold)))
 
 
 @dataclass(frozen=True)
@@ -383,21 +280,12 @@ class CycleRecord:
 
 
 @dataclass(frozen=True)
-class CyclicRunResult:
+class CyclicRunResult(_Judged):
     """A run of cyclic ILC, with the same JSON conventions as :class:`RunResult`."""
 
     config: SteeringConfig
     cycles: list[CycleRecord]
     verdict: Verdict
-
-    @property
-    def name(self) -> str:
-        return self.config.name
-
-    @property
-    def converged_at(self) -> int | None:
-        """The first cycle of the stretch of cycles within the tolerance the run ends with, if it held."""
-        return self.verdict.converged_at
 
     def to_json(self) -> dict[str, Any]:
         return _run_json(self.config, "cycles", self.cycles, self.verdict)
@@ -416,7 +304,7 @@ def run_cyclic_ilc(
     keeps every segment's trajectory in its record.
 
     A cycle met the tolerance when every waypoint met it in that cycle; the run has converged
-    when its last ``hold`` cycles met it (:class:`Verdict`).
+    when its last ``hold`` cycles met it (:class:`~ilc_steering.verdict.Verdict`).
     """
     config = load_config(config)
     env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles, record_trajectory=trajectories)

@@ -30,7 +30,7 @@ from pydantic import ConfigDict, TypeAdapter, ValidationError
 from ilc_steering.errors import ConfigError, ParameterError
 from ilc_steering.yaml_reader import Ambiguous
 
-__all__ = ["STRICT", "validate"]
+__all__ = ["STRICT", "check_record", "validate"]
 
 STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
 """How every schema reads: strict types, no unknown key, finite numbers."""
@@ -79,21 +79,31 @@ def _plain(data: Any, loc: tuple[Any, ...], ambiguous: dict[tuple[Any, ...], Amb
     return data
 
 
-def validate(cls: Any, data: Any, key: str = "") -> Any:
+def validate(cls: Any, data: Any, key: str = "", whole: str = "config") -> Any:
     """``cls`` (a frozen dataclass, or a type of them) built from ``data`` read from a file, or a
     :class:`~ilc_steering.errors.ConfigError` ``"key: problem"`` for the first thing wrong, its key
-    under ``key`` (the section ``data`` was read from; ``""`` for a whole file)."""
+    under ``key`` (the section ``data`` was read from; ``""`` for a whole file, named ``whole``)."""
     ambiguous: dict[tuple[Any, ...], Ambiguous] = {}
     try:
         text = json.dumps(_plain(data, (), ambiguous), allow_nan=True)
     except (TypeError, ValueError) as error:  # a YAML date, a set: nothing JSON holds
         problem = f"holds a value that is not a number, a string, a list or a mapping ({error})"
-        raise ConfigError(f"{key or 'config'}: {problem}") from None
+        raise ConfigError(f"{key or whole}: {problem}") from None
     try:
         return _adapter(cls).validate_json(text)
     except ValidationError as errors:
         where, problem = _message(errors.errors()[0], cls, data, ambiguous)
-        raise ConfigError(f"{_join(key, where) or 'config'}: {problem}") from None
+        raise ConfigError(f"{_join(key, where) or whole}: {problem}") from None
+
+
+def check_record(cls: Any, data: Any, path: Any, hint: str = "") -> Any:
+    """``data``, a record read from the file ``path``, checked against its schema ``cls`` (a frozen
+    dataclass) and built as it; ``ValueError`` ``"path: key: problem"`` (``; hint`` after it) for the
+    first thing wrong: a wrong type, a missing key, an unknown key, a list of the wrong length."""
+    try:
+        return validate(cls, data, whole="the record")
+    except ConfigError as error:
+        raise ValueError(f"{path}: {error}" + (f"; {hint}" if hint else "")) from None
 
 
 def _join(*keys: str) -> str:

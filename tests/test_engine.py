@@ -4,13 +4,15 @@ folder, every failure named on stderr (issue 34, classes 1, 7 and 8)."""
 import math
 import os
 import time
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ilc_steering.engine.backends import run_calls
-from ilc_steering.engine.runs import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, RunFolder, check_timeout
+from ilc_steering.engine.options import DEFAULT_CELL_TIMEOUT, MAX_CELL_TIMEOUT, check_timeout
+from ilc_steering.engine.runs import RunFolder
 
 # Calls a worker can run, as (function, args) importable in a spawned process, and what each must give.
 KINDS = {
@@ -179,7 +181,8 @@ def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
     from ilc_steering.compare.against import read_committed
 
     (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
-    cell = {"prior": "nominal", "method": "ilc", "scenario": "forward_parking", "seed": 0}
+    committed = Path(__file__).resolve().parents[1] / "docs" / "compare" / "compare.json"
+    cell = json.loads(committed.read_text())["cells"][0]  # a whole cell: the schema checks it first
     (tmp_path / "compare.json").write_text(json.dumps({"cells": [cell, {**cell, "best_error": 1.0}]}))
     with pytest.raises(ValueError, match="holds the cell .* twice"):
         read_committed(tmp_path)
@@ -190,7 +193,7 @@ def test_the_help_of_cell_timeout_states_the_engines_default_bound(command, caps
     """``--cell-timeout``'s help reads :data:`DEFAULT_CELL_TIMEOUT` (it once said "no limit" while
     six hours applied): a changed default changes the help."""
     from ilc_steering import cli
-    from ilc_steering.engine import runs as engine
+    from ilc_steering.engine import options as engine
 
     for seconds, shown in ((DEFAULT_CELL_TIMEOUT, f"default: {DEFAULT_CELL_TIMEOUT / 3600:g} h"), (5400.0, "1.5 h")):
         monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", seconds)

@@ -9,45 +9,9 @@ import pytest
 
 from ilc_steering import cli
 
-EXITING = """
-import sys
-
-from ilc_steering.agents.base import BaseLearner
-from ilc_steering.agents.ilc import ILCAgent
-
-
-class Exiting(BaseLearner):
-    def __init__(self, context):
-        super().__init__()
-        self.inner = ILCAgent(context.model, context.nu_a, context.nu_b, start=context.first_action())
-
-    def act(self, observation=None):
-        return self.inner.act(observation)
-
-    def learn(self, info):
-        sys.exit(0)
-
-    def reset(self):
-        self.inner.reset()
-
-
-def make(context):
-    return Exiting(context)
-"""
-
-
-def test_a_learner_that_raises_system_exit_in_run_is_its_failure(tmp_path, monkeypatch, capsys):
-    (tmp_path / "exiting_learners.py").write_text(EXITING)
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    code = cli.main(["run", "forward_parking", "--learner", "exiting_learners:make", "--trials", "4"])
-    err = capsys.readouterr().err
-    assert code == 4
-    assert "SystemExit" in err and "exiting_learners:make" in err
-
-
-# A user's learner that ends its process, and one that never returns from nogil compiled code, each
-# on one trial's update: under compare, even with one worker, each is its cell's failure.
+# A user's learner that breaks on one trial's update (``broken()``): one that calls sys.exit() under
+# run, and under compare, even with one worker, one that ends its process and one that never
+# returns from nogil compiled code, each its cell's failure.
 WRAPPER = """
 from ilc_steering.agents.base import BaseLearner
 from ilc_steering.agents.ilc import ILCAgent
@@ -71,6 +35,19 @@ class Wrapped(BaseLearner):
 def make(context):
     return Wrapped(context)
 """
+EXITING = "import sys\n\n\ndef broken():\n    sys.exit(0)\n" + WRAPPER
+
+
+def test_a_learner_that_raises_system_exit_in_run_is_its_failure(tmp_path, monkeypatch, capsys):
+    (tmp_path / "exiting_learners.py").write_text(EXITING)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    code = cli.main(["run", "forward_parking", "--learner", "exiting_learners:make", "--trials", "4"])
+    err = capsys.readouterr().err
+    assert code == 4
+    assert "SystemExit" in err and "exiting_learners:make" in err
+
+
 OS_EXIT = "import os\n\n\ndef broken():\n    os._exit(3)\n" + WRAPPER
 NOGIL_LOOP = (
     """
@@ -105,14 +82,14 @@ def test_a_learner_that_exits_or_hangs_in_compiled_code_is_its_cells_failure_und
     other cell is written and so is the report. Without the option the engine's default bound ends
     the loop; it is shortened here to :data:`LIMIT`, as ``--cell-timeout`` shortens it on the command line."""
     from ilc_steering.compare.cells import cell_name
-    from ilc_steering.engine import runs as engine
+    from ilc_steering.engine import options as engine
 
     source, expected = BROKEN[kind]
     module = f"{kind}_learners"
     (tmp_path / f"{module}.py").write_text(source)
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", LIMIT)  # read when the run starts
+    monkeypatch.setattr(engine, "DEFAULT_CELL_TIMEOUT", LIMIT)  # read when the plan is made
     out = tmp_path / "run"
     argv = ["compare", "--methods", "ilc", f"{module}:make", "--priors", "nominal", "--seeds", "0"]
     argv += ["--scenarios", "forward_parking", "--model-trials", "3", "--custom-trials", "3", "--workers", "1"]

@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents import CyclicILCAgent, ILCAgent, Learner, LearnerContext, blackbox, rl, rl_settings
-from ilc_steering.agents.newton import make_newton
-from ilc_steering.agents.newton_ilc import make_newton_ilc
+from ilc_steering.agents import CyclicILCAgent, Learner, LearnerContext
+from ilc_steering.agents.registry import REGISTRY
 from ilc_steering.config import load_config, packaged_configs
 from ilc_steering.core import robots
 from ilc_steering.core.external import is_external
@@ -122,27 +121,33 @@ def context(name="forward_parking", seed=0):
     return env, LearnerContext(unwrapped.nominal_model, unwrapped.action_space, unwrapped.observation_space, seed)
 
 
-LEARNERS = {
-    "ilc": lambda ctx: ILCAgent(ctx.model),
-    "ilc_nominal": lambda ctx: ILCAgent(ctx.model, start=ctx.first_action()),
-    "newton": make_newton,
-    "newton_ilc": make_newton_ilc,
-    "least_squares": lambda ctx: blackbox.make_learner(blackbox.least_squares, ctx),
-    "gauss_newton": lambda ctx: blackbox.make_learner(blackbox.gauss_newton, ctx),
-    "nelder_mead": lambda ctx: blackbox.make_learner(blackbox.nelder_mead, ctx),
-    "cma_es": lambda ctx: blackbox.make_learner(blackbox.cma_es, ctx),
-    "ppo": lambda ctx: rl.make_learner("ppo", rl_settings.hyperparameters("ppo", "forward_parking"), 12, False, ctx),
-}
-EXTRA = {"cma_es": "rl", "ppo": "rl"}
-"""The learners whose packages come with an extra (cma with rl)."""
+EXTRA_OF = {"stable_baselines3": "rl", "sb3_contrib": "rl", "cma": "rl", "botorch": "bo"}
+"""The extra of pyproject.toml that installs a learner's package (tests/conftest.py's EXTRAS, turned round)."""
 
 
-@pytest.mark.parametrize(
-    "method", [pytest.param(m, marks=pytest.mark.extra(EXTRA[m])) if m in EXTRA else m for m in sorted(LEARNERS)]
-)
+def extras(spec):
+    """The extras that ``spec``'s packages come with (none: scipy's, or the library's own)."""
+    packages = [spec.package, spec.rl.sb3_module if spec.rl else None]
+    return tuple(dict.fromkeys(EXTRA_OF[p] for p in packages if p in EXTRA_OF))
+
+
+def learner_params():
+    """Every id of the registry, each marked with the extras it needs; in the slow tier the RL ones
+    after the first (each trains a network) and those of costly trials (bayes_opt: a GP a trial)."""
+    params, first_rl = [], True
+    for method, spec in REGISTRY.items():
+        marks = [pytest.mark.extra(*extras(spec))] if extras(spec) else []
+        if (spec.family == "RL" and not first_rl) or spec.trial_seconds >= 0.1:
+            marks.append(pytest.mark.slow)
+        first_rl = first_rl and spec.family != "RL"
+        params.append(pytest.param(method, marks=marks))
+    return params
+
+
+@pytest.mark.parametrize("method", learner_params())
 def test_learner_contract(method):
-    env, ctx = context()
-    learner = LEARNERS[method](ctx)
+    env, _ = context()
+    learner = REGISTRY[method].make(LearnerContext.from_env(env, seed=0), 12)
     assert isinstance(learner, Learner)
     first = run_trials(env, learner, 6)
     assert len(first) == 6

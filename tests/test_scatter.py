@@ -178,7 +178,7 @@ def test_no_learner_sends_a_failed_trial_again(name):
 
 
 def test_a_run_has_converged_when_its_last_trials_hold_the_tolerance():
-    from ilc_steering.runner import verdict
+    from ilc_steering.verdict import verdict
 
     v = verdict([False, True, True, False, True, True, True])
     assert (v.converged_at, v.held, v.relapses) == (5, 3, [[2, 3]])

@@ -223,6 +223,7 @@ FLOORS = (
         "trials",
         (
             "ilc_steering.loop",
+            "ilc_steering.verdict",
             "ilc_steering.runner",
             "ilc_steering.oracle",
             "ilc_steering.plots",
@@ -318,3 +319,20 @@ def test_no_module_of_the_package_is_imported_by_a_string_outside_the_one_loader
                 if text.strip("f'\"").startswith("ilc_steering"):
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno}: {text}")
     assert not found, found
+
+
+MAX_LINES = 400
+# Split this round by their owners (issue 47's rooms); remove each once it is under the bound.
+NOT_YET = {"agents/robust_ilc.py"}
+
+
+def test_no_room_over_400_lines():
+    """No module of the package (``envs/`` and ``agents/`` included) over :data:`MAX_LINES` lines."""
+    sizes = {
+        str(path.relative_to(ROOT)): len(path.read_text().splitlines())
+        for folder in FOLDERS
+        for path in (ROOT / folder).glob("*.py")
+    }
+    assert len(sizes) > 100
+    over = {name: lines for name, lines in sizes.items() if lines > MAX_LINES and name not in NOT_YET}
+    assert not over, f"over {MAX_LINES} lines: {over}"

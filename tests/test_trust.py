@@ -538,7 +538,7 @@ gains = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_fro
 )
 def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_b, grid, trials, workers, timeout):
     from ilc_steering.engine.backends import MAX_WORKERS
-    from ilc_steering.engine.runs import MAX_CELL_TIMEOUT
+    from ilc_steering.engine.options import MAX_CELL_TIMEOUT
     from ilc_steering.sweep.command import plan
     from ilc_steering.sweep.rows import SweepArgs
 
@@ -566,7 +566,7 @@ def test_sweep_arguments_are_accepted_or_refused_with_a_value_error(methods, nu_
 def test_compare_arguments_are_accepted_or_refused_with_a_value_error(methods, seeds, budget, workers, timeout):
     from ilc_steering.compare.args import MAX_BUDGET, Args
     from ilc_steering.compare.command import validate
-    from ilc_steering.engine.runs import MAX_CELL_TIMEOUT
+    from ilc_steering.engine.options import MAX_CELL_TIMEOUT
 
     args = Args(
         methods=tuple(methods),

@@ -19,7 +19,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.compare.cells import CellRecord, read_report
+from ilc_steering.engine.provenance import read_run
 from ilc_steering.readers import is_file, read_json
+from ilc_steering.schema import check_record
 
 __all__ = [
     "CommittedRun",
@@ -27,7 +30,7 @@ __all__ = [
     "committed_cells",
     "copy_committed",
     "describe",
-    "joint_grid",
+    "joint_cells",
     "read_committed",
     "resolve_settings",
 ]
@@ -38,9 +41,7 @@ Budget = Callable[[str, str, str], int]
 """The budget of (prior, method, scenario name) [trials]."""
 
 MAX_RUN_BYTES = 16 << 20
-"""The largest ``run.json`` or cell file read from a committed run [bytes]."""
-MAX_REPORT_BYTES = 256 << 20
-"""The largest ``compare.json`` read from a committed run [bytes]."""
+"""The largest cell file read from a committed run [bytes]."""
 
 
 @dataclass(frozen=True)
@@ -75,11 +76,10 @@ def read_committed(folder: Path) -> CommittedRun:
     if not is_file(record_path):  # a FIFO, a link loop, ...: there, and refused by name when read
         raise _refuse(folder, "no run.json, so this is not a compare run folder")
     try:
-        record = read_json(record_path, MAX_RUN_BYTES)
+        stored, _ = read_run(folder)  # checked against its schema (engine.provenance.RunRecord)
     except ValueError as error:
         raise _refuse(folder, str(error)) from None
-    if not isinstance(record, dict):
-        raise _refuse(folder, f"{record_path} is not a run record (a JSON object)")
+    record = dict(stored)
     configs = record.pop("configs", None)
     made_by = record.pop("provenance", None)
     record.pop("sessions", None)
@@ -96,12 +96,9 @@ def read_committed(folder: Path) -> CommittedRun:
     report = folder / "compare.json"
     if is_file(report):
         try:
-            data = read_json(report, MAX_REPORT_BYTES)
+            listed = read_report(report)["cells"]
         except ValueError as error:
             raise _refuse(folder, str(error)) from None
-        listed = data.get("cells") if isinstance(data, dict) else None
-        if not isinstance(listed, list):
-            raise _refuse(folder, f"{report} holds no list of cells")
         for index, cell in enumerate(listed):
             identity = _identity(cell, f"{report}: cells[{index}]")
             if identity in cells:
@@ -112,6 +109,7 @@ def read_committed(folder: Path) -> CommittedRun:
     for path in sorted((folder / "cells").glob("*.json")):
         try:
             cell = read_json(path, MAX_RUN_BYTES)
+            check_record(CellRecord, cell, path)
         except ValueError as error:
             raise _refuse(folder, str(error)) from None
         cells[_identity(cell, str(path))] = (str(path), cell)
@@ -240,7 +238,7 @@ def committed_cells(
     return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
 
 
-def joint_grid(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
+def joint_cells(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
     """The cells of an ``--against`` run, in the report's order: every committed one, and those of
     ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
     from ilc_steering.agents.base import PRIORS

@@ -71,7 +71,7 @@ class Args:
     """Where cells run: ``local`` processes or ``ray`` tasks (:mod:`ilc_steering.engine.backends`)."""
     cell_timeout: float | None = None
     """[s] a cell still running after this is stopped and recorded as failed; None:
-    :data:`~ilc_steering.engine.DEFAULT_CELL_TIMEOUT`."""
+    :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`."""
 
 
 def seeds_of(args: Args, prior: str) -> tuple[int, ...]:

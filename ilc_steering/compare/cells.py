@@ -11,11 +11,13 @@ checked against its key and value by value before it is trusted.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import gymnasium as gym
 import numpy as np
+from pydantic import Field
 
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import Learner, LearnerContext, update_times
@@ -25,14 +27,17 @@ from ilc_steering.core.score import true_cost
 from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 from ilc_steering.readers import read_json
+from ilc_steering.schema import check_record
 
 if TYPE_CHECKING:
     from ilc_steering.compare.args import Args
 
 __all__ = [
-    "CELL_KEYS",
     "ENV_ID",
     "FRAGILE",
+    "MAX_REPORT_BYTES",
+    "CellRecord",
+    "CompareReport",
     "TrialLog",
     "best_so_far",
     "budget",
@@ -46,6 +51,7 @@ __all__ = [
     "make_learner",
     "measure",
     "read_cell",
+    "read_report",
     "run_cell",
 ]
 
@@ -182,22 +188,55 @@ def cell_path(out: Path, prior: str, method: str, scenario: str, seed: int, fold
     return out / folder / f"{cell_name(prior, method, scenario, seed)}.json"
 
 
-CELL_KEYS = {
-    "prior": str,
-    "method": str,
-    "scenario": str,
-    "seed": int,
-    "budget": int,
-    "trials": int,
-    "off_chart_fraction": float,
-    "trials_to": dict,
-    "fragile": list,
-    "best_error": float,
-    "wall_s": float,
-    "curve": list,
-    "config_sha": str,
-    "version": str,
-}
+Number = Annotated[float, Field(allow_inf_nan=True)]
+"""A number whose range :func:`check_cell` checks, naming the value (a NaN included)."""
+
+
+@dataclass(frozen=True)
+class CellRecord:
+    """A cell's file (``cells/*.json``, and each of ``compare.json``'s ``cells``), as its schema:
+    read back, a cell of another shape is refused naming the key (:func:`check_cell`)."""
+
+    prior: str
+    method: str
+    scenario: str
+    seed: int
+    budget: int  # [trials]
+    trials: int  # run [trials]
+    off_chart_fraction: Number
+    trials_to: dict[str, int | None]  # level of LADDER -> the first trial within it, or null
+    fragile: tuple[str, ...]  # levels of LADDER
+    best_error: Number  # the best true cost
+    wall_s: Number  # [s]
+    curve: tuple[tuple[int, Number], ...]  # [trial, best true cost] at every trial that improved it
+    config_sha: str  # the content hash of its config
+    version: str  # the ilc-steering version that computed it
+    update_s: float | None = None  # [s] the median update of a learner that times its updates
+    clipped_fraction: Number = 0.0
+    implementation: str | None = None  # what made it (RL: the backend and its version)
+
+
+@dataclass(frozen=True)
+class CompareReport:
+    """``compare.json``, as its schema: the cells it was made from, and the tables made of them."""
+
+    cells: tuple[CellRecord, ...]
+    rows: tuple[dict[str, Any], ...] = ()
+    summary: tuple[dict[str, Any], ...] = ()
+    ratios: tuple[dict[str, Any], ...] = ()
+    failed: tuple[dict[str, Any], ...] = ()
+
+
+MAX_REPORT_BYTES = 256 << 20
+"""The largest ``compare.json`` read [bytes]."""
+
+
+def read_report(path: Path) -> dict[str, Any]:
+    """``compare.json`` at ``path``, checked against :class:`CompareReport`: ``ValueError`` names the
+    file and the key of the first thing wrong."""
+    data: dict[str, Any] = read_json(path, MAX_REPORT_BYTES)
+    check_record(CompareReport, data, path)
+    return data
 
 
 def _finite(value: float) -> bool:
@@ -270,11 +309,7 @@ def check_cell(cell: Any, key: dict[str, Any], path: Path | str, hint: str) -> d
     """``cell`` checked as :func:`read_cell` checks it; ``ValueError`` names ``path`` and ends with ``hint``."""
     if not isinstance(cell, dict):
         raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
-    for name, kind in CELL_KEYS.items():
-        value = cell.get(name)
-        ok = isinstance(value, (int, float)) if kind is float else isinstance(value, kind)
-        if not ok or isinstance(value, bool):
-            raise ValueError(f"{path}: {name!r} is missing or not a {kind.__name__}; {hint}")
+    check_record(CellRecord, cell, path, hint)
     for name, value in key.items():
         if cell[name] != value:
             what = {"config_sha": "the content hash of its config", "version": "the ilc-steering version"}

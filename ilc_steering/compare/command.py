@@ -57,13 +57,15 @@ from ilc_steering.compare.cells import (
     cell_path,
     implementation,
     read_cell,
+    read_report,
     run_cell,
 )
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
-from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, run_grid
+from ilc_steering.engine.options import add_cell_options
+from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.output import write_json
-from ilc_steering.readers import is_file, read_json
+from ilc_steering.readers import is_file
 
 __all__ = ["main", "main_with_failures", "method_families", "parse", "run_all", "run_cells", "validate"]
 
@@ -87,10 +89,6 @@ def validate(args: Args) -> dict[str, str]:
     return plan(args).names
 
 
-MAX_REPORT_BYTES = 256 << 20
-"""The largest ``compare.json`` read back to restore a clone's cells [bytes]."""
-
-
 def _restore_cells(folder: Path) -> None:
     """Write back the cells that the folder's ``compare.json`` holds and ``cells/`` lacks (a clone of a
     run whose cells were not kept): the settings matched, so they are the cells this run would compute.
@@ -99,17 +97,13 @@ def _restore_cells(folder: Path) -> None:
     if not is_file(report):
         return
     try:
-        data = read_json(report, MAX_REPORT_BYTES)
-        cells = data.get("cells", []) if isinstance(data, dict) else []
+        cells = read_report(report)["cells"]
     except ValueError as error:
         raise ValueError(f"{error}; use another --out folder") from None
     restored = 0
     seen: set[Path] = set()
-    for cell in cells if isinstance(cells, list) else []:
-        try:
-            path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
-        except (KeyError, TypeError, ValueError):
-            raise ValueError(f"{report}: holds a cell without its key; use another --out folder") from None
+    for cell in cells:
+        path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
         if path in seen:
             raise ValueError(f"{report}: holds the cell {path.stem} twice; use another --out folder")
         seen.add(path)
@@ -151,7 +145,7 @@ def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
 
 def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Every cell of the run, computing only those not yet in the run folder, on the engine
-    (:func:`~ilc_steering.engine.runs.run_grid`; with a custom ``runner``, in this process, called as
+    (:func:`~ilc_steering.engine.runs.compute_cells`; with a custom ``runner``, in this process, called as
     it is: a test's hook); returns the finished cells and the failed ones, each in the run's order."""
     return execute(plan(args), runner)
 
@@ -193,7 +187,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         prior, method, name, seed = cell
         return f"{prior:7s} {name:26s} {method:13s} seed {seed}"
 
-    grid = Grid(
+    cells = Cells(
         keys=the_plan.grid,
         name=lambda cell: cell_name(*cell),
         read=lambda path, cell: read_cell(path, the_plan.key(cell) if cell in the_plan.held else made_by(cell)),
@@ -220,13 +214,13 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         paths = {cell: folder.path(cell_name(*cell)) for cell in the_plan.grid}
         with folder.locked():
             copy_committed(the_plan.held, paths, lambda path, cell: read_cell(path, the_plan.key(cell)))
-    outcome = run_grid(
+    outcome = compute_cells(
         folder,
-        grid,
+        cells,
         runner,
         backend=args.backend,
         workers=args.workers,
-        timeout=args.cell_timeout,
+        timeout=the_plan.cell_timeout,
         inline=inline,
         before=before,
     )
@@ -326,7 +320,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help=f"prior=none, the ablation, runs the first K seeds (default: {Args.ablation_seeds})",
     )
-    add_grid_options(parser, "cell")
+    add_cell_options(parser, "cell")
     bar = parser.add_mutually_exclusive_group()
     bar.add_argument("--progress-bar", action="store_true", help="SB3's progress bar on RL cells (one worker)")
     bar.add_argument("--no-progress-bar", action="store_true", help="no progress bar (the default)")
@@ -345,7 +339,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         workers=ns.workers,
         progress_bar=ns.progress_bar,
         backend=ns.backend,
-        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
     )
     return replace(args, **budgets)
 

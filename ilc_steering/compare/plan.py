@@ -22,7 +22,7 @@ from ilc_steering.compare.against import Cell, CommittedRun
 from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
 from ilc_steering.compare.cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
-from ilc_steering.engine.runs import check_grid_options
+from ilc_steering.engine.options import CellBound, check_cell_options
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -52,7 +52,7 @@ def run_settings(args: Args) -> dict[str, Any]:
 
 
 @dataclass(frozen=True)
-class Plan:
+class Plan(CellBound):
     """A comparison as it will run: read by every stage, recomputed by none."""
 
     args: Args
@@ -94,12 +94,13 @@ class Plan:
         return next(scenario for scenario, n in self.names.items() if n == name)
 
 
-def check_options(args: Args) -> None:
+def check_options(args: Args) -> Args:
     """Every option that needs no config: ``ValueError`` naming it: unknown or repeated priors,
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
-    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s."""
-    check_grid_options(args.backend, args.workers, args.cell_timeout)
+    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s. Returns ``args`` with the bound on
+    each cell [s] in ``cell_timeout`` (the engine's default when it was None)."""
+    args = replace(args, cell_timeout=check_cell_options(args.backend, args.workers, args.cell_timeout))
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:
@@ -128,6 +129,7 @@ def check_options(args: Args) -> None:
     k = args.ablation_seeds
     if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SEED:
         raise ValueError(f"--ablation-seeds: a whole number of seeds >= 1, got {k!r}")
+    return args
 
 
 def _configs(args: Args) -> tuple[dict[str, str], dict[str, SteeringConfig]]:
@@ -162,8 +164,7 @@ def plan(args: Args) -> Plan:
     committed = None
     if args.against is not None:
         args, committed = against_args(args)
-    args = resolve(args)
-    check_options(args)
+    args = check_options(resolve(args))
     names, loaded = _configs(args)
     configs = {name: content_hash(asdict(config)) for name, config in loaded.items()}
     warnings = tuple(w for w in (step_warning(config) for config in loaded.values()) if w is not None)
@@ -185,10 +186,10 @@ def plan(args: Args) -> Plan:
             (p, m, n, s) for p in args.priors for n in names.values() for m in args.methods for s in seeds_of(args, p)
         ]
     else:
-        from ilc_steering.compare.against import committed_cells, joint_grid
+        from ilc_steering.compare.against import committed_cells, joint_cells
 
         held, configs = committed_cells(args, committed, configs, budget)
-        grid = joint_grid(args, list(names.values()), held)
+        grid = joint_cells(args, list(names.values()), held)
         for cell in grid:
             budget(*cell[:3])
     return Plan(args, names, configs, tuple(grid), table, warnings, committed, held)

@@ -20,17 +20,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.compare.cells import read_report
 from ilc_steering.compare.report import iqm_table, main_table, ratio_table, statistic
 from ilc_steering.compare.stats import LADDER_NAMES, ratios, summarize
 from ilc_steering.engine.provenance import RunRecord, read_run
 from ilc_steering.output import write_atomic
-from ilc_steering.readers import read_json, read_text
+from ilc_steering.readers import read_text
 from ilc_steering.tables import markdown_table
 
 __all__ = ["BLOCK", "TABLES", "budget_check", "check", "headline", "render", "write"]
 
 BLOCK = re.compile(r"(<!-- compare-table: ([a-z0-9.-]+) -->\n)(.*?)(<!-- /compare-table -->)", re.DOTALL)
-MAX_REPORT_BYTES = 256 << 20
 MAX_TEXT_BYTES = 16 << 20
 
 
@@ -131,9 +131,9 @@ def _run_line(run: dict[str, Any]) -> str:
 
 
 def _tables(folder: Path) -> dict[str, str]:
-    data = read_json(folder / "compare.json", MAX_REPORT_BYTES)
-    if not isinstance(data, dict) or not isinstance(data.get("cells"), list) or not (folder / "run.json").is_file():
+    if not (folder / "compare.json").is_file() or not (folder / "run.json").is_file():
         raise ValueError(f"{folder}: not a compare run folder with compare.json and run.json")
+    data = read_report(folder / "compare.json")
     stored, record = read_run(folder)
     run = {**stored, "record": record}
     from ilc_steering.agents import registry

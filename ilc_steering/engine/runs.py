@@ -11,7 +11,7 @@ every config loaded and hashed, every cell's key and budget known. The engine th
    (:func:`~ilc_steering.output.check_run_settings`);
 2. holds an exclusive lock on it (:meth:`RunFolder.locked`): two runs never share a folder;
 3. reads every finished result back through the command's checker (a resume never trusts a file
-   it did not check) and runs only the others (:func:`run_grid`), in worker processes or Ray
+   it did not check) and runs only the others (:func:`compute_cells`), in worker processes or Ray
    tasks (:mod:`~ilc_steering.engine.backends`);
 4. writes each result the moment it arrives (finish), or its error under ``failed/`` (fail,
    named on stderr too); a resume computes the failed ones again.
@@ -19,9 +19,7 @@ every config loaded and hashed, every cell's key and budget known. The engine th
 
 from __future__ import annotations
 
-import argparse
 import fcntl
-import math
 import os
 import sys
 import time
@@ -33,6 +31,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ilc_steering.engine.backends import run_calls
+from ilc_steering.engine.options import DEFAULT_CELL_TIMEOUT
 from ilc_steering.engine.provenance import check_code, machine, provenance
 from ilc_steering.output import (
     check_output_dir,
@@ -44,73 +43,14 @@ from ilc_steering.output import (
 )
 
 __all__ = [
-    "DEFAULT_CELL_TIMEOUT",
-    "MAX_CELL_TIMEOUT",
-    "Grid",
+    "Cells",
     "Outcome",
     "Progress",
     "RunFolder",
-    "check_timeout",
-    "run_grid",
-    "timeout_help",
+    "compute_cells",
 ]
 
 K = TypeVar("K", bound=Hashable)
-MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
-"""The longest ``--cell-timeout`` [s]: a week. A longer one is no bound a timer can hold."""
-DEFAULT_CELL_TIMEOUT = 6 * 3600.0
-"""[s] the bound on a cell when ``--cell-timeout`` is not given: six hours, far above any cell of the
-packaged comparison, so that a learner that never returns fails its cell instead of hanging the run.
-This is where the default is stated; ``--cell-timeout``'s help (:func:`timeout_help`) reads it."""
-
-
-def timeout_help(what: str) -> str:
-    """The help of ``--cell-timeout`` for a command whose unit of work is ``what`` (a cell, a row)."""
-    return (
-        f"stop a {what} still running after this, its worker process ended, and record it as failed "
-        f"(default: {DEFAULT_CELL_TIMEOUT / 3600:g} h; at most {MAX_CELL_TIMEOUT / 86400:g} days)"
-    )
-
-
-def add_grid_options(parser: argparse.ArgumentParser, what: str) -> None:
-    """The options every command over a grid of cells shares, with one help each: ``--backend``,
-    ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
-    from ilc_steering.engine.backends import MAX_WORKERS
-
-    parser.add_argument(
-        "--backend",
-        default="local",
-        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
-    )
-    parser.add_argument(
-        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
-    )
-    parser.add_argument(
-        "--cell-timeout",
-        type=float,
-        default=argparse.SUPPRESS,  # the engine's bound, DEFAULT_CELL_TIMEOUT, stated in the help
-        metavar="SECONDS",
-        help=timeout_help(what),
-    )
-
-
-def check_grid_options(backend: str, workers: int, timeout: float | None) -> None:
-    """The shared options' rules, checked once, before any cell: ``ValueError`` naming the option."""
-    from ilc_steering.engine.backends import check_backend, check_workers
-
-    check_backend(backend)
-    check_workers(workers)
-    check_timeout(timeout)
-
-
-def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
-    """``timeout`` if it is None or a time in ``(0, MAX_CELL_TIMEOUT]`` seconds; ``ValueError`` otherwise."""
-    if timeout is None:
-        return None
-    number = isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
-    if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
-        raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
-    return float(timeout)
 
 
 @dataclass(frozen=True)
@@ -162,8 +102,8 @@ class RunFolder:
 
 
 @dataclass(frozen=True)
-class Grid(Generic[K]):
-    """What the engine needs of a command's grid: its keys, in the report's order, and per key."""
+class Cells(Generic[K]):
+    """What the engine needs of a command's cells: their keys, in the report's order, and per key."""
 
     keys: Sequence[K]
     """Every cell, in order."""
@@ -226,21 +166,22 @@ class Outcome(Generic[K]):
         return [self.done[k] for k in keys if k in self.done], [self.failed[k] for k in keys if k in self.failed]
 
 
-def run_grid(
+def compute_cells(
     folder: RunFolder,
-    grid: Grid[K],
+    cells: Cells[K],
     function: Callable[..., dict[str, Any]],
     *,
     backend: str = "local",
     workers: int = 0,
-    timeout: float | None = None,
+    timeout: float = DEFAULT_CELL_TIMEOUT,
     inline: bool = False,
     before: Callable[[Mapping[K, Path]], None] | None = None,
 ) -> Outcome[K]:
-    """Every cell of ``grid`` in ``folder`` (prepared), under its lock: the finished ones read back
-    through ``grid.read``, the others computed by ``function(*grid.call(key))`` on ``backend``
+    """Every cell of ``cells`` in ``folder`` (prepared), under its lock: the finished ones read back
+    through ``cells.read``, the others computed by ``function(*cells.call(key))`` on ``backend``
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
-    ``timeout`` [s] bounds each cell (None: :data:`DEFAULT_CELL_TIMEOUT`). On the local backend
+    ``timeout`` [s] bounds each cell (the plan's bound:
+    :func:`~ilc_steering.engine.options.check_cell_options`). On the local backend
     the cells always run in worker processes that are killed at it, one worker included, so a
     cell stuck in compiled code or one whose learner ends its process (``os._exit``) is that
     cell's failure (:func:`~ilc_steering.engine.backends.run_calls`); on Ray the bound is a Python alarm
@@ -249,16 +190,16 @@ def run_grid(
     outcome: Outcome[K] = Outcome()
     with folder.locked():
         todo: dict[K, Path] = {}
-        for key in grid.keys:
-            path = folder.path(grid.name(key))
+        for key in cells.keys:
+            path = folder.path(cells.name(key))
             if path.exists():
-                outcome.done[key] = grid.read(path, key)
+                outcome.done[key] = cells.read(path, key)
             else:
                 todo[key] = path
         if before is not None:
             before(todo)
-        if grid.cost is not None:  # the longest first
-            expected = {key: float(grid.cost(key)) for key in todo}
+        if cells.cost is not None:  # the longest first
+            expected = {key: float(cells.cost(key)) for key in todo}
             todo = dict(sorted(todo.items(), key=lambda item: -expected[item[0]]))
         else:
             expected = {key: 1.0 for key in todo}
@@ -267,37 +208,36 @@ def run_grid(
         started, clock = datetime.now(timezone.utc), time.monotonic()
 
         def finish(key: K, result: dict[str, Any]) -> None:
-            cell = {**result, **grid.stamp(key)}
-            write_json(folder.path(grid.name(key)), cell)
-            folder.path(grid.name(key), failed=True).unlink(missing_ok=True)
+            cell = {**result, **cells.stamp(key)}
+            write_json(folder.path(cells.name(key)), cell)
+            folder.path(cells.name(key), failed=True).unlink(missing_ok=True)
             outcome.done[key] = cell
             text = progress.line(key)
-            print(text if grid.progress is None else f"{text} {grid.progress(cell)}", flush=True)
+            print(text if cells.progress is None else f"{text} {cells.progress(cell)}", flush=True)
 
         def fail(key: K, message: str) -> None:
-            outcome.failed[key] = grid.failure(key, message)
-            path = folder.path(grid.name(key), failed=True)
+            outcome.failed[key] = cells.failure(key, message)
+            path = folder.path(cells.name(key), failed=True)
             path.parent.mkdir(exist_ok=True)
             write_json(path, outcome.failed[key])
-            line = f"{grid.describe(key)}: FAILED, recorded in {path}: {message}"
+            line = f"{cells.describe(key)}: FAILED, recorded in {path}: {message}"
             print(f"{progress.line(key)} {line}", flush=True)
             print(f"ilc-steering: {' '.join(line.split())}", file=sys.stderr, flush=True)
 
         if inline:
             for key in todo:
-                finish(key, function(*grid.call(key)))
+                finish(key, function(*cells.call(key)))
         else:
-            calls = {key: grid.call(key) for key in todo}
-            bound = DEFAULT_CELL_TIMEOUT if timeout is None else timeout
+            calls = {key: cells.call(key) for key in todo}
             if backend == "ray" and calls:
                 print(
-                    f"ilc-steering: --backend ray: each cell's time limit ({bound:g} s) is a Python alarm in its "
+                    f"ilc-steering: --backend ray: each cell's time limit ({timeout:g} s) is a Python alarm in its "
                     "Ray task, which cannot stop compiled code; --backend local can",
                     file=sys.stderr,
                     flush=True,
                 )
             try:
-                run_calls(function, calls, finish, backend, workers, fail, bound)
+                run_calls(function, calls, finish, backend, workers, fail, timeout)
             finally:
                 _session(folder, todo, outcome, started, clock, count, backend)
     return outcome

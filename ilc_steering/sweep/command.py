@@ -37,7 +37,8 @@ from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine.runs import Grid, RunFolder, add_grid_options, check_grid_options, run_grid
+from ilc_steering.engine.options import CellBound, add_cell_options, check_cell_options
+from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
 from ilc_steering.readers import read_json
@@ -64,7 +65,7 @@ Row = tuple[str, float, int]
 
 
 @dataclass(frozen=True)
-class Plan:
+class Plan(CellBound):
     """A sweep as it will run, resolved and checked once: read by every stage, recomputed by none."""
 
     args: SweepArgs
@@ -101,6 +102,7 @@ def plan(args: SweepArgs) -> Plan:
 
     config = load_config(args.config)
     names = _validate(args, config)
+    args = replace(args, cell_timeout=check_cell_options(args.backend, args.workers, args.cell_timeout))
     gains: list[float | None] = list(args.nu_b) or [None]
     given = {config.learning.nu_b if g is None else g: g for g in gains}
     rows = tuple((m, gain, r) for m in args.methods for gain in given for r in range(args.grid))
@@ -134,7 +136,6 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
             raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
-    check_grid_options(args.backend, args.workers, args.cell_timeout)
     if not args.methods:
         raise ValueError("--methods: give at least one")
     mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
@@ -212,7 +213,7 @@ def run_all(args: SweepArgs) -> tuple[dict[tuple[str, float], list[dict[str, Any
 
 
 def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]]], list[dict[str, Any]]]:
-    """Run the rows of ``the_plan`` on the engine (:func:`~ilc_steering.engine.runs.run_grid`): each
+    """Run the rows of ``the_plan`` on the engine (:func:`~ilc_steering.engine.runs.compute_cells`): each
     finished row is written the moment it finishes, a failed one under ``failed/``."""
     args = the_plan.args
     if the_plan.warning is not None:
@@ -234,7 +235,7 @@ def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]
             print(f"{ORACLE}: where the true plant can reach the goal (it knows the true plant) ...", flush=True)
             write_json(path, {**key, **run_oracle(args)})
 
-    grid = Grid(
+    cells = Cells(
         keys=the_plan.rows,
         name=lambda row: row_name(*row),
         read=lambda path, row: read_row(path, the_plan.key(row), args.grid, args.trials),
@@ -243,8 +244,8 @@ def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]
         failure=lambda row, message: {"method": row[0], "nu_b": row[1], "row": row[2], "error": message},
         describe=lambda row: f"{row[0]} nu_b {gain_text(row[1])} row {row[2]}",
     )
-    outcome = run_grid(
-        folder, grid, run_row, backend=args.backend, workers=args.workers, timeout=args.cell_timeout, before=oracle
+    outcome = compute_cells(
+        folder, cells, run_row, backend=args.backend, workers=args.workers, timeout=the_plan.cell_timeout, before=oracle
     )
     maps: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for method, gain, row in the_plan.rows:
@@ -292,7 +293,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--nu-b", type=float, nargs="+", default=[], help="gains of eq. 34, a map each (default: the config's)"
     )
-    parser.add_argument("--grid", type=int, default=SweepArgs.grid, help="points per axis")
+    parser.add_argument(
+        "--grid",
+        type=int,
+        default=SweepArgs.grid,
+        help="points per axis of the map: GRID x GRID true plants (not time steps, not cells: a row of GRID plants "
+        "is one cell of the run)",
+    )
     parser.add_argument(
         "--range",
         type=float,
@@ -303,7 +310,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--trials", type=int, default=SweepArgs.trials, help="budget per plant")
     parser.add_argument("--out", type=Path, default=SweepArgs.out, help="run folder; an existing one is resumed")
-    add_grid_options(parser, "row")
+    add_cell_options(parser, "row")
     parser.add_argument(
         "--axis",
         nargs=3,
@@ -340,5 +347,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         out=ns.out,
         backend=ns.backend,
         workers=ns.workers,
-        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the engine's bound
+        cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
     )

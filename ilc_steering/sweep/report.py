@@ -2,21 +2,61 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.output import write_figure
+from ilc_steering.output import MAX_RESULT_BYTES, write_figure
+from ilc_steering.readers import read_json
+from ilc_steering.schema import check_record
 from ilc_steering.sweep.rows import ORACLE, axis_values, centre_values, gain_text, map_name
 
 if TYPE_CHECKING:
     from ilc_steering.config import SteeringConfig
     from ilc_steering.sweep.rows import SweepArgs
 
-__all__ = ["plot_map", "summary", "write_sweep_report"]
+__all__ = ["SweepLine", "SweepReport", "plot_map", "read_report", "summary", "write_sweep_report"]
+
+
+@dataclass(frozen=True)
+class SweepLine:
+    """A line of ``sweep.json``'s ``rows``: one map (a method at a gain, or the oracle) in numbers."""
+
+    method: str
+    nu_b: float | None
+    converged_fraction: float  # of the map's plants
+    median_trials: float | None  # [trials] over the plants that converged
+    max_trials: int | None  # [trials]
+    at_nominal: int | None  # [trials] at the centre of the map (the nominal plant)
+    wall_s: float | None  # [s]
+    of_solvable: float | None = None  # the share of the plants the oracle could solve (a map with an oracle)
+
+
+@dataclass(frozen=True)
+class SweepReport:
+    """``sweep.json``, as its schema: the maps' lines, the settings, the axes and the maps
+    themselves (older runs wrote no ``values``, ``failed`` or ``solvable``; they still read)."""
+
+    rows: tuple[SweepLine, ...]
+    settings: dict[str, Any]
+    axes: tuple[str, str]
+    ratios: tuple[float, ...]
+    maps: dict[str, tuple[tuple[int, ...], ...]]  # map name -> trials to the tolerance per plant (0: never)
+    values: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    failed: tuple[dict[str, Any], ...] = ()
+    solvable: tuple[tuple[bool, ...], ...] | None = None
+
+
+def read_report(path: Path) -> dict[str, Any]:
+    """``sweep.json`` at ``path``, checked against :class:`SweepReport`: ``ValueError`` names the
+    file and the key of the first thing wrong."""
+    data: dict[str, Any] = read_json(path, MAX_RESULT_BYTES)
+    check_record(SweepReport, data, path)
+    return data
+
 
 Mask = npt.NDArray[np.bool_]
 

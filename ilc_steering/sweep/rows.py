@@ -12,10 +12,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import numpy.typing as npt
+from pydantic import Field
 
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.agents.registry import METHODS, lookup
@@ -27,10 +28,12 @@ from ilc_steering.loop import run_vector_trials
 from ilc_steering.oracle import SOLVED
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 from ilc_steering.readers import read_json
+from ilc_steering.schema import check_record
 
 __all__ = [
     "MAX_GRID",
     "ORACLE",
+    "RowRecord",
     "SweepArgs",
     "axis_values",
     "centre_row",
@@ -62,7 +65,7 @@ class SweepArgs:
     nu_b: tuple[float, ...] = ()
     """Gains of eq. 34 to map (each a map); empty: the config's."""
     grid: int = 41
-    """Points per axis."""
+    """Points per axis of the map (``--grid``): GRID x GRID true plants, a row of them a cell of the run."""
     low: float = 0.5
     """Smallest ratio true / nominal on both axes."""
     high: float = 1.5
@@ -79,7 +82,7 @@ class SweepArgs:
     """Seed of every learner's own randomness."""
     cell_timeout: float | None = None
     """[s] a row still running after this is stopped and recorded as failed; None:
-    :data:`~ilc_steering.engine.DEFAULT_CELL_TIMEOUT`."""
+    :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`."""
     axes: tuple[tuple[str, float, float], ...] = ()
     """Two plant keys with their ranges ``(key, low, high)`` [the key's unit], e.g.
     ``("steering_offset", -0.03, 0.03)``; empty: the plant's two ``factor_names`` as ratios
@@ -215,36 +218,49 @@ def row_path(out: Path, method: str, nu_b: float, row: int, folder: str = "rows"
     return out / folder / f"{injective_name(method, METHODS)}__nu{gain_text(nu_b)}__{row:03d}.json"
 
 
+@dataclass(frozen=True)
+class RowRecord:
+    """A row's file (``rows/*.json``), as its schema: read back, a row of another shape is refused
+    naming the key (:func:`read_row`). Each list holds a value per plant of the row."""
+
+    method: str
+    nu_b: float
+    row: int
+    trials_to: tuple[int, ...]  # [trials] the first trial within the tolerance; 0: never
+    error: tuple[Annotated[float, Field(allow_inf_nan=True)], ...]  # the last true error (inf: off the chart)
+    left_chart: tuple[float, ...]  # the fraction of trials that left the chart
+    wall_s: float  # [s]
+    config_sha: str  # the content hash of its config
+    version: str  # the ilc-steering version that computed it
+
+
 def read_row(path: Path, key: dict[str, Any], size: int, trials: int) -> dict[str, Any]:
     """A finished row, checked against its ``key`` (method, gain, row, config hash, version) and
     value by value: ``size`` plants, ``trials_to`` in ``[0, trials]``, errors >= 0 (not NaN),
     off-chart fractions in [0, 1], a wall time >= 0 s. ``ValueError`` names the file."""
     hint = "delete it to recompute it"
     try:
-        row = read_json(path, MAX_RESULT_BYTES)
+        row: dict[str, Any] = read_json(path, MAX_RESULT_BYTES)
     except ValueError as error:
         raise ValueError(f"not a sweep row: {error}; {hint}") from None
-    lists = ("trials_to", "error", "left_chart")
-    if not isinstance(row, dict) or not all(isinstance(row.get(k), list) for k in lists):
-        raise ValueError(f"{path}: not a sweep row (a JSON object with {list(lists)}); {hint}")
-    if not all(len(row[k]) == size for k in lists):
-        raise ValueError(f"{path}: not a row of {size} plants; {hint}")
+    check_record(RowRecord, row, path, hint)  # the types, the keys: each value below is of its type
+    for name in ("trials_to", "error", "left_chart"):
+        if len(row[name]) != size:
+            raise ValueError(
+                f"{path}: {name}: needs {size} values (a row of {size} plants), got {len(row[name])}; {hint}"
+            )
     for name, value in key.items():
         if row.get(name) != value:
             raise ValueError(f"{path}: holds {name} {row.get(name)!r}, not {value!r}; {hint}")
-
-    def number(v: Any) -> bool:
-        return isinstance(v, (int, float)) and not isinstance(v, bool)
-
     problem = None
-    if not all(number(t) and float(t).is_integer() and 0 <= t <= trials for t in row["trials_to"]):
+    if not all(0 <= t <= trials for t in row["trials_to"]):
         problem = f"trials_to holds a value outside the whole numbers 0 to the budget {trials}"
-    elif not all(number(e) and e >= 0 for e in row["error"]):  # NaN fails e >= 0
+    elif not all(e >= 0 for e in row["error"]):  # NaN fails e >= 0
         problem = "error holds a value that is not an error >= 0"
-    elif not all(number(f) and 0 <= f <= 1 for f in row["left_chart"]):
+    elif not all(0 <= f <= 1 for f in row["left_chart"]):
         problem = "left_chart holds a value outside the fractions [0, 1]"
-    elif not (number(row.get("wall_s")) and np.isfinite(row["wall_s"]) and row["wall_s"] >= 0):
-        problem = f"wall_s {row.get('wall_s')!r} is not a time >= 0 s"
+    elif not row["wall_s"] >= 0:
+        problem = f"wall_s {row['wall_s']!r} is not a time >= 0 s"
     if problem:
         raise ValueError(f"{path}: {problem}; {hint}")
     return row

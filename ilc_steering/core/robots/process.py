@@ -40,14 +40,12 @@ from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantConfig, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
 from ilc_steering.core.robots.car import rotate
+from ilc_steering.core.robots.process_limits import ProcessLimits, check_path, steering_index
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.entries import CONFIG_FOLDERS
-from ilc_steering.errors import LimitError
 
-__all__ = [
-    "PROTOCOL", "ProcessLimits", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message", "sample",
-]  # fmt: skip
+__all__ = ["PROTOCOL", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message", "sample"]
 
 Array = npt.NDArray[np.float64]
 
@@ -57,40 +55,6 @@ SUBSTEPS = 10
 """Integrator steps of the nominal path per control period, at each of which the limits are checked."""
 RESULT_KEYS = frozenset({"type", "trial", "final", "trajectory", "log", "left_chart"})
 """The keys a ``result`` may hold."""
-
-
-@dataclass(frozen=True)
-class ProcessLimits:
-    """The robot's limits, checked on a trial's nominal path before it is sent (world frame)."""
-
-    workspace: tuple[float, ...]  # [x_min, x_max, y_min, y_max] [m]: the nominal path and every measured pose
-    speed: float  # top speed of the reference point (a car's rear axle) [m/s]
-    steering: float | None = None  # the largest |phi| [rad]; needed by a robot with a steering angle, else null
-    steering_rate: float | None = None  # the largest |dphi/dt| [rad/s]; as steering
-
-    def __post_init__(self) -> None:
-        w = self.workspace
-        require(
-            len(w) == 4 and all(isfinite(v) for v in w) and w[0] < w[1] and w[2] < w[3],
-            "workspace",
-            f"needs [x_min, x_max, y_min, y_max] [m], finite, each min below its max, got {list(w)}",
-        )
-        for name in ("speed", "steering", "steering_rate"):
-            value = getattr(self, name)
-            require(value is None or (isfinite(value) and value > 0), name, f"must be > 0, got {value}")
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "workspace": list(self.workspace),
-            "speed": self.speed,
-            "steering": self.steering,
-            "steering_rate": self.steering_rate,
-        }
-
-
-def steering_index(kind: PlantKind) -> int | None:
-    """The entry of the configuration that is a steering angle (labelled ``φ``), or ``None``."""
-    return next((i for i, label in enumerate(kind.coordinates) if label.startswith("φ")), None)
 
 
 def profile_message(profile: InputProfile) -> dict[str, Any]:
@@ -256,7 +220,7 @@ class ProcessPlant(ExternalPlantBase):
         t = np.linspace(0.0, total, steps + 1)
         step = max(total / steps / SUBSTEPS, 2 * total / MAX_STEPS_PER_TRIAL)  # a long trial: the integrator's cap
         times, q, acted_on = nominal_path(self.nominal, profile, x0, c, step)
-        self._check_limits(k, times, self.to_world(q))
+        check_path(self.limits, self.kind, times, self.to_world(q), f"trial {k}", self.who)
         v1, v2 = profile.evaluate(c, t)
         v1 = np.broadcast_to(np.asarray(v1, dtype=np.float64), t.shape)
         v2 = np.broadcast_to(np.asarray(v2, dtype=np.float64), t.shape)
@@ -272,42 +236,6 @@ class ProcessPlant(ExternalPlantBase):
             "limits": self.limits.to_json(),
             "record": bool(record),
         }
-
-    def _check_limits(self, k: int, times: Array, world: Array) -> None:
-        limits, h = self.limits, np.diff(times)
-        x_min, x_max, y_min, y_max = limits.workspace
-
-        def refuse(key: str, needs: str, where: int, limit: str) -> None:
-            raise LimitError(
-                f"plant.limits.{key}: trial {k}'s nominal path needs {needs} at t = {times[where]:.3g} s, beyond the "
-                f"robot's {limit}; refused before sending it to {self.who} (a learner's step too large, or limits too "
-                "tight for the task)"
-            )
-
-        outside = np.flatnonzero(
-            (world[:, 0] < x_min) | (world[:, 0] > x_max) | (world[:, 1] < y_min) | (world[:, 1] > y_max)
-        )
-        if outside.size:
-            i = int(outside[0])
-            refuse(
-                "workspace", f"(x, y) = ({world[i, 0]:.4g}, {world[i, 1]:.4g}) m", i,
-                f"workspace x in [{x_min:g}, {x_max:g}] m, y in [{y_min:g}, {y_max:g}] m",
-            )  # fmt: skip
-        speed = np.hypot(np.diff(world[:, 0]), np.diff(world[:, 1])) / h
-        if speed.size and float(speed.max()) > limits.speed:
-            i = int(np.argmax(speed))
-            refuse("speed", f"{speed[i]:.4g} m/s", i, f"top speed {limits.speed:g} m/s")
-        index = steering_index(self.kind)
-        if index is None or limits.steering is None or limits.steering_rate is None:
-            return
-        phi = world[:, index]
-        if float(np.abs(phi).max()) > limits.steering:
-            i = int(np.argmax(np.abs(phi)))
-            refuse("steering", f"|phi| = {abs(phi[i]):.4g} rad", i, f"steering angle {limits.steering:g} rad")
-        rate = np.abs(np.diff(phi)) / h
-        if rate.size and float(rate.max()) > limits.steering_rate:
-            i = int(np.argmax(rate))
-            refuse("steering_rate", f"{rate[i]:.4g} rad/s", i, f"steering rate {limits.steering_rate:g} rad/s")
 
     def _result(
         self, cable: Cable, k: int, answer: dict[str, Any], x0: Array

@@ -1,0 +1,100 @@
+"""The options every command over cells shares: ``--backend``, ``--workers`` and ``--cell-timeout``.
+
+Declared once (:func:`add_cell_options`, one help each), checked once when a command makes its plan
+(:func:`check_cell_options`), where the cell timeout's default, :data:`DEFAULT_CELL_TIMEOUT`, is
+applied: the plan holds the bound, and :func:`~ilc_steering.engine.runs.compute_cells`,
+:func:`~ilc_steering.engine.backends.run_calls` and the workers
+(:mod:`~ilc_steering.engine.killable`) receive it as a number. A walk of ``--cell-timeout`` from the
+command line: ``cli`` parses it, the command's ``from_namespace`` puts it in its arguments, its
+plan checks it here and holds the bound, and its ``execute`` hands the bound down to the engine,
+the backend and the worker's deadline.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any
+
+__all__ = [
+    "DEFAULT_CELL_TIMEOUT",
+    "MAX_CELL_TIMEOUT",
+    "CellBound",
+    "add_cell_options",
+    "check_cell_options",
+    "check_timeout",
+    "timeout_help",
+]
+
+MAX_CELL_TIMEOUT = 7 * 24 * 3600.0
+"""The longest ``--cell-timeout`` [s]: a week. A longer one is no bound a timer can hold."""
+DEFAULT_CELL_TIMEOUT = 6 * 3600.0
+"""[s] the bound on a cell when ``--cell-timeout`` is not given: six hours, far above any cell of the
+packaged comparison, so that a learner that never returns fails its cell instead of hanging the run.
+This is where the default is stated; ``--cell-timeout``'s help (:func:`timeout_help`) reads it."""
+
+
+def timeout_help(what: str) -> str:
+    """The help of ``--cell-timeout`` for a command whose unit of work is ``what`` (a cell, a row)."""
+    return (
+        f"stop a {what} still running after this, its worker process ended, and record it as failed "
+        f"(default: {DEFAULT_CELL_TIMEOUT / 3600:g} h; at most {MAX_CELL_TIMEOUT / 86400:g} days)"
+    )
+
+
+def add_cell_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """The options every command over a grid of cells shares, with one help each: ``--backend``,
+    ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
+    from ilc_steering.engine.backends import MAX_WORKERS
+
+    parser.add_argument(
+        "--backend",
+        default="local",
+        help="local worker processes, or Ray tasks on ray.init() (a local Ray; a cluster through RAY_ADDRESS)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=0, help=f"local worker processes (0: one per core; at most {MAX_WORKERS})"
+    )
+    parser.add_argument(
+        "--cell-timeout",
+        type=float,
+        default=argparse.SUPPRESS,  # the engine's bound, DEFAULT_CELL_TIMEOUT, stated in the help
+        metavar="SECONDS",
+        help=timeout_help(what),
+    )
+
+
+def check_cell_options(backend: str, workers: int, timeout: float | None) -> float:
+    """The shared options' rules, checked once, before any cell (``ValueError`` naming the
+    option); returns the bound on each cell [s]: ``timeout``, or :data:`DEFAULT_CELL_TIMEOUT` when
+    it is None. This is the one place the default is applied: a plan holds the bound, and the
+    engine and the workers receive a number."""
+    from ilc_steering.engine.backends import check_backend, check_workers
+
+    check_backend(backend)
+    check_workers(workers)
+    checked = check_timeout(timeout)
+    return DEFAULT_CELL_TIMEOUT if checked is None else checked
+
+
+def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
+    """``timeout`` if it is None or a time in ``(0, MAX_CELL_TIMEOUT]`` seconds; ``ValueError`` otherwise."""
+    if timeout is None:
+        return None
+    number = isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
+    if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
+        raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
+    return float(timeout)
+
+
+class CellBound:
+    """A command's plan's bound on each cell [s] (compare's and sweep's ``Plan``): the
+    ``cell_timeout`` of its arguments, which ``plan()`` set through :func:`check_cell_options`."""
+
+    args: Any
+
+    @property
+    def cell_timeout(self) -> float:
+        bound = self.args.cell_timeout
+        assert bound is not None, "a Plan made by plan() holds the bound"
+        return float(bound)
