@@ -40,6 +40,7 @@ from ilc_steering.runner import (
     RunResult,
     step_warning,
 )
+from ilc_steering.session import add_session_arguments
 from ilc_steering.sweep.command import add_arguments as add_sweep_arguments
 
 __all__ = ["EXIT_CODES", "main"]
@@ -163,6 +164,10 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_sweep_arguments(sweep)
     sweep.set_defaults(handler=_sweep)
+    session = sub.add_parser(
+        "session", help="learn with a robot driven through a folder: new, next, record, withdraw, status"
+    )
+    add_session_arguments(session)
     current = sub.add_parser(
         "current", help="is a run folder current for the code in this tree? exit 0 if it is, 1 if it is stale"
     )

@@ -231,7 +231,16 @@ FLOORS = (
         ),
     ),
     ("engine", ("ilc_steering.engine",)),
-    ("commands", ("ilc_steering.compare", "ilc_steering.sweep", "ilc_steering.reproduce", "ilc_steering.cli")),
+    (
+        "commands",
+        (
+            "ilc_steering.compare",
+            "ilc_steering.sweep",
+            "ilc_steering.reproduce",
+            "ilc_steering.session",
+            "ilc_steering.cli",
+        ),
+    ),
 )
 ROOF = {"ilc_steering", "ilc_steering.__main__"}
 MODULE_NAME = re.compile(r"\bilc_steering(?:\.\w+)+")

@@ -149,10 +149,7 @@ class ProcessPlant(ExternalPlantBase):
         return self._link.sent
 
     def with_frame(self, angle: float) -> ProcessPlant:
-        return ProcessPlant(
-            self.command, self.folder, self.timeout, self.control_rate, self.limits, self.chained_map,
-            self.nominal, self.kind, self.dimension, float(angle), self._link,
-        )  # fmt: skip
+        return replace(self, frame=float(angle))  # the same program (its link), a subclass kept
 
     def check_configuration(self, q: Array) -> None:
         self.nominal.check_configuration(q)

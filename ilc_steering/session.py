@@ -1,0 +1,348 @@
+"""``ilc-steering session``: learning with a robot that is driven by a person or a script, through a folder.
+
+The paper's section 5 in a folder: ``new`` starts a session (a process-plant config: the robot's
+nominal model, its limits and control rate; a learner; a seed), ``next`` writes the next trial's
+commands, the robot runs them, ``record`` stores where it stopped, ``status`` shows the trials so
+far. Nothing but the measurements is kept: every command replays the session from them, the
+learner made afresh from its id and seed and fed every recorded trial in order, so the session
+resumed a week later on another machine gives the same next commands (a replay whose commands
+differ from the recorded ones is refused, naming the trial). No pickles, and every file is written
+atomically.
+
+A session folder holds ``session.json`` (the learner, the seed, the budget), ``config.yaml`` (a copy
+of the config it was started with) and ``trials/NNNN/``: ``request.json`` (the process plant's
+request: the chained inputs ``v1, v2`` and the robot's nominal inputs sampled at the control rate,
+the nominal path, the limits), ``commands.csv`` (the same samples as columns) and, once recorded,
+``result.json`` (the process plant's answer: the final pose, world frame). A withdrawn result
+(a botched trial) is moved to ``withdrawn/`` and the trial is asked again, uncounted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import shutil
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ilc_steering import __version__
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig
+from ilc_steering.errors import ConfigError, LimitError, PlantError
+from ilc_steering.output import check_output_dir, write_atomic, write_json
+from ilc_steering.readers import read_json
+from ilc_steering.runner import RunResult, learner_spec, run_ilc
+
+__all__ = ["Session", "SessionPending", "add_session_arguments"]
+
+SESSION = "session.json"
+CONFIG = "config.yaml"
+MAX_RECORD_BYTES = 64 << 20
+"""The largest file of a session read back [bytes] (a request at 1 kHz for minutes fits)."""
+
+
+class SessionPending(PlantError):
+    """The replay reached a trial the robot has not run: its request is written, ``trial`` its number."""
+
+    def __init__(self, trial: int, folder: Path) -> None:
+        super().__init__(f"trial {trial} is pending: its commands are in {folder}")
+        self.trial = trial
+        self.folder = folder
+
+
+class _Mismatch(Exception):
+    """A replay's request differs from the recorded one (raised through the env, refused as bad input)."""
+
+
+class _FolderCable:
+    """The process plant's cable, answered from a session's folder: a request whose result is
+    recorded gets it; the first one without is written there, and the replay stops."""
+
+    def __init__(self, trials: Path, write: bool) -> None:
+        self.name = f"the session's robot ({trials.parent})"
+        self.trials = trials
+        self.write = write
+        self._pending: dict[str, Any] | None = None
+
+    def fail(self, problem: str) -> PlantError:
+        return PlantError(f"{self.name}: {problem}")
+
+    def send(self, message: dict[str, Any], what: str) -> None:
+        self._pending = message
+
+    def receive(self, timeout: float, what: str) -> dict[str, Any]:
+        request, self._pending = self._pending, None
+        assert request is not None, "receive() before send()"
+        k = int(request["trial"])
+        folder = self.trials / f"{k:04d}"
+        recorded = folder / "request.json"
+        if recorded.exists():
+            before = read_json(recorded, MAX_RECORD_BYTES)
+            if before.get("c") != request["c"]:
+                raise _Mismatch(
+                    f"{recorded}: the replay asks trial {k} with other coefficients than the recorded ones "
+                    f"({request['c']} != {before.get('c')}): the session was started by another version of the "
+                    "library or of the learner, and cannot be continued by this one"
+                )
+        result = folder / "result.json"
+        if result.exists():
+            answer: dict[str, Any] = read_json(result, MAX_RECORD_BYTES)
+            return answer
+        if self.write and not recorded.exists():
+            folder.mkdir(parents=True, exist_ok=True)
+            write_atomic(folder / "commands.csv", _commands_csv(request))
+            write_json(recorded, request)
+        raise SessionPending(k, folder)
+
+    def close(self, kill: bool = False) -> None:
+        pass
+
+
+def _commands_csv(request: dict[str, Any]) -> str:
+    """The request's samples as columns: time, the chained inputs, the robot's nominal inputs, the nominal pose."""
+    control, nominal = request["control"], request["nominal"]
+    q = np.asarray(nominal["q"], dtype=np.float64)
+    coordinates = ["x", "y", "theta", "phi"][: q.shape[1]]
+    lines = [",".join(["t", "v1", "v2", "u1", "u2", *(f"nominal_{c}" for c in coordinates)])]
+    for i, t in enumerate(control["t"]):
+        row = [t, control["v1"][i], control["v2"][i], nominal["u1"][i], nominal["u2"][i], *q[i]]
+        lines.append(",".join(repr(float(v)) for v in row))
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True, eq=False)
+class _SessionPlant(ProcessPlant):
+    """A process plant whose program is the session's folder."""
+
+    write: bool = False
+
+    def _cable(self) -> Any:
+        if not self._link.cables:
+            self._link.cables.append(_FolderCable(Path(self.folder) / "trials", self.write))  # type: ignore[arg-type]
+        return self._link.cables[0]
+
+
+@dataclass(frozen=True)
+class _SessionPlantConfig(ProcessPlantConfig):
+    write: bool = False  # write the pending trial's commands
+
+    plant_class: ClassVar[type[ProcessPlant]] = _SessionPlant
+
+    def _check_command(self) -> None:  # no program is started: the folder answers
+        pass
+
+    def plant(self) -> ProcessPlant:
+        return _SessionPlant(
+            self.command, str(self.folder), self.timeout, self.control_rate, self.limits, self.nominal_map(),
+            self.nominal(), self.kind, self.robot.dimension, write=self.write,
+        )  # fmt: skip
+
+
+@dataclass
+class Replay:
+    """What the recorded measurements give: the trials so far and the pending one, if any
+    (``refused``: its commands are beyond the robot's limits)."""
+
+    result: RunResult
+    pending: int | None
+    pending_folder: Path | None
+    refused: LimitError | None = None
+
+
+class Session:
+    """A session folder (see the module docstring)."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = Path(folder)
+        path = self.folder / SESSION
+        if not path.is_file():
+            raise ValueError(f"{self.folder}: not a session folder (no {SESSION}; start one with `session new`)")
+        data = read_json(path, MAX_RECORD_BYTES)
+        keys = {"learner", "seed", "trials", "version"}
+        if not isinstance(data, dict) or not keys <= set(data):
+            raise ValueError(f"{path}: not a session record (it needs {sorted(keys)})")
+        self.learner: str = data["learner"]
+        self.seed: int = data["seed"]
+        self.trials: int = data["trials"]
+        self.config = _session_config(load_config(self.folder / CONFIG), self.folder)
+
+    @classmethod
+    def new(cls, folder: Path, config: Path, learner: str, seed: int, trials: int | None) -> Session:
+        """Start a session in ``folder`` (new or empty) from a process-plant ``config``."""
+        steering = load_config(config)
+        _session_config(steering, folder)  # refused before anything is written
+        learner_spec(learner)
+        budget = steering.learning.trials if trials is None else trials
+        if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
+            raise ValueError(f"--trials must be a whole number >= 1, got {budget!r}")
+        folder = Path(folder)
+        if folder.exists() and any(folder.iterdir()):
+            raise ValueError(f"{folder}: exists and is not empty; a session starts in a new or empty folder")
+        check_output_dir(folder, "session folder")
+        write_atomic(folder / CONFIG, Path(config).read_bytes())
+        record = {"learner": learner, "seed": seed, "trials": budget, "version": __version__, "created": _now()}
+        write_json(folder / SESSION, record)
+        return cls(folder)
+
+    def replay(self, write: bool = True) -> Replay:
+        """Every recorded trial fed to a fresh learner, until the first trial without a result,
+        whose commands are written (``write``) unless they are beyond the robot's limits."""
+        plant = self.config.plant
+        assert isinstance(plant, _SessionPlantConfig)
+        config = replace(self.config, plant=replace(plant, write=write))
+        try:
+            result = run_ilc(config, trials=self.trials, learner=self.learner, seed=self.seed)
+        except SessionPending as pending:  # run_ilc keeps the trials before it, judged as run judges
+            return Replay(pending.partial, pending.trial, pending.folder)
+        except _Mismatch as mismatch:
+            raise ValueError(str(mismatch)) from None
+        except LimitError as refused:
+            k = len(refused.partial.trials) + 1
+            return Replay(refused.partial, k, self.folder / "trials" / f"{k:04d}", refused)
+        return Replay(result, None, None)
+
+    def record(self, final: Sequence[float]) -> Replay:
+        """Store the pending trial's measured final pose (world frame) and learn from it; the
+        session is unchanged if the pose is refused."""
+        before = self.replay(write=False)
+        if before.pending is None or before.pending_folder is None:
+            raise ValueError(f"{self.folder}: no pending trial (the session has run its {self.trials} trials)")
+        if not (before.pending_folder / "request.json").exists():
+            raise ValueError(f"{self.folder}: trial {before.pending} has no commands yet: run `session next` first")
+        dimension = self.config.plant.dimension
+        values = [float(v) for v in final]
+        if len(values) == dimension - 1 and dimension == 4:  # no steering angle measured: the commanded one
+            request = read_json(before.pending_folder / "request.json", MAX_RECORD_BYTES)
+            values.append(float(request["nominal"]["q"][-1][3]))
+        if len(values) != dimension or not all(math.isfinite(v) for v in values):
+            raise ValueError(f"--final needs {dimension} finite numbers (x, y, theta[, phi]; world frame), got {final}")
+        result = before.pending_folder / "result.json"
+        write_json(result, {"type": "result", "trial": before.pending, "final": values})
+        try:
+            return self.replay(write=False)
+        except PlantError as error:  # the pose refused (outside the workspace, ...): the session unchanged
+            result.unlink()
+            raise ValueError(str(error)) from None
+
+    def withdraw(self) -> int:
+        """Move the last recorded result to ``withdrawn/``: that trial is asked again, uncounted."""
+        recorded = sorted((self.folder / "trials").glob("*/result.json"))
+        if not recorded:
+            raise ValueError(f"{self.folder}: no recorded trial to withdraw")
+        last = recorded[-1]
+        k = int(last.parent.name)
+        target = self.folder / "withdrawn" / f"{k:04d}-{_now().replace(':', '')}.json"
+        target.parent.mkdir(exist_ok=True)
+        shutil.move(last, target)
+        return k
+
+
+def _session_config(config: SteeringConfig, folder: Path) -> SteeringConfig:
+    """``config`` with its process plant answered from ``folder``; refused unless it is a process
+    plant measured for real (no simulated noise)."""
+    plant = config.plant
+    if not isinstance(plant, ProcessPlantConfig):
+        raise ConfigError(
+            f"{config.name}: a session needs plant.model: process (the robot's nominal model, its limits and "
+            f"control rate; docs/your_robot.md), got plant.model: {getattr(plant, 'model', plant)}"
+        )
+    if config.simulation.measurement_noise is not None or config.simulation.start_error is not None:
+        raise ConfigError(
+            f"{config.name}: a session measures the real robot: remove simulation.measurement_noise and start_error"
+        )
+    fields = {name: getattr(plant, name) for name in ("model", "command", "robot", "limits", "timeout", "control_rate")}
+    return replace(config, plant=_SessionPlantConfig(**fields, folder=str(Path(folder).resolve())))
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+def _print_trials(result: RunResult) -> None:
+    from ilc_steering.console import print_row
+
+    for record in result.trials:
+        print_row(record)
+
+
+def _new(args: argparse.Namespace) -> int:
+    session = Session.new(args.folder, args.config, args.learner, args.seed, args.trials)
+    print(f"started a session of {session.learner} (seed {session.seed}, {session.trials} trials) in {session.folder}")
+    print(f"next: ilc-steering session next {session.folder}")
+    return 0
+
+
+def _next(args: argparse.Namespace) -> int:
+    replay = Session(args.folder).replay()
+    if replay.refused is not None:
+        raise replay.refused
+    if replay.pending_folder is None:
+        print(f"{args.folder}: the session has run its trials; see `session status`")
+        return 0
+    print(f"trial {replay.pending}: the commands are in {replay.pending_folder}/commands.csv and request.json")
+    print(f"after the run: ilc-steering session record {args.folder} --final X Y THETA [PHI]")
+    return 0
+
+
+def _record(args: argparse.Namespace) -> int:
+    session = Session(args.folder)
+    replay = session.record(args.final)
+    _print_trials(replay.result)
+    last = replay.result.trials[-1]
+    print(f"recorded trial {last.trial}; next: ilc-steering session next {args.folder}")
+    return 0
+
+
+def _withdraw(args: argparse.Namespace) -> int:
+    k = Session(args.folder).withdraw()
+    print(f"withdrew trial {k}: it is asked again (ilc-steering session next {args.folder}), uncounted")
+    return 0
+
+
+def _status(args: argparse.Namespace) -> int:
+    session = Session(args.folder)
+    replay = session.replay(write=False)
+    from ilc_steering.console import print_header
+
+    print_header(session.config, session.trials)
+    _print_trials(replay.result)
+    verdict = replay.result.verdict
+    state = f"converged at trial {verdict.converged_at}" if verdict.converged_at is not None else "not converged"
+    pending = f"; trial {replay.pending} pending" if replay.pending is not None else ""
+    print(f"{len(replay.result.trials)} trials recorded, {state}{pending}")
+    if args.json is not None:
+        write_json(args.json, replay.result.to_json())
+    return 0
+
+
+def add_session_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``session`` subcommands."""
+    sub = parser.add_subparsers(dest="session_command", required=True, metavar="ACTION")
+    new = sub.add_parser("new", help="start a session in a new folder from a process-plant config")
+    new.add_argument("folder", type=Path, metavar="DIR")
+    new.add_argument("--config", type=Path, required=True, help="a config with plant.model: process")
+    new.add_argument("--learner", default="ilc_paper", help="a learner id or module:attr (default: ilc_paper)")
+    new.add_argument("--seed", type=int, default=1, help="the learner's seed (default: 1)")
+    new.add_argument("--trials", type=int, default=None, help="the budget (default: the config's learning.trials)")
+    new.set_defaults(handler=_new)
+    step = sub.add_parser("next", help="write the next trial's commands and say where")
+    step.add_argument("folder", type=Path, metavar="DIR")
+    step.set_defaults(handler=_next)
+    record = sub.add_parser("record", help="record where the robot stopped after the pending trial")
+    record.add_argument("folder", type=Path, metavar="DIR")
+    record.add_argument(
+        "--final", type=float, nargs="+", required=True, metavar="V", help="x y theta [phi], world frame"
+    )
+    record.set_defaults(handler=_record)
+    withdraw = sub.add_parser("withdraw", help="withdraw the last recorded trial (the robot botched it)")
+    withdraw.add_argument("folder", type=Path, metavar="DIR")
+    withdraw.set_defaults(handler=_withdraw)
+    status = sub.add_parser("status", help="the trials so far, their errors, and whether it converged")
+    status.add_argument("folder", type=Path, metavar="DIR")
+    status.add_argument("--json", type=Path, default=None, help="write the run's JSON here")
+    status.set_defaults(handler=_status)

@@ -1,0 +1,135 @@
+"""``ilc-steering session``: a robot driven through a folder, the learner rebuilt from the measurements.
+
+The robot here is section 5's simulated MARIO (:class:`~ilc_steering.lab_robot.LabRobot`) answering
+each trial's request from the folder, as a person or a script would; the session's trials must be
+the in-process run's, bit for bit. Every refused step leaves the folder as it was.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ilc_steering.cli import main
+from ilc_steering.config import load_config
+from ilc_steering.errors import ConfigError
+from ilc_steering.lab_robot import LabRobot
+from ilc_steering.runner import run_ilc
+from ilc_steering.session import Session
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+def _robot_config(folder: Path) -> Path:
+    """experiment_forward on a process plant, measured without simulated noise (a real measurement)."""
+    data = yaml.safe_load((CONFIGS / "experiment_forward_process.yaml").read_text())
+    data.pop("simulation", None)
+    path = folder / "robot.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _run_robot(session: Session, robot: LabRobot, trials: int) -> None:
+    """Each pending trial's request answered by the robot and its final pose recorded."""
+    for _ in range(trials):
+        replay = session.replay()
+        assert replay.pending_folder is not None
+        request = json.loads((replay.pending_folder / "request.json").read_text())
+        answer = robot.trial(request)
+        session.record(answer["final"])
+
+
+@pytest.fixture
+def started(tmp_path: Path) -> Session:
+    return Session.new(tmp_path / "s", _robot_config(tmp_path), "ilc_paper", 1, 3)
+
+
+def test_a_session_gives_the_in_process_trials_bit_for_bit(started: Session) -> None:
+    _run_robot(started, LabRobot(load_config("experiment_forward")), 3)
+    replay = started.replay()
+    assert replay.pending is None
+    data = yaml.safe_load((CONFIGS / "experiment_forward.yaml").read_text())
+    data.pop("simulation", None)
+    reference = run_ilc(data, trials=3, learner="ilc_paper", seed=1)
+    assert [t.cartesian_error for t in replay.result.trials] == [t.cartesian_error for t in reference.trials]
+    assert [t.orientation_error for t in replay.result.trials] == [t.orientation_error for t in reference.trials]
+
+
+def test_a_resumed_session_asks_the_same_commands(started: Session, tmp_path: Path) -> None:
+    _run_robot(started, LabRobot(load_config("experiment_forward")), 1)
+    pending = started.replay().pending_folder
+    assert pending is not None
+    request = (pending / "request.json").read_bytes()
+    moved = tmp_path / "elsewhere"
+    started.folder.rename(moved)
+    again = Session(moved).replay()
+    assert again.pending == 2
+    assert again.pending_folder is not None and (again.pending_folder / "request.json").read_bytes() == request
+
+
+@pytest.mark.parametrize(
+    ("final", "needs"),
+    [([float("nan"), 0.0, 0.0, 0.0], "finite"), ([0.0, 0.0], "needs 4"), ([50.0, 0.0, 0.0, 0.0], "workspace")],
+)
+def test_a_bad_pose_is_refused_and_the_session_is_unchanged(started: Session, final: list[float], needs: str) -> None:
+    started.replay()  # trial 1's commands written
+    before = _files(started.folder)
+    with pytest.raises(ValueError, match=needs):
+        started.record(final)
+    assert _files(started.folder) == before
+
+
+def test_a_record_without_commands_is_refused(started: Session) -> None:
+    before = _files(started.folder)
+    with pytest.raises(ValueError, match="session next"):
+        started.record([0.0, 0.0, 0.0, 0.0])
+    assert _files(started.folder) == before
+
+
+def test_a_withdrawn_trial_is_asked_again_uncounted(started: Session) -> None:
+    _run_robot(started, LabRobot(load_config("experiment_forward")), 1)
+    assert len(started.replay().result.trials) == 1
+    assert started.withdraw() == 1
+    replay = started.replay()
+    assert replay.pending == 1 and not replay.result.trials
+    assert len(list((started.folder / "withdrawn").iterdir())) == 1
+
+
+def test_a_replay_that_differs_from_the_record_is_refused(started: Session) -> None:
+    _run_robot(started, LabRobot(load_config("experiment_forward")), 1)
+    path = started.folder / "trials" / "0001" / "request.json"
+    request = json.loads(path.read_text())
+    request["c"][0] += 1e-9
+    path.write_text(json.dumps(request))
+    with pytest.raises(ValueError, match="other coefficients"):
+        started.replay()
+
+
+def test_a_session_needs_a_process_plant_measured_for_real(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="plant.model: process"):
+        Session.new(tmp_path / "a", CONFIGS / "experiment_forward.yaml", "ilc_paper", 1, None)
+    with pytest.raises(ConfigError, match="measurement_noise"):
+        Session.new(tmp_path / "b", CONFIGS / "experiment_forward_process.yaml", "ilc_paper", 1, None)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_the_command_line_drives_a_session(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "s"
+    assert main(["session", "new", str(folder), "--config", str(_robot_config(tmp_path)), "--trials", "2"]) == 0
+    assert main(["session", "next", str(folder)]) == 0
+    assert "trial 1" in capsys.readouterr().out
+    assert main(["session", "record", str(folder), "--final", "nan", "0", "0", "0"]) == 2
+    assert "finite" in capsys.readouterr().err
+    request = json.loads((folder / "trials" / "0001" / "request.json").read_text())
+    final = LabRobot(load_config("experiment_forward")).trial(request)["final"]
+    assert main(["session", "record", str(folder), "--final", *map(repr, final[:3])]) == 0  # phi: the commanded
+    assert main(["session", "status", str(folder)]) == 0
+    assert "1 trials recorded" in capsys.readouterr().out
+    assert main(["session", "next", "/nonexistent/folder"]) == 2
