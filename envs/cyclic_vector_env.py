@@ -116,6 +116,8 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         if unknown:
             raise ValueError(f"options: unknown key {unknown[0]!r}; the cyclic vector env takes 'start'")
         super().reset(seed=seed)
+        if seed is not None:  # an external plant's own scatter follows the env's seed
+            self._scenario.reseed(seed)
         if streams is not None or seed is not None:
             self._streams = streams  # a new int seed replaces a list's streams
         start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])

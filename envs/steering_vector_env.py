@@ -159,6 +159,8 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         if options:
             raise ValueError(f"options: the vector env takes none, got {sorted(options)}")
         super().reset(seed=seed)
+        if seed is not None:  # an external plant's own scatter follows the env's seed
+            self._scenario.reseed(seed)
         if streams is not None or seed is not None:
             self._streams = streams  # a new int seed replaces a list's streams
         return self._observations.copy(), self._reset_info()
