@@ -7,18 +7,18 @@ finds a wrong minimum, and Newton from the measured trial lands on a kink or off
 learner keeps the same information (the :class:`~ilc_steering.agents.base.LearnerContext` and
 each trial's measured final error, never the plant) and globalizes each of the three:
 
-1. **Global identification, in widening families.** The family's parameters :math:`\theta` (a
+1. **Global identification, in widening families** (:mod:`~ilc_steering.agents.robust_identify`). The family's parameters :math:`\theta` (a
    :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
-   fitted to every trial run so far by a grid over the whole family (:data:`GRID` points per
+   fitted to every trial run so far by a grid over the whole family (:data:`~ilc_steering.agents.robust_identify.GRID` points per
    parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
    points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
-   under which it would have stayed in the chart is penalized by :data:`CHART_PENALTY`. When the
-   geometry leaves a trial unexplained by more than :data:`ESCALATE`, and the robot has a
-   steering servo (the car), the families of :data:`ACTUATOR_FAMILIES` are fitted too: the
+   under which it would have stayed in the chart is penalized by :data:`~ilc_steering.agents.robust_identify.CHART_PENALTY`. When the
+   geometry leaves a trial unexplained by more than :data:`~ilc_steering.agents.robust_identify.ESCALATE`, and the robot has a
+   steering servo (the car), the families of :data:`~ilc_steering.agents.robust_identify.ACTUATOR_FAMILIES` are fitted too: the
    geometry plus the wheel's offset, then plus the servo's first-order lag (on grids of
-   :data:`ACTUATOR_GRID`, then Levenberg-Marquardt). The best fit is kept if it explains every
-   trial to :data:`EXPLAINED`; otherwise the geometry's fit is (a servo family that cannot
-   explain the trials would only caricature what it lacks), and after :data:`ESCALATIONS` such
+   :data:`~ilc_steering.agents.robust_identify.ACTUATOR_GRID`, then Levenberg-Marquardt). The best fit is kept if it explains every
+   trial to :data:`~ilc_steering.agents.robust_identify.EXPLAINED`; otherwise the geometry's fit is (a servo family that cannot
+   explain the trials would only caricature what it lacks), and after :data:`~ilc_steering.agents.robust_identify.ESCALATIONS` such
    failures the servo's families are no longer tried.
 2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
 
@@ -38,7 +38,7 @@ each trial's measured final error, never the plant) and globalizes each of the t
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification): the next trial
    halves the step from the best trial, and the secant is reset. A model that explains every
-   trial it is fitted to (to :data:`FIT_TOLERANCE`) lifts the trust region: a region learned
+   trial it is fitted to (to :data:`~ilc_steering.agents.robust_identify.FIT_TOLERANCE`) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
    :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
@@ -70,7 +70,6 @@ oracle's unsolvable region), nor where the refit model's solvers miss a solution
 
 from __future__ import annotations
 
-import itertools
 import time
 from collections.abc import Mapping
 from typing import Any
@@ -87,34 +86,19 @@ from ilc_steering.agents.model_based import (
     gauss_newton,
     in_scatter_band,
     law_step,
-    levenberg_marquardt,
     measure,
     newton_solve,
 )
-from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
+from ilc_steering.agents.robust_identify import CHART_PENALTY, FIT_TOLERANCE, HALVINGS, GlobalIdentification
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["GRID", "HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
+__all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
 
 Array = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
 
-GRID = 13
-"""Grid points per family parameter of the global identification (over ``+-MAX_LOG_RATIO``)."""
-GRID_3D = 7
-"""The same for a family of three parameters (a car with a trailer)."""
 HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
-CHART_PENALTY = 10.0
-"""[m or rad] residual of a hypothesis that disagrees with a trial about leaving the chart."""
-RIDGE = 1e-4
-"""[m or rad per unit of theta] the pull of ``theta`` to 0 where the trials say nothing."""
-FIT_TOLERANCE = 1e-7
-"""[m or rad] a fit that explains every trial this well is not searched for globally."""
-GRID_STARTS = 6
-"""Grid points the Levenberg-Marquardt refinement starts from."""
-FIT_TRIALS = 8
-"""The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
 THETA_CHANGE = 0.02
 """A refit that moves ``theta`` more than this resets the secant (a smaller move, as measurement noise
 makes at every trial, keeps it: the secant is what learns what the family lacks)."""
@@ -128,28 +112,11 @@ RCOND = 1e-7
 """Singular values of the model's Jacobian below this fraction of the largest are left out of a
 Newton step: a symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction
 would take the step far out of the box."""
-ESCALATE = 1e-6
-"""[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the servo's families."""
-EXPLAINED = 1e-5
-"""[m or rad] a servo family is kept only if it explains every trial this well."""
-ESCALATIONS = 2
-"""Failed escalations to the servo's families after which they are not tried again."""
-ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
-"""The richer families, tried in turn when the geometry alone does not explain the trials."""
-ACTUATOR_GRID = {
-    "steering_offset": np.linspace(-0.06, 0.06, 7),
-    "steering_lag": np.array([1 / 128, 0.02, 0.04, 0.07, 0.1, 0.15]),
-}
-"""[rad, s] the grids of the servo's parameters in the global identification."""
-ACTUATOR_STARTS = 3
-"""Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
 _NEWTON_ITERATIONS = 12
 _DAMPED_ITERATIONS = 100
-_HALVINGS = 8
-_FIT_ITERATIONS = 20
 
 
-class RobustILC:
+class RobustILC(GlobalIdentification):
     """Global identification, continuation and a trust region (see the module docstring).
 
     Parameters
@@ -163,37 +130,22 @@ class RobustILC:
     """
 
     def __init__(self, model: NominalModel, start: Array, low: Array, high: Array) -> None:
-        self.model = model
-        self._families = [ModelFamily(model)]
-        """The geometry's family, then (a car) with the steering offset, then with the offset and the lag."""
-        try:
-            self._families += [ModelFamily(model, actuators=names) for names in ACTUATOR_FAMILIES]
-        except ValueError:  # a robot without a steering servo
-            pass
-        self.family = self._families[0]
+        super().__init__(model)
         self.start = np.array(start, dtype=np.float64)
         self.low = np.asarray(low, dtype=np.float64)
         self.high = np.asarray(high, dtype=np.float64)
-        self._goal_q = self.family.to_configuration(model.z_goal)
         self._scale = model.action_scale()
         self._nominal_c = np.clip(model.solve(), self.low, self.high)
-        axis = np.linspace(-MAX_LOG_RATIO, MAX_LOG_RATIO, GRID if self.family.size <= 2 else GRID_3D)
-        self._grid = np.array(list(itertools.product(axis, repeat=self.family.size)))
         self.reset()
 
     def reset(self) -> None:
-        self.family = self._families[0]
-        self.theta = np.zeros(self.family.size)
+        self.reset_identification()
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
-        self._escalations = 0
-        self._trials: list[Trial] = []
-        self._best: Trial | None = None
         self._D = np.zeros((self.model.dimension, self.start.size))
         self._previous: Trial | None = None
         self._radius = np.inf  # the trust region's half-width around the best trial [action scales]
         self._stalled = 0  # updates since the best error last halved
-        self._thorough = True
         self._reach = 1.0  # the fraction of the way to the goal aimed at while no trial stays in the chart
         self.scatter: Array | None = None
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
@@ -278,96 +230,6 @@ class RobustILC:
         d = np.mean((np.array([t.z for t in self._band]) - z)[ok], axis=0)
         next_c, g = self._newton(trial.c, self.theta, self.model.z_goal - d, self._D, trial.c)
         self._next = self._box(next_c) if np.all(np.isfinite(g)) else self._law(trial)
-
-    # identification -----------------------------------------------------------------------------
-
-    def _fit_trials(self) -> list[Trial]:
-        trials = self._trials
-        if len(trials) <= FIT_TRIALS:
-            return trials
-        keep = trials[-(FIT_TRIALS - 1) :]
-        if self._best is not None and all(t is not self._best for t in keep):
-            keep = [self._best, *keep[1:]]
-        return keep
-
-    def _residuals(self, thetas: Array, trials: list[Trial], family: ModelFamily | None = None) -> Array:
-        """Residuals ``(M, R)`` of hypotheses ``thetas`` ``(M, size)`` of ``family`` (the current
-        one by default) against ``trials``."""
-        family = self.family if family is None else family
-        m, k = thetas.shape[0], len(trials)
-        c = np.tile(np.array([t.c for t in trials]), (m, 1))
-        q, ok = family.configurations_many(np.repeat(thetas, k, axis=0), c)
-        q, ok = q.reshape(m, k, -1), ok.reshape(m, k)
-        measured_ok = np.array([t.ok for t in trials])
-        y = np.array([t.q if t.ok else np.zeros_like(self._goal_q) for t in trials])
-        r = np.where((ok & measured_ok)[..., None], q - y, 0.0)
-        r = np.where((ok != measured_ok)[..., None], CHART_PENALTY, r)
-        return np.concatenate([r.reshape(m, -1), RIDGE * thetas], axis=1)
-
-    def _identify(self) -> tuple[ModelFamily, Array]:
-        """LM from the last estimate; when that does not explain the trials to :data:`FIT_TOLERANCE`,
-        also from the best points of the grid over the whole family; when that does not either,
-        the families with the steering servo's parameters (the best fit of all is kept)."""
-        trials = self._fit_trials()
-        family = self.family
-        r = self._residuals(self.theta[None], trials)[0]
-        if self._misfit(r) < FIT_TOLERANCE:  # the last estimate explains the new trial too
-            return family, self.theta
-        theta, r = self._levenberg_marquardt(family, self.theta, trials)
-        if self._misfit(r) < FIT_TOLERANCE or not self._thorough:
-            return family, theta
-        fits = [(family, theta, r)]
-        if family is self._families[0]:
-            values = self._residuals(self._grid, trials)
-            cost = np.einsum("ij,ij->i", values, values)
-            starts = self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
-            fits += [(family, *self._levenberg_marquardt(family, g, trials)) for g in starts]
-            best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
-            if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
-                return best[0], best[1]
-            geometry = [best[1]]
-        else:
-            geometry = [theta[: self._families[0].size]]
-        for richer in self._families[1:]:
-            # The servo's parameters on their own grid, the geometry at its best fit and at the nominal.
-            n = richer.size - geometry[0].size
-            axes = [ACTUATOR_GRID[name] for name in richer.names[-n:]]
-            grid = np.array(
-                [
-                    np.concatenate([g, a])
-                    for g in [*geometry, np.zeros_like(geometry[0])]
-                    for a in itertools.product(*axes)
-                ]
-            )
-            values = self._residuals(grid, trials, richer)
-            cost = np.einsum("ij,ij->i", values, values)
-            starts = grid[np.argsort(cost, kind="stable")[:ACTUATOR_STARTS]]
-            if richer is family:
-                starts = np.vstack([theta, starts])
-            fits += [(richer, *self._levenberg_marquardt(richer, g, trials)) for g in starts]
-        best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
-        if best[0] is not self._families[0] and float(np.max(np.abs(best[2][: -best[0].size]))) > EXPLAINED:
-            # The servo does not explain the trials either (backlash, noise, another lag): its
-            # parameters would only caricature what it lacks; the geometry's fit is kept.
-            geometric = [fit for fit in fits if fit[0] is self._families[0]]
-            best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
-            self._escalations += 1
-        return best[0], best[1]
-
-    def _misfit(self, r: Array) -> float:
-        """The largest residual of the trials (the ridge left out) [m or rad]."""
-        return float(np.max(np.abs(r[: -self.family.size]), initial=0.0))
-
-    def _levenberg_marquardt(self, family: ModelFamily, theta: Array, trials: list[Trial]) -> tuple[Array, Array]:
-        return levenberg_marquardt(
-            lambda thetas: self._residuals(thetas, trials, family),
-            theta,
-            family.low,
-            family.high,
-            _FIT_ITERATIONS,
-            _HALVINGS,
-            lambda r: float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE,
-        )
 
     # the next trial -----------------------------------------------------------------------------
 
@@ -454,7 +316,7 @@ class RobustILC:
         values, ok = mismatch(c[None])
         g = values[0] if ok[0] else np.full_like(target, np.inf)
         return newton_solve(
-            mismatch, c, g, self._box, 1e-7 * self._scale, _NEWTON_ITERATIONS, _HALVINGS, 1e-2 * SOLVED, RCOND
+            mismatch, c, g, self._box, 1e-7 * self._scale, _NEWTON_ITERATIONS, HALVINGS, 1e-2 * SOLVED, RCOND
         )
 
     def _final_z(self, thetas: Array, c: Array) -> tuple[Array, Mask]:

@@ -198,10 +198,16 @@ def test_a_compare_cell_is_the_same_alone_or_after_other_cells(method, before, s
 
 @pytest.mark.slow
 @pytest.mark.parametrize("method", ids([m for m in REGISTRY if m not in COMPARE_FAST]))
-@settings(max_examples=2, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=1, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(before=st.lists(CELLS, min_size=1, max_size=3), seed=st.integers(0, 3))
 def test_an_rl_compare_cell_is_the_same_alone_or_after_other_cells(method, before, seed):
     assert_compare_cell_is_pure(method, before, seed)
+
+
+ONE_PER_FAMILY = sorted({*{spec.family: m for m, spec in reversed(list(REGISTRY.items()))}.values(), "cma_es"})
+"""One learner id per family (the first of each) and ``cma_es`` (a pull-style optimizer with the global
+random generator, the one that failed): where a cell runs (one worker or two, Ray or local) is the
+engine's business, the same for every learner of a family; the grouping tests above run every id."""
 
 
 def run_everywhere(calls, backend, workers):
@@ -213,8 +219,8 @@ def run_everywhere(calls, backend, workers):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method", ids(REGISTRY))
-@settings(max_examples=2, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@pytest.mark.parametrize("method", ids(ONE_PER_FAMILY))
+@settings(max_examples=1, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(others=st.lists(st.sampled_from(OTHERS), min_size=2, max_size=4), seed=st.integers(0, 3))
 def test_a_compare_cell_is_the_same_on_one_worker_or_two(method, others, seed):
     trials = 70 if REGISTRY[method].family == "RL" else 6  # PPO past its first update
@@ -227,7 +233,7 @@ def test_a_compare_cell_is_the_same_on_one_worker_or_two(method, others, seed):
 
 @pytest.mark.slow
 @pytest.mark.extra("ray")
-@pytest.mark.parametrize("method", ids(REGISTRY))
+@pytest.mark.parametrize("method", ids(ONE_PER_FAMILY))
 def test_a_compare_cell_is_the_same_on_ray_and_local(method):
     trials = 70 if REGISTRY[method].family == "RL" else 6
     calls = {
