@@ -13,9 +13,11 @@ perturbed by 5 %, seeded):
 - with ``--first-run``, ``ilc-steering run CONFIG`` in a fresh process with an empty numba cache
   (the first run of a fresh install, compile included) for every packaged config.
 
-    python benchmarks/robots.py [--quick] [--first-run] [--out DIR]
+    PYTHONPATH=. python benchmarks/robots.py [--quick] [--first-run] [--out DIR]
 
 writes ``robots.json``, ``robots.csv`` and ``robots.md`` to ``DIR`` (committed in ``docs/benchmarks``).
+From a checkout, put it first on the path (``PYTHONPATH=.``): a script's own folder heads
+``sys.path``, so without it the script times whichever ``ilc_steering`` the interpreter has installed.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ import pytest
 from ilc_steering.config import load_config
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.reference import lab_car_trial
-from ilc_steering.core.robots.car_fields import LAB_KERNEL
+from ilc_steering.core.robots.car_lab import LAB_KERNEL
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.errors import ConfigError
 

@@ -14,8 +14,8 @@ only knows *nominal* values; the plant (:class:`CarPlant`, ``plant.model: car``)
 
 The maths, the plant, its config keys and its drawing are plain numpy, so a learner that needs
 the map pays for no compiler; the car's compiled fields are in
-:mod:`ilc_steering.core.robots.car_fields` (the car with servos and the lab robot) and
-:mod:`ilc_steering.core.tangent` (the batched kernel), imported when a car is first simulated.
+:mod:`ilc_steering.core.robots.car_fields` (the car with servos), :mod:`ilc_steering.core.robots.car_lab`
+(the lab robot) and :mod:`ilc_steering.core.tangent` (the batched kernel), imported when a car is first simulated.
 
 The map is defined for ``|theta| < pi/2`` and ``|phi| < pi/2``. A task whose orientations do not
 fit is handled by rotating the x-y frame (the remark at the end of section 4): see
@@ -182,7 +182,7 @@ class CarPlant(FactorFamily):
       one pitch of travel at each pulse, from the true one at the start of a trial.
 
     With either on, the state has twelve entries (the lab kernel of
-    :mod:`~ilc_steering.core.robots.car_fields`); the final
+    :mod:`~ilc_steering.core.robots.car_lab`); the final
     configuration is measured externally (true pose, the servo's steering angle), as in the paper.
     """
 
@@ -304,7 +304,8 @@ class CarPlant(FactorFamily):
 
     def kernel(self) -> tuple[Kernel, Array]:
         """The batched kernel of :mod:`~ilc_steering.core.tangent`, or with a servo perturbation or
-        a lab imperfection on, the servo's or the lab's of :mod:`~ilc_steering.core.robots.car_fields`."""
+        a lab imperfection on, the servo's of :mod:`~ilc_steering.core.robots.car_fields` or the lab's of
+        :mod:`~ilc_steering.core.robots.car_lab`."""
         from ilc_steering.core.robots.car_fields import car_kernel  # numba, loaded when a car is first simulated
 
         return car_kernel(self)
