@@ -7,19 +7,20 @@ finds a wrong minimum, and Newton from the measured trial lands on a kink or off
 learner keeps the same information (the :class:`~ilc_steering.agents.base.LearnerContext` and
 each trial's measured final error, never the plant) and globalizes each of the three:
 
-1. **Global identification, in widening families** (:mod:`~ilc_steering.agents.robust_identify`). The family's parameters :math:`\theta` (a
+1. **Global identification, in widening families** (:mod:`~ilc_steering.agents.robust_identify`,
+   whose constants are named here). The family's parameters :math:`\theta` (a
    :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
-   fitted to every trial run so far by a grid over the whole family (:data:`~ilc_steering.agents.robust_identify.GRID` points per
+   fitted to every trial run so far by a grid over the whole family (``GRID`` points per
    parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
    points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
-   under which it would have stayed in the chart is penalized by :data:`~ilc_steering.agents.robust_identify.CHART_PENALTY`. When the
-   geometry leaves a trial unexplained by more than :data:`~ilc_steering.agents.robust_identify.ESCALATE`, and the robot has a
-   steering servo (the car), the families of :data:`~ilc_steering.agents.robust_identify.ACTUATOR_FAMILIES` are fitted too: the
-   geometry plus the wheel's offset, then plus the servo's first-order lag (on grids of
-   :data:`~ilc_steering.agents.robust_identify.ACTUATOR_GRID`, then Levenberg-Marquardt). The best fit is kept if it explains every
-   trial to :data:`~ilc_steering.agents.robust_identify.EXPLAINED`; otherwise the geometry's fit is (a servo family that cannot
-   explain the trials would only caricature what it lacks), and after :data:`~ilc_steering.agents.robust_identify.ESCALATIONS` such
-   failures the servo's families are no longer tried.
+   under which it would have stayed in the chart is penalized by ``CHART_PENALTY``. When the
+   geometry leaves a trial unexplained by more than ``ESCALATE``, and the robot has a steering
+   servo (the car), the families of ``ACTUATOR_FAMILIES`` are fitted too: the geometry plus the
+   wheel's offset, then plus the servo's first-order lag (on grids of ``ACTUATOR_GRID``, then
+   Levenberg-Marquardt). The best fit is kept if it explains every trial to ``EXPLAINED``;
+   otherwise the geometry's fit is (a servo family that cannot explain the trials would only
+   caricature what it lacks), and after ``ESCALATIONS`` such failures the servo's families are
+   no longer tried.
 2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
 
    .. math::
@@ -38,7 +39,7 @@ each trial's measured final error, never the plant) and globalizes each of the t
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification): the next trial
    halves the step from the best trial, and the secant is reset. A model that explains every
-   trial it is fitted to (to :data:`~ilc_steering.agents.robust_identify.FIT_TOLERANCE`) lifts the trust region: a region learned
+   trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
    :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
