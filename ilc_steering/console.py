@@ -67,7 +67,7 @@ def _bounds(below: dict[str, list[float]], index: int) -> str:
     return " / ".join(f"{values[index]:.2g}{units[name]}" for name, values in below.items())
 
 
-def _verdict(result: RunResult | CyclicRunResult, unit: str, done: int) -> None:
+def print_verdict(result: RunResult | CyclicRunResult, unit: str, done: int) -> None:
     """The lines that end a run: converged or not, its relapses, and a tolerance below the plant's scatter."""
     verdict = result.verdict
     spans = [f"{unit[:-1]} {first}" if first == last else f"{unit} {first}-{last}" for first, last in verdict.relapses]
@@ -120,7 +120,7 @@ def learn(
     clipped = sum(r.clipped for r in records)
     if clipped:
         print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
-    _verdict(result, unit, done)
+    print_verdict(result, unit, done)
     return result
 
 

@@ -20,10 +20,13 @@ the nominal path, the limits), ``commands.csv`` (the same samples as columns) an
 from __future__ import annotations
 
 import argparse
+import fcntl
 import math
+import os
 import shutil
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar
@@ -34,7 +37,7 @@ from ilc_steering import __version__
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig
 from ilc_steering.errors import ConfigError, LimitError, PlantError
-from ilc_steering.output import check_output_dir, write_atomic, write_json
+from ilc_steering.output import check_output_dir, check_output_file, open_lock, write_atomic, write_json
 from ilc_steering.readers import read_json
 from ilc_steering.runner import RunResult, learner_spec, run_ilc
 
@@ -49,10 +52,11 @@ MAX_RECORD_BYTES = 64 << 20
 class SessionPending(PlantError):
     """The replay reached a trial the robot has not run: its request is written, ``trial`` its number."""
 
-    def __init__(self, trial: int, folder: Path) -> None:
+    def __init__(self, trial: int, folder: Path, request: dict[str, Any]) -> None:
         super().__init__(f"trial {trial} is pending: its commands are in {folder}")
         self.trial = trial
         self.folder = folder
+        self.request = request
 
 
 class _Mismatch(Exception):
@@ -97,7 +101,7 @@ class _FolderCable:
             folder.mkdir(parents=True, exist_ok=True)
             write_atomic(folder / "commands.csv", _commands_csv(request))
             write_json(recorded, request)
-        raise SessionPending(k, folder)
+        raise SessionPending(k, folder, request)
 
     def close(self, kill: bool = False) -> None:
         pass
@@ -152,6 +156,8 @@ class Replay:
     pending: int | None
     pending_folder: Path | None
     refused: LimitError | None = None
+    request: dict[str, Any] | None = None
+    """The pending trial's request (its commands), if any and within the limits."""
 
 
 class Session:
@@ -163,13 +169,33 @@ class Session:
         if not path.is_file():
             raise ValueError(f"{self.folder}: not a session folder (no {SESSION}; start one with `session new`)")
         data = read_json(path, MAX_RECORD_BYTES)
-        keys = {"learner", "seed", "trials", "version"}
-        if not isinstance(data, dict) or not keys <= set(data):
-            raise ValueError(f"{path}: not a session record (it needs {sorted(keys)})")
+        kinds = {"learner": str, "seed": int, "trials": int, "version": str, "created": str}
+        if not isinstance(data, dict) or set(data) != set(kinds):
+            raise ValueError(f"{path}: not a session record (it holds exactly the keys {sorted(kinds)})")
+        for key, kind in kinds.items():
+            value = data[key]
+            least = {"seed": 0, "trials": 1}.get(key)
+            small = least is not None and isinstance(value, int) and value < least
+            if not isinstance(value, kind) or isinstance(value, bool) or small:
+                needs = f"a whole number >= {least}" if least is not None else "a string"
+                raise ValueError(f"{path}: {key} = {value!r}: needs {needs}")
         self.learner: str = data["learner"]
         self.seed: int = data["seed"]
         self.trials: int = data["trials"]
         self.config = _session_config(load_config(self.folder / CONFIG), self.folder)
+
+    @contextmanager
+    def locked(self) -> Iterator[None]:
+        """Hold the session's lock: a second command on the same session at once is refused."""
+        handle = open_lock(self.folder / ".lock")
+        try:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise ValueError(f"{self.folder}: another session command is running on it; wait for it") from None
+            yield
+        finally:
+            os.close(handle)
 
     @classmethod
     def new(cls, folder: Path, config: Path, learner: str, seed: int, trials: int | None) -> Session:
@@ -198,7 +224,7 @@ class Session:
         try:
             result = run_ilc(config, trials=self.trials, learner=self.learner, seed=self.seed)
         except SessionPending as pending:  # run_ilc keeps the trials before it, judged as run judges
-            return Replay(pending.partial, pending.trial, pending.folder)
+            return Replay(pending.partial, pending.trial, pending.folder, request=pending.request)
         except _Mismatch as mismatch:
             raise ValueError(str(mismatch)) from None
         except LimitError as refused:
@@ -244,16 +270,13 @@ class Session:
 
 def _session_config(config: SteeringConfig, folder: Path) -> SteeringConfig:
     """``config`` with its process plant answered from ``folder``; refused unless it is a process
-    plant measured for real (no simulated noise)."""
+    plant. (``simulation.measurement_noise`` adds the library's simulated noise to what is recorded,
+    as for any plant: for a simulated robot; a real robot's config leaves it out.)"""
     plant = config.plant
     if not isinstance(plant, ProcessPlantConfig):
         raise ConfigError(
             f"{config.name}: a session needs plant.model: process (the robot's nominal model, its limits and "
             f"control rate; docs/your_robot.md), got plant.model: {getattr(plant, 'model', plant)}"
-        )
-    if config.simulation.measurement_noise is not None or config.simulation.start_error is not None:
-        raise ConfigError(
-            f"{config.name}: a session measures the real robot: remove simulation.measurement_noise and start_error"
         )
     fields = {name: getattr(plant, name) for name in ("model", "command", "robot", "limits", "timeout", "control_rate")}
     return replace(config, plant=_SessionPlantConfig(**fields, folder=str(Path(folder).resolve())))
@@ -270,6 +293,17 @@ def _print_trials(result: RunResult) -> None:
         print_row(record)
 
 
+def _summary(request: dict[str, Any]) -> str:
+    """A pending trial's commands in one line: its length, the nominal end, the largest inputs."""
+    control, nominal = request["control"], request["nominal"]
+    end = ", ".join(f"{v:.4g}" for v in nominal["q"][-1])
+    peak = max(abs(v) for v in nominal["u1"]), max(abs(v) for v in nominal["u2"])
+    return (
+        f"{len(control['t'])} samples every {control['dt']:.4g} s; the nominal path ends at ({end}) "
+        f"(world frame); largest |u1| {peak[0]:.4g}, |u2| {peak[1]:.4g}"
+    )
+
+
 def _new(args: argparse.Namespace) -> int:
     session = Session.new(args.folder, args.config, args.learner, args.seed, args.trials)
     print(f"started a session of {session.learner} (seed {session.seed}, {session.trials} trials) in {session.folder}")
@@ -278,45 +312,63 @@ def _new(args: argparse.Namespace) -> int:
 
 
 def _next(args: argparse.Namespace) -> int:
-    replay = Session(args.folder).replay()
+    session = Session(args.folder)
+    with session.locked():
+        replay = session.replay(write=not args.dry_run)
     if replay.refused is not None:
         raise replay.refused
-    if replay.pending_folder is None:
-        print(f"{args.folder}: the session has run its trials; see `session status`")
+    if replay.pending_folder is None or replay.request is None:
+        print(f"{args.folder}: the session has run its {session.trials} trials; see `session status`")
         return 0
-    print(f"trial {replay.pending}: the commands are in {replay.pending_folder}/commands.csv and request.json")
+    print(f"trial {replay.pending}: {_summary(replay.request)}")
+    if args.dry_run:
+        print("(a dry run: nothing written)")
+        return 0
+    print(f"the commands are in {replay.pending_folder}/commands.csv and request.json")
     print(f"after the run: ilc-steering session record {args.folder} --final X Y THETA [PHI]")
     return 0
 
 
 def _record(args: argparse.Namespace) -> int:
     session = Session(args.folder)
-    replay = session.record(args.final)
+    with session.locked():
+        replay = session.record(args.final)
     _print_trials(replay.result)
-    last = replay.result.trials[-1]
-    print(f"recorded trial {last.trial}; next: ilc-steering session next {args.folder}")
+    print(f"recorded trial {len(replay.result.trials)}; next: ilc-steering session next {args.folder}")
     return 0
 
 
 def _withdraw(args: argparse.Namespace) -> int:
-    k = Session(args.folder).withdraw()
+    session = Session(args.folder)
+    with session.locked():
+        k = session.withdraw()
     print(f"withdrew trial {k}: it is asked again (ilc-steering session next {args.folder}), uncounted")
     return 0
 
 
 def _status(args: argparse.Namespace) -> int:
-    session = Session(args.folder)
-    replay = session.replay(write=False)
-    from ilc_steering.console import print_header
+    from ilc_steering.console import print_header, print_verdict, save
 
+    session = Session(args.folder)
+    for path, option in ((args.json, "--json"), (args.plots, "--plots")):
+        if path is not None:
+            (check_output_dir if option == "--plots" else check_output_file)(path, option)
+    with session.locked():
+        replay = session.replay(write=False)
     print_header(session.config, session.trials)
     _print_trials(replay.result)
-    verdict = replay.result.verdict
-    state = f"converged at trial {verdict.converged_at}" if verdict.converged_at is not None else "not converged"
-    pending = f"; trial {replay.pending} pending" if replay.pending is not None else ""
-    print(f"{len(replay.result.trials)} trials recorded, {state}{pending}")
-    if args.json is not None:
-        write_json(args.json, replay.result.to_json())
+    done = len(replay.result.trials)
+    print_verdict(replay.result, "trials", done)
+    scatter = replay.result.verdict.scatter
+    if scatter is not None:
+        sigma = ", ".join(f"{k} {v:.2g}" for k, v in scatter.items() if k != "dof")
+        print(
+            f"the robot's scatter as the trials tell it, per coordinate ({scatter['dof']:g} degrees of freedom): "
+            + sigma
+        )
+    pending = f"trial {replay.pending} pending" if replay.pending is not None else "every trial run"
+    print(f"{session.learner}, seed {session.seed}: {done} of {session.trials} trials recorded, {pending}")
+    save(replay.result, args.json, args.plots)
     return 0
 
 
@@ -332,6 +384,7 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     new.set_defaults(handler=_new)
     step = sub.add_parser("next", help="write the next trial's commands and say where")
     step.add_argument("folder", type=Path, metavar="DIR")
+    step.add_argument("--dry-run", action="store_true", help="show the next trial's commands, write nothing")
     step.set_defaults(handler=_next)
     record = sub.add_parser("record", help="record where the robot stopped after the pending trial")
     record.add_argument("folder", type=Path, metavar="DIR")
@@ -345,4 +398,5 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     status = sub.add_parser("status", help="the trials so far, their errors, and whether it converged")
     status.add_argument("folder", type=Path, metavar="DIR")
     status.add_argument("--json", type=Path, default=None, help="write the run's JSON here")
+    status.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the run's figures here")
     status.set_defaults(handler=_status)

@@ -8,6 +8,7 @@ the in-process run's, bit for bit. Every refused step leaves the folder as it wa
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
@@ -112,12 +113,36 @@ def test_a_replay_that_differs_from_the_record_is_refused(started: Session) -> N
         started.replay()
 
 
-def test_a_session_needs_a_process_plant_measured_for_real(tmp_path: Path) -> None:
+def test_a_session_needs_a_process_plant(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="plant.model: process"):
         Session.new(tmp_path / "a", CONFIGS / "experiment_forward.yaml", "ilc_paper", 1, None)
-    with pytest.raises(ConfigError, match="measurement_noise"):
-        Session.new(tmp_path / "b", CONFIGS / "experiment_forward_process.yaml", "ilc_paper", 1, None)
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    assert not (tmp_path / "a").exists()
+
+
+@pytest.mark.parametrize(
+    ("key", "value"), [("seed", "1"), ("seed", -1), ("trials", 0), ("trials", True), ("learner", 3), ("extra", 1)]
+)
+def test_a_session_record_edited_by_hand_is_refused_in_one_line(started: Session, key: str, value: object) -> None:
+    path = started.folder / "session.json"
+    data = json.loads(path.read_text())
+    data[key] = value
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="session.json"):
+        Session(started.folder)
+
+
+def test_two_commands_at_once_are_refused(started: Session, capsys: pytest.CaptureFixture[str]) -> None:
+    with started.locked():
+        assert main(["session", "next", str(started.folder)]) == 2
+    assert "another session command" in capsys.readouterr().err
+    assert main(["session", "next", str(started.folder)]) == 0
+
+
+def test_a_dry_run_writes_nothing(started: Session, capsys: pytest.CaptureFixture[str]) -> None:
+    before = _files(started.folder)
+    assert main(["session", "next", str(started.folder), "--dry-run"]) == 0
+    assert "trial 1:" in capsys.readouterr().out
+    assert {k: v for k, v in _files(started.folder).items() if k != ".lock"} == before
 
 
 def test_the_command_line_drives_a_session(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -130,6 +155,38 @@ def test_the_command_line_drives_a_session(tmp_path: Path, capsys: pytest.Captur
     request = json.loads((folder / "trials" / "0001" / "request.json").read_text())
     final = LabRobot(load_config("experiment_forward")).trial(request)["final"]
     assert main(["session", "record", str(folder), "--final", *map(repr, final[:3])]) == 0  # phi: the commanded
-    assert main(["session", "status", str(folder)]) == 0
-    assert "1 trials recorded" in capsys.readouterr().out
+    assert main(["session", "status", str(folder), "--json", str(tmp_path / "run.json")]) == 0
+    assert "1 of 2 trials recorded, trial 2 pending" in capsys.readouterr().out
+    assert len(json.loads((tmp_path / "run.json").read_text())["trials"]) == 1
     assert main(["session", "next", "/nonexistent/folder"]) == 2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("experiment", "learner"), [("experiment_forward", "ilc_paper"), ("experiment_parallel", "ilc_paper")]
+)
+def test_the_experiments_through_a_session_with_mario_as_a_program(
+    tmp_path: Path, experiment: str, learner: str
+) -> None:
+    """Issue 49's proof: a script plays the person, section 5's MARIO runs as a program
+    (``python -m ilc_steering.lab_robot``), the library's noise on the recorded poses from its seed;
+    the trials are the in-process run's, bit for bit."""
+    from ilc_steering.core.cable import Cable
+
+    session = Session.new(tmp_path / "s", CONFIGS / f"{experiment}_process.yaml", learner, 1, None)
+    robot = Cable([sys.executable, "-m", "ilc_steering.lab_robot", experiment], str(tmp_path))
+    try:
+        robot.send({"type": "hello", "protocol": 1, "robot": "car", "dimension": 4}, "the hello")
+        robot.receive(600.0, "the hello")
+        for _ in range(session.trials):
+            replay = session.replay()
+            if replay.request is None:
+                break
+            robot.send(replay.request, "a trial")
+            session.record(robot.receive(600.0, "a trial")["final"])
+    finally:
+        robot.close()
+    ours = session.replay(write=False).result
+    reference = run_ilc(experiment, learner=learner, seed=1)
+    assert [t.cartesian_error for t in ours.trials] == [t.cartesian_error for t in reference.trials]
+    assert ours.converged_at == reference.converged_at
