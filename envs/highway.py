@@ -11,6 +11,7 @@ chart and is refused by name. ``python -m ilc_steering.envs.highway --seed 7`` w
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from functools import lru_cache
 from math import pi
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.config.steering import check_name
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import rotate
@@ -118,7 +120,10 @@ def _task(seed: int) -> tuple[Array, Array, float, int, float]:
 def highway_config(seed: int, name: str | None = None, trials: int = 15) -> dict[str, Any]:
     """The config (as a mapping for :func:`~ilc_steering.config.load_config`) of parking-v0 ``seed``'s
     task, to 1 cm / 0.01 rad, in the frame :func:`choose_frame` finds; ``ValueError`` naming the seed
-    when one chart cannot serve it (the turn, or a nominal path past :data:`STEERING_USE` of the stop)."""
+    when one chart cannot serve it (the turn, or a nominal path past :data:`STEERING_USE` of the stop),
+    and a ``ParameterError`` (a ``ValueError``) for a ``name`` its loader would refuse (it names files)."""
+    if name is not None:
+        check_name(name)
     start, goal, frame, index, steering = _task(seed)
     pieces, v1_fixed = PROFILES[index]
     if steering > STEERING_USE * STEERING:
@@ -159,7 +164,7 @@ def _yaml(config: dict[str, Any]) -> str:
         [
             f"# parking-v0 (highway-env) seed {config['plant']['seed']}: its start and goal, read by",
             f"# python -m ilc_steering.envs.highway --seed {config['plant']['seed']}",
-            f"name: {config['name']}",
+            f"name: {json.dumps(config['name'])}",  # a JSON string is a YAML string, whatever it holds
             "plant:",
             '  model: highway_parking   # highway-env\'s car steps the trials (pip install "ilc-steering[highway]")',
             f"  seed: {config['plant']['seed']}                  # parking-v0's reset seed: the start and goal below",

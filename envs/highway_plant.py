@@ -104,7 +104,10 @@ def parking_task(seed: int) -> tuple[Array, Array]:
     """parking-v0's start and goal for ``seed`` as world configurations ``(x, y, theta, phi)`` (rear
     axle [m], heading and steering [rad], the goal's steering 0): the start's heading in
     ``(-pi, pi]``, the goal's the way nearer it. ``ValueError`` naming the seed when the turn between
-    them exceeds :data:`MAX_TURN` (one chart cannot serve it)."""
+    them exceeds :data:`MAX_TURN` (one chart cannot serve it), or when ``seed`` is not a whole
+    number >= 0 (what parking-v0's reset takes)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"parking-v0 seed {seed!r}: needs a whole number >= 0")
     env = _make_env()
     env.reset(seed=seed)
     vehicle = env.unwrapped.vehicle

@@ -9,6 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
@@ -145,3 +146,17 @@ def test_robust_ilc_parks_to_a_centimetre_within_8_trials() -> None:
     final = np.array(result.trials[-1].final_state)
     turn = np.angle(np.exp(1j * (replayed[2] - final[2])))
     np.testing.assert_allclose([*replayed[[0, 1, 3]], turn], [*final[[0, 1, 3]], 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, True, "3"])
+def test_a_seed_parking_v0_cannot_take_is_refused_where_it_enters(seed: Any) -> None:
+    with pytest.raises(ValueError, match="needs a whole number >= 0"):
+        highway_plant.parking_task(seed)
+    assert highway.main(["--seed", "-1"]) == 2
+
+
+def test_the_generator_writes_no_name_its_loader_refuses(capsys: pytest.CaptureFixture[str]) -> None:
+    assert highway.main(["--seed", "3", "--name", "a: b # c"]) == 2
+    assert "name: must be" in capsys.readouterr().err
+    assert highway.main(["--seed", "3", "--name", "spot.3"]) == 0
+    assert load_config(yaml.safe_load(capsys.readouterr().out)).name == "spot.3"

@@ -133,3 +133,11 @@ def test_committed_robustness_rows_are_recomputed_bit_for_bit(method, row):
     mine = run_row(args, method, None, row)
     for key in ("trials_to", "error", "left_chart", "nu_b", "row"):
         assert mine[key] == committed[key], key
+
+
+def test_a_learner_that_cannot_be_imported_is_refused_before_any_row(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    argv = ["sweep", "forward_parking", "--methods", "no_such_module:make", "--grid", "2", "--trials", "2"]
+    assert main([*argv, "--out", str(out)]) == 2
+    assert "cannot import it" in capsys.readouterr().err
+    assert not out.exists()

@@ -22,7 +22,7 @@ from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.schema import show
 
-__all__ = ["MIN_TRAVEL", "SteeringConfig"]
+__all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name"]
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}")
 MIN_TRAVEL = 1e-3
@@ -64,12 +64,7 @@ class SteeringConfig:
         return frame
 
     def __post_init__(self) -> None:
-        require(
-            bool(_NAME.fullmatch(self.name)),
-            "name",
-            f"must be 1-100 letters, digits, '_', '-' or '.', starting with a letter or digit (it names output files), "
-            f"got {show(self.name)}",
-        )
+        check_name(self.name)
         n = self.plant.dimension
         for key in ("measurement_noise", "start_error"):
             noise = getattr(self.simulation, key)
@@ -156,3 +151,13 @@ class SteeringConfig:
                 f"v1 covers only {travel:.3g} along z1, so W is singular (eq. 11); add a piece with a nonzero "
                 "fixed v1, as in the paper's parallel parking",
             )
+
+
+def check_name(name: str) -> None:
+    """A config's ``name``: it names output files (``ConfigError`` naming the key otherwise)."""
+    require(
+        isinstance(name, str) and bool(_NAME.fullmatch(name)),
+        "name",
+        f"must be 1-100 letters, digits, '_', '-' or '.', starting with a letter or digit (it names output files), "
+        f"got {show(name)}",
+    )

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from ilc_steering import __version__
-from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom
+from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
 from ilc_steering.engine.options import CellBound, add_cell_options, check_cell_options
@@ -144,6 +144,8 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
             raise ValueError(f"--methods {method}: RL trains a network per plant; sweep maps {tuple(mappable)}")
         if method not in REGISTRY and not is_custom(method):
             raise ValueError(f"--methods: unknown method {method!r}; choose from {mappable}")
+        if is_custom(method):
+            lookup(method)  # imported now: a factory that cannot be imported is refused before any row
     if not args.axes:
         return list(config.plant.plant().factor_names)
     _check_axes(args, config)
