@@ -41,6 +41,7 @@ from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
+from ilc_steering.errors import ConfigError
 
 __all__ = [
     "ACCELERATION",
@@ -87,7 +88,7 @@ def _make_env(render_mode: str | None = None) -> Any:
         import gymnasium as gym
         import highway_env  # registers parking-v0
     except ImportError:
-        raise ValueError('highway_parking needs highway-env: pip install "ilc-steering[highway]"') from None
+        raise ConfigError('highway_parking needs highway-env: pip install "ilc-steering[highway]"') from None
     gym.register_envs(highway_env)
     return gym.make(ENV_ID, render_mode=render_mode)
 
@@ -177,8 +178,8 @@ class HighwayParkingPlant(ExternalPlantBase):
         env.reset(seed=self.seed)
         vehicle = env.unwrapped.vehicle
         q = self._measure(vehicle)
-        if float(np.max(np.abs(q - x0))) > 1e-6:
-            raise ValueError(
+        if float(np.max(np.abs(q - x0))) > 1e-6:  # the config's task.start or start_error: bad input
+            raise ConfigError(
                 f"task.start {rotate(x0, -self.frame).tolist()} is not parking-v0 seed {self.seed}'s start "
                 f"{_pose(vehicle).tolist()}: a highway-env trial starts where parking-v0 puts the car "
                 "(no simulation.start_error)"

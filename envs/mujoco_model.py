@@ -23,6 +23,8 @@ from __future__ import annotations
 from math import atan, tan
 from typing import TYPE_CHECKING, Any
 
+from ilc_steering.errors import ConfigError
+
 if TYPE_CHECKING:  # the config's keys fill the template; the config module imports this one
     from ilc_steering.envs.mujoco_car import MujocoCarConfig
 
@@ -147,7 +149,7 @@ def _load_mujoco() -> Any:
     try:
         import mujoco
     except ImportError:
-        raise ValueError('mujoco_car needs MuJoCo: pip install "ilc-steering[mujoco]"') from None
+        raise ConfigError('mujoco_car needs MuJoCo: pip install "ilc-steering[mujoco]"') from None
     return mujoco
 
 

@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.checks import check_jitter, check_noise
-from ilc_steering.core.external import ExternalPlant
+from ilc_steering.core.external import ExternalPlant, run_external
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -262,7 +262,7 @@ class Scenario:
             x0[:] = self.x_start
         profile = self.nominals[leg].profile
         if self.external is not None:  # it runs its own trials (a disturbance was refused above)
-            return self.external.run_trials(profile, np.ascontiguousarray(x0), c, record)
+            return run_external(self.external, profile, np.ascontiguousarray(x0), c, record)
         true = self.plant if plant is None else plant
         return simulate(true, profile, np.ascontiguousarray(x0), c, self.max_step, record, parallel)
 

@@ -35,6 +35,7 @@ import numpy as np
 
 from ilc_steering import __version__
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.console import print_header, print_row, print_verdict, save
 from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig
 from ilc_steering.errors import ConfigError, LimitError, PlantError
 from ilc_steering.output import check_output_dir, check_output_file, open_lock, write_atomic, write_json
@@ -59,7 +60,7 @@ class SessionPending(PlantError):
         self.request = request
 
 
-class _Mismatch(Exception):
+class _Mismatch(PlantError):
     """A replay's request differs from the recorded one (raised through the env, refused as bad input)."""
 
 
@@ -286,13 +287,6 @@ def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
 
-def _print_trials(result: RunResult) -> None:
-    from ilc_steering.console import print_row
-
-    for record in result.trials:
-        print_row(record)
-
-
 def _summary(request: dict[str, Any]) -> str:
     """A pending trial's commands in one line: its length, the nominal end, the largest inputs."""
     control, nominal = request["control"], request["nominal"]
@@ -333,7 +327,8 @@ def _record(args: argparse.Namespace) -> int:
     session = Session(args.folder)
     with session.locked():
         replay = session.record(args.final)
-    _print_trials(replay.result)
+    for record in replay.result.trials:
+        print_row(record)
     print(f"recorded trial {len(replay.result.trials)}; next: ilc-steering session next {args.folder}")
     return 0
 
@@ -347,7 +342,6 @@ def _withdraw(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
-    from ilc_steering.console import print_header, print_verdict, save
 
     session = Session(args.folder)
     for path, option in ((args.json, "--json"), (args.plots, "--plots")):
@@ -356,7 +350,8 @@ def _status(args: argparse.Namespace) -> int:
     with session.locked():
         replay = session.replay(write=False)
     print_header(session.config, session.trials)
-    _print_trials(replay.result)
+    for record in replay.result.trials:
+        print_row(record)
     done = len(replay.result.trials)
     print_verdict(replay.result, "trials", done)
     scatter = replay.result.verdict.scatter

@@ -7,15 +7,20 @@ every call of its ``run_trials`` (a drive of a real robot), with an optional sca
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.ilc import ILCAgent
+from ilc_steering.cli import main
 from ilc_steering.core import robots
+from ilc_steering.errors import PlantError
 from ilc_steering.loop import run_trials
+from ilc_steering.runner import run_ilc
 
 HERE = Path(__file__).parent
 ENV = "ilc_steering/ChainedSteering-v0"
@@ -411,3 +416,46 @@ def test_a_bad_plant_seed_is_refused_in_one_line(seed):
     assert "\n" not in str(error.value)
     with pytest.raises(ValueError, match="plant seed"):
         plant_generator(0, seed)
+
+
+def _hostile(mode: str):
+    """``run_trials`` of a user's in-process plant gone wrong in one way (``mode``)."""
+    from ilc_steering.core.external import ExternalTrials
+
+    def run_trials(self, profile, x0, c, record=False):
+        b = c.shape[0]
+        final = np.tile(x0[:, :4], 1)
+        if mode == "raises":
+            raise ValueError("the robot's driver lost its socket")
+        if mode == "nan":
+            final[0, 0] = np.nan
+        if mode == "shape":
+            final = final[:, :3]
+        status = np.zeros(b, dtype=np.int64) + (7 if mode == "status" else 0)
+        if mode == "type":
+            return {"final": final}
+        return ExternalTrials(final, status, logs=[{} for _ in range(b)])
+
+    return run_trials
+
+
+@pytest.mark.parametrize(
+    ("mode", "says"),
+    [
+        ("raises", "run_trials raised ValueError: the robot's driver lost its socket"),
+        ("nan", "not finite"),
+        ("shape", "final states of shape (1, 3), not (1, 4)"),
+        ("status", "status [7]"),
+        ("type", "a dict, not ExternalTrials"),
+    ],
+)
+def test_a_users_in_process_plant_gone_wrong_is_named_as_the_failure(counted, monkeypatch, capsys, mode, says):
+    """Not the learner's fault ("the env refused its action"), not an internal error: the plant's, exit 4."""
+    import counted_car
+
+    monkeypatch.setattr(counted_car.CountedCarPlant, "run_trials", _hostile(mode))
+    with pytest.raises(PlantError, match=re.escape(says)) as caught:
+        run_ilc(counted(), trials=2)
+    assert "the counted car" in str(caught.value)
+    assert main(["run", str(counted()), "--trials", "2"]) == 4
+    assert "the counted car" in capsys.readouterr().err

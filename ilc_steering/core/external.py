@@ -35,8 +35,18 @@ from ilc_steering.core.checks import require
 from ilc_steering.core.plants import Kernel, PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials
+from ilc_steering.core.stepper import LEFT_CHART, OK
+from ilc_steering.errors import ConfigError, LimitError, PlantError
 
-__all__ = ["PLANT_STREAM", "ExternalPlant", "ExternalPlantBase", "ExternalTrials", "is_external", "plant_generator"]
+__all__ = [
+    "PLANT_STREAM",
+    "ExternalPlant",
+    "ExternalPlantBase",
+    "ExternalTrials",
+    "is_external",
+    "plant_generator",
+    "run_external",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -191,3 +201,44 @@ class ExternalPlantBase:
 
     def reference_field(self, profile: Any, c: Array) -> tuple[Callable[[float, Array], Array], float, Any]:
         self._refuse("reference field for solve_ivp")
+
+
+def run_external(plant: ExternalPlant, profile: InputProfile, x0: Array, c: Array, record: bool) -> ExternalTrials:
+    """``plant.run_trials`` behind the library's boundary: what the user's plant raises, and what it
+    returns that is not ``B`` trials of finite final states ``(B, state_dim)`` with a status ``OK``
+    or ``LEFT_CHART`` each (and with ``record``, ``times`` and ``states`` of matching shapes), is a
+    :class:`~ilc_steering.errors.PlantError` naming the plant; the plant's own
+    :class:`~ilc_steering.errors.PlantError`, :class:`~ilc_steering.errors.LimitError` and
+    :class:`~ilc_steering.errors.ConfigError` (bad input: a config it cannot run) pass."""
+    who = str(getattr(plant, "who", None) or getattr(plant, "name", None) or type(plant).__name__)
+    batch = c.shape[0]
+    try:
+        trials = plant.run_trials(profile, x0, c, record)
+    except (PlantError, LimitError, ConfigError):
+        raise
+    except Exception as error:
+        raise PlantError(f"{who}: run_trials raised {type(error).__name__}: {error}") from error
+
+    def refuse(problem: str) -> NoReturn:
+        raise PlantError(f"{who}: run_trials returned {problem}; the trials are not counted")
+
+    if not isinstance(trials, Trials):
+        refuse(f"a {type(trials).__name__}, not ExternalTrials")
+    final = np.asarray(trials.final)
+    if final.shape != (batch, plant.state_dim) or not np.issubdtype(final.dtype, np.number):
+        refuse(f"final states of shape {final.shape}, not ({batch}, {plant.state_dim})")
+    if not np.all(np.isfinite(final)):
+        refuse("a final state that is not finite (NaN or infinite)")
+    status = np.asarray(trials.status)
+    if status.shape != (batch,) or not np.all(np.isin(status, (OK, LEFT_CHART))):
+        refuse(f"status {status.tolist()!r}, not {batch} of OK ({OK}) or LEFT_CHART ({LEFT_CHART})")
+    if record:
+        times, states = trials.times, trials.states
+        if times is None or states is None:
+            refuse("no times or states though the trials were to be recorded")
+        times, states = np.asarray(times), np.asarray(states)
+        if times.ndim != 1 or states.shape != (batch, times.shape[0], plant.state_dim):
+            refuse(f"times {times.shape} and states {states.shape} that do not match ({batch}, len(times), state_dim)")
+    if isinstance(trials, ExternalTrials):
+        return trials
+    return ExternalTrials(trials.final, trials.status, trials.times, trials.states)
