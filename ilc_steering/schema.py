@@ -23,14 +23,24 @@ import reprlib
 import types
 import typing
 from functools import cache
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import ConfigDict, TypeAdapter, ValidationError
+from pydantic import ConfigDict, StringConstraints, TypeAdapter, ValidationError
 
 from ilc_steering.errors import ConfigError, ParameterError
 from ilc_steering.yaml_reader import Ambiguous
 
-__all__ = ["STRICT", "check_record", "validate"]
+__all__ = ["NAME_PATTERN", "STRICT", "MethodName", "Name", "check_record", "validate"]
+
+NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}"
+"""A name that names files: a config's ``name``, a scenario, a prior (1-100 letters, digits,
+``_``, ``-`` or ``.``, starting with a letter or digit)."""
+Name = Annotated[str, StringConstraints(pattern=f"^{NAME_PATTERN}$")]
+"""A record's :data:`NAME_PATTERN` field: read back, a name that would lead a path elsewhere is refused."""
+MethodName = Annotated[
+    str, StringConstraints(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.]{0,99}(:[A-Za-z_][A-Za-z0-9_.]{0,99})?$")
+]
+"""A learner id of the registry, or a user's ``module:attr``."""
 
 STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
 """How every schema reads: strict types, no unknown key, finite numbers."""

@@ -74,12 +74,14 @@ CELL_FORGERIES = {  # what is done to a cell -> the key the refusal names and it
     "a missing key": (lambda c: {k: v for k, v in c.items() if k != "budget"}, "budget: missing required key"),
     "an unknown key": (lambda c: {**c, "evil": 1}, "evil: unknown key"),
     "a list one short": (lambda c: {**c, "curve": [c["curve"][0][:1], *c["curve"][1:]]}, "curve[0]: needs 2 values"),
+    "a name leading elsewhere": (lambda c: {**c, "scenario": "../../evil"}, "scenario: String should match pattern"),
 }
 ROW_FORGERIES = {
     "a wrong type": (lambda r: {**r, "row": "0"}, "row: must be an integer"),
     "a missing key": (lambda r: {k: v for k, v in r.items() if k != "wall_s"}, "wall_s: missing required key"),
     "an unknown key": (lambda r: {**r, "evil": 1}, "evil: unknown key"),
     "a list one short": (lambda r: {**r, "trials_to": r["trials_to"][:-1]}, "trials_to: needs 3 values"),
+    "a name leading elsewhere": (lambda r: {**r, "method": "../evil"}, "method: String should match pattern"),
 }
 SWEEP_FORGERIES = {
     "a wrong type": (lambda d: {**d, "ratios": "x"}, "ratios: must be a list"),

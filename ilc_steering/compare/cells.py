@@ -27,7 +27,7 @@ from ilc_steering.core.score import true_cost
 from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 from ilc_steering.readers import read_json
-from ilc_steering.schema import check_record
+from ilc_steering.schema import MethodName, Name, check_record
 
 if TYPE_CHECKING:
     from ilc_steering.compare.args import Args
@@ -197,9 +197,9 @@ class CellRecord:
     """A cell's file (``cells/*.json``, and each of ``compare.json``'s ``cells``), as its schema:
     read back, a cell of another shape is refused naming the key (:func:`check_cell`)."""
 
-    prior: str
-    method: str
-    scenario: str
+    prior: Name
+    method: MethodName
+    scenario: Name  # names a figure's file: read back, a name leading elsewhere is refused
     seed: int
     budget: int  # [trials]
     trials: int  # run [trials]

@@ -20,11 +20,11 @@ from ilc_steering.config.sections import (
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.robots.car import frame_angle, rotate
-from ilc_steering.schema import show
+from ilc_steering.schema import NAME_PATTERN, show
 
 __all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name"]
 
-_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}")
+_NAME = re.compile(NAME_PATTERN)
 MIN_TRAVEL = 1e-3
 """[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``:
 below it ``W`` is all but singular and the ``c11`` box all but zero wide."""

@@ -28,7 +28,7 @@ from ilc_steering.loop import run_vector_trials
 from ilc_steering.oracle import SOLVED
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 from ilc_steering.readers import read_json
-from ilc_steering.schema import check_record
+from ilc_steering.schema import MethodName, check_record
 
 __all__ = [
     "MAX_GRID",
@@ -223,7 +223,7 @@ class RowRecord:
     """A row's file (``rows/*.json``), as its schema: read back, a row of another shape is refused
     naming the key (:func:`read_row`). Each list holds a value per plant of the row."""
 
-    method: str
+    method: MethodName
     nu_b: float
     row: int
     trials_to: tuple[int, ...]  # [trials] the first trial within the tolerance; 0: never
