@@ -40,7 +40,7 @@ from ilc_steering.runner import (
     RunResult,
     step_warning,
 )
-from ilc_steering.session import add_session_arguments
+from ilc_steering.session_cli import add_session_arguments
 from ilc_steering.sweep.command import add_arguments as add_sweep_arguments
 
 __all__ = ["EXIT_CODES", "main"]

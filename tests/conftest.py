@@ -25,6 +25,8 @@ EXTRAS = {
     "bo": ("botorch",),
     "ray": ("ray",),
     "highway": ("highway_env",),
+    "mujoco": ("mujoco",),
+    "rosbags": ("rosbags",),
 }
 """The modules each extra of pyproject.toml installs, as a test imports them."""
 

@@ -190,3 +190,20 @@ def test_the_experiments_through_a_session_with_mario_as_a_program(
     reference = run_ilc(experiment, learner=learner, seed=1)
     assert [t.cartesian_error for t in ours.trials] == [t.cartesian_error for t in reference.trials]
     assert ours.converged_at == reference.converged_at
+
+
+def test_a_pose_file_records_the_end_of_a_measured_trajectory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "s"
+    assert main(["session", "new", str(folder), "--config", str(_robot_config(tmp_path)), "--trials", "2"]) == 0
+    assert main(["session", "next", str(folder)]) == 0
+    request = json.loads((folder / "trials" / "0001" / "request.json").read_text())
+    x, y, theta, phi = LabRobot(load_config("experiment_forward")).trial(request)["final"]
+    odometry = tmp_path / "odometry.csv"
+    odometry.write_text(f"t,x,y,theta,phi\n0,0,0,0,0\n10,{x!r},{y!r},{theta!r},{phi!r}\n")
+    assert main(["session", "record", str(folder), "--pose-file", str(odometry), "--topic", "/odom"]) == 2
+    assert "--topic is for a ROS bag" in capsys.readouterr().err
+    assert main(["session", "record", str(folder), "--pose-file", str(odometry)]) == 0
+    result = json.loads((folder / "trials" / "0001" / "result.json").read_text())
+    assert result["final"] == [x, y, theta, phi]

@@ -213,6 +213,7 @@ FLOORS = (
         "files",
         (
             *("ilc_steering.readers", "ilc_steering.yaml_reader", "ilc_steering.schema", "ilc_steering.output"),
+            "ilc_steering.pose_files",
             *("ilc_steering.tables", "ilc_steering.figure_styles"),
         ),
     ),
@@ -238,6 +239,7 @@ FLOORS = (
             "ilc_steering.sweep",
             "ilc_steering.reproduce",
             "ilc_steering.session",
+            "ilc_steering.session_cli",
             "ilc_steering.cli",
         ),
     ),
