@@ -8,7 +8,7 @@ model (through a :class:`~ilc_steering.core.family.ModelFamily`) and the measure
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Generator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,6 +30,7 @@ __all__ = [
     "in_scatter_band",
     "law_step",
     "levenberg_marquardt",
+    "levenberg_marquardt_many",
     "measure",
     "newton_solve",
     "scatter_groups",
@@ -92,20 +93,62 @@ def levenberg_marquardt(
     iteration for the derivative). The damping starts at 1e-3 of the normal matrix's diagonal,
     is divided by 3 after a step that lowers the cost and multiplied by 4 after one that does not
     (at most ``halvings`` tries per iteration). Stops when no try lowers the cost, the step is
-    below 1e-12, or ``done(r)``.
+    below 1e-12, or ``done(r)``. :func:`levenberg_marquardt_many` of one start.
     """
+    thetas, r = levenberg_marquardt_many(residuals, theta[None], low, high, iterations, halvings, done)
+    return thetas[0], r[0]
+
+
+def levenberg_marquardt_many(
+    residuals: Callable[[Array], Array],
+    thetas: Array,
+    low: Array,
+    high: Array,
+    iterations: int,
+    halvings: int = 8,
+    done: Callable[[Array], bool] | None = None,
+) -> tuple[Array, Array]:
+    """:func:`levenberg_marquardt` from each start of ``thetas`` ``(S, size)``, the starts side by
+    side: each round, one ``residuals`` call holds what every running start asks next (its
+    derivative's probes or its next damping try). Each start runs the one start's code
+    (:func:`_levenberg_marquardt_start`) on its own rows, so its estimate and residual ``(S, size)``,
+    ``(S, R)`` are bit for bit those of :func:`levenberg_marquardt` from it alone, provided a
+    hypothesis's residual does not depend on the hypotheses beside it in the call (a simulation's
+    does not: ``tests/test_purity.py``)."""
+    runs = [_levenberg_marquardt_start(theta, low, high, iterations, halvings, done) for theta in thetas]
+    found: list[tuple[Array, Array]] = [(theta, theta) for theta in thetas]
+    asks = {i: next(run) for i, run in enumerate(runs)}
+    while asks:
+        values = residuals(np.concatenate(list(asks.values())))
+        begin, following = 0, {}
+        for i, ask in asks.items():
+            rows = values[begin : begin + len(ask)].copy()  # a fresh array, as the start alone gets
+            begin += len(ask)
+            try:
+                following[i] = runs[i].send(rows)
+            except StopIteration as stop:
+                found[i] = stop.value
+        asks = following
+    return np.array([theta for theta, _ in found]), np.array([r for _, r in found])
+
+
+def _levenberg_marquardt_start(
+    theta: Array, low: Array, high: Array, iterations: int, halvings: int, done: Callable[[Array], bool] | None
+) -> Generator[Array, Array, tuple[Array, Array]]:
+    """:func:`levenberg_marquardt` from ``theta``, as a generator: it yields the hypotheses whose
+    residuals it needs next, is sent them, and returns the estimate and its residual."""
     h, damping = 1e-6, 1e-3
     eye = np.eye(theta.size)
-    r = residuals(theta[None])[0]
+    r = (yield theta[None])[0]
     for _ in range(iterations):
-        values = residuals(np.concatenate([theta + h * eye, theta - h * eye]))
+        values = yield np.concatenate([theta + h * eye, theta - h * eye])
         J = np.ascontiguousarray((values[: theta.size] - values[theta.size :]).T) / (2 * h)
         gradient, normal = J.T @ r, J.T @ J
         improved = False
         for _ in range(halvings):
             step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), gradient)
             candidate = np.clip(theta + step, low, high)
-            r_new = residuals(candidate[None])[0]
+            r_new = (yield candidate[None])[0]
             if r_new @ r_new < r @ r:
                 theta, r, damping, improved = candidate, r_new, damping / 3, True
                 break

@@ -15,7 +15,7 @@ import itertools
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.agents.model_based import Trial, levenberg_marquardt
+from ilc_steering.agents.model_based import Trial, levenberg_marquardt_many
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
@@ -90,6 +90,7 @@ class GlobalIdentification:
         self._trials: list[Trial] = []
         self._best: Trial | None = None
         self._thorough = True
+        self._outside = False  # whether the last thorough update went on to the grid
 
     def _fit_trials(self) -> list[Trial]:
         trials = self._trials
@@ -117,21 +118,27 @@ class GlobalIdentification:
     def _identify(self) -> tuple[ModelFamily, Array]:
         """LM from the last estimate; when that does not explain the trials to :data:`FIT_TOLERANCE`,
         also from the best points of the grid over the whole family; when that does not either,
-        the families with the steering servo's parameters (the best fit of all is kept)."""
+        the families with the steering servo's parameters (the best fit of all is kept).
+
+        Where the last thorough update went on to the grid (the trials are outside the geometry's
+        family), the grid's starts run in lockstep with the last estimate's from the outset: the
+        same fits, bit for bit, in fewer and fuller calls of the kernel."""
         trials = self._fit_trials()
         family = self.family
         r = self._residuals(self.theta[None], trials)[0]
         if self._misfit(r) < FIT_TOLERANCE:  # the last estimate explains the new trial too
             return family, self.theta
-        theta, r = self._levenberg_marquardt(family, self.theta, trials)
+        ahead = family is self._families[0] and self._thorough and self._outside
+        starts = self._grid_starts(trials) if ahead else np.empty((0, family.size))
+        fits = self._levenberg_marquardt(family, np.vstack([self.theta, starts]), trials)
+        _, theta, r = fits[0]
         if self._misfit(r) < FIT_TOLERANCE or not self._thorough:
+            self._outside = self._outside and not self._thorough
             return family, theta
-        fits = [(family, theta, r)]
         if family is self._families[0]:
-            values = self._residuals(self._grid, trials)
-            cost = np.einsum("ij,ij->i", values, values)
-            starts = self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
-            fits += [(family, *self._levenberg_marquardt(family, g, trials)) for g in starts]
+            self._outside = True
+            if not ahead:
+                fits += self._levenberg_marquardt(family, self._grid_starts(trials), trials)
             best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
             if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
                 return best[0], best[1]
@@ -154,7 +161,7 @@ class GlobalIdentification:
             starts = grid[np.argsort(cost, kind="stable")[:ACTUATOR_STARTS]]
             if richer is family:
                 starts = np.vstack([theta, starts])
-            fits += [(richer, *self._levenberg_marquardt(richer, g, trials)) for g in starts]
+            fits += self._levenberg_marquardt(richer, starts, trials)
         best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
         if best[0] is not self._families[0] and float(np.max(np.abs(best[2][: -best[0].size]))) > EXPLAINED:
             # The servo does not explain the trials either (backlash, noise, another lag): its
@@ -164,17 +171,28 @@ class GlobalIdentification:
             self._escalations += 1
         return best[0], best[1]
 
+    def _grid_starts(self, trials: list[Trial]) -> Array:
+        """The :data:`GRID_STARTS` points of the geometry's grid that explain ``trials`` best."""
+        values = self._residuals(self._grid, trials)
+        cost = np.einsum("ij,ij->i", values, values)
+        return self._grid[np.argsort(cost, kind="stable")[:GRID_STARTS]]
+
     def _misfit(self, r: Array) -> float:
         """The largest residual of the trials (the ridge left out) [m or rad]."""
         return float(np.max(np.abs(r[: -self.family.size]), initial=0.0))
 
-    def _levenberg_marquardt(self, family: ModelFamily, theta: Array, trials: list[Trial]) -> tuple[Array, Array]:
-        return levenberg_marquardt(
+    def _levenberg_marquardt(
+        self, family: ModelFamily, starts: Array, trials: list[Trial]
+    ) -> list[tuple[ModelFamily, Array, Array]]:
+        """The fits ``(family, theta, r)`` of Levenberg-Marquardt from each of ``starts`` ``(S, size)``,
+        in lockstep (each bit for bit the fit from that start alone)."""
+        thetas, r = levenberg_marquardt_many(
             lambda thetas: self._residuals(thetas, trials, family),
-            theta,
+            starts,
             family.low,
             family.high,
             _FIT_ITERATIONS,
             HALVINGS,
             lambda r: float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE,
         )
+        return [(family, theta, residual) for theta, residual in zip(thetas, r)]

@@ -51,6 +51,7 @@ MAX_ACTUATOR_LAG = 0.2
 """[s] the largest steering lag of the family with actuators."""
 
 _MAX_CACHED = 4096
+_MAX_FINALS = 16384  # trials' outcomes kept per family (a few updates' worth of an identification)
 
 
 class ModelFamily:
@@ -101,6 +102,7 @@ class ModelFamily:
         self._x0 = self._nominal.initial_state(self._q0)
         self._field = self._nominal.kernel()[0]
         self._rows: dict[bytes, Array] = {}
+        self._finals: dict[bytes, tuple[Array, bool]] = {}
 
     @property
     def size(self) -> int:
@@ -139,15 +141,38 @@ class ModelFamily:
 
     def configurations_many(self, thetas: Array, c: Array) -> tuple[Array, npt.NDArray[np.bool_]]:
         """Like :meth:`configurations`, but trial ``i`` on its own plant ``thetas[i]`` ``(B, size)``:
-        many hypotheses in one compiled call."""
+        many hypotheses in one compiled call.
+
+        A trial is simulated once: its outcome is kept by its ``(theta, c)`` bytes and handed back
+        when asked again (a learner refits the same hypotheses to the same trials update after
+        update). A trial's outcome does not depend on the trials beside it in the call
+        (``tests/test_purity.py``), so a kept one is the very one a new call would compute."""
         thetas = np.atleast_2d(np.asarray(thetas, dtype=np.float64))
         c = np.ascontiguousarray(np.atleast_2d(c), dtype=np.float64)
         if thetas.shape[0] != c.shape[0]:
             raise ValueError(f"configurations_many: {thetas.shape[0]} parameter rows for {c.shape[0]} trials")
-        rows = np.array([self._row(theta) for theta in thetas])
-        x0 = np.ascontiguousarray(np.broadcast_to(self._x0, (c.shape[0], self._nominal.state_dim)))
-        trials = simulate(PlantBatch.from_rows(self._field, rows), self.model.profile, x0, c, self.max_step)
-        return self._nominal.configuration(trials.final), trials.status == OK
+        keys = [theta.tobytes() + trial.tobytes() for theta, trial in zip(thetas, c)]
+        known = self._finals
+        if len(known) + len(keys) > _MAX_FINALS:
+            known.clear()
+        new: dict[bytes, int] = {}
+        for i, key in enumerate(keys):
+            if key not in known and key not in new:
+                new[key] = i
+        if new:
+            index = list(new.values())
+            rows = np.array([self._row(thetas[i]) for i in index])
+            x0 = np.ascontiguousarray(np.broadcast_to(self._x0, (len(index), self._nominal.state_dim)))
+            trials = simulate(PlantBatch.from_rows(self._field, rows), self.model.profile, x0, c[index], self.max_step)
+            q_new, ok_new = self._nominal.configuration(trials.final), trials.status == OK
+            kept = q_new.copy()  # the caller may write into what it is handed
+            known.update((key, (kept[j], bool(ok_new[j]))) for j, key in enumerate(new))
+            if len(index) == len(keys):
+                return q_new, ok_new
+        if not keys:
+            return np.empty((0, self._q0.size)), np.empty(0, dtype=bool)
+        finals = [known[key] for key in keys]
+        return np.array([q for q, _ in finals]), np.array([ok for _, ok in finals])
 
     def _row(self, theta: Array) -> Array:
         """The kernel's parameter row of the plant ``theta`` (cached: a learner asks for the same
