@@ -42,10 +42,14 @@ MAPS: dict[str, tuple[str, tuple[tuple[str, float, float], ...], int | None]] = 
         (("steering_lag", 0.0, 0.1), ("steering_offset", -0.03, 0.03)),
         9,
     ),
+    "experiment_forward": ("experiment_forward", (), 9),
+    "experiment_parallel": ("experiment_parallel", (), 9),
 }
 """Map name: config, axes (empty: wheelbase and wheel radius, or the robot's two factors, as
 ratios 0.5-1.5 to the nominal ones; else two plant keys with their ranges) and its own grid (None:
-``--grid``; the servo car's maps are coarser, its kernel being the slowest). The lag map starts
+``--grid``; the servo car's and the lab robot's maps are coarser, their kernels being the slowest:
+section 5's experiments 1 and 2 are mapped over the lab robot's wheelbase and wheel radius, its
+other imperfections as configured). The lag map starts
 at a lag of 0 s, the lag-free car: the vector env and the oracle measure every plant of a map as
 that plant does (a lag-free car its commanded wheel angle, a lagging one its wheel's lag state),
 as the single env with that plant would (``tests/test_vector_env.py``)."""
@@ -116,6 +120,11 @@ def main(args: Args) -> list[dict[str, Any]]:
     rows = []
     for name, (config, axes, own_grid) in maps.items():
         size = grid if args.quick or own_grid is None else own_grid
+        if args.report and not (args.out / name / "sweep.json").exists():
+            print(f"{name}: not computed yet (no {args.out / name / 'sweep.json'})")
+            rows.append({"map": name, "grid": size, "axes": "-", "solvable": None})
+            rows[-1].update({k: None for m in METHODS for k in (f"{m}_of_solvable", f"{m}_median")})
+            continue
         if args.report:
             by_method = committed_lines(args.out, name)
         else:
