@@ -161,11 +161,12 @@ def test_driven_once_per_counted_trial(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.slow
 def test_robust_ilc_stays_within_a_centimetre_on_the_scatter() -> None:
-    """Each trial's friction is new: the learner cannot learn it away, but stays within 1 cm /
-    0.01 rad over the last five of 15 trials (measured: worst 6.6 mm, 3.2 mrad)."""
+    """Each trial's friction is new: the learner cannot learn it away, but holds 1 cm / 0.01 rad
+    from trial 6 at the latest (issue 48's bound) over the last five of 15 trials (run's seed 1:
+    inside at trials 2-4, out once at 12.5 mm at trial 5, inside again from trial 6)."""
     result = run_ilc(SCATTER, trials=15, learner="robust_ilc")
     errors = [(r.cartesian_error, r.orientation_error) for r in result.trials]
-    assert result.converged_at is not None and result.converged_at <= 3, errors
+    assert result.converged_at is not None and result.converged_at <= 6, errors
     assert all(e[0] <= 0.01 and e[1] <= 0.01 for e in errors[-5:]), errors
     assert max(e[0] for e in errors[-5:]) > 1e-3  # and the scatter is there
 
