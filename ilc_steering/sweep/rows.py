@@ -85,8 +85,8 @@ class SweepArgs:
     :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`."""
     axes: tuple[tuple[str, float, float], ...] = ()
     """Two plant keys with their ranges ``(key, low, high)`` [the key's unit], e.g.
-    ``("steering_offset", -0.03, 0.03)``; empty: the plant's two ``factor_names`` as ratios
-    ``low``-``high`` to the nominal ones."""
+    ``("steering_offset", -0.03, 0.03)``; empty: the plant's two ``factor_names`` as ratios to
+    the nominal ones, from ``low`` to ``high``."""
     oracle: bool = False
     """Also map where the true plant can reach the goal at all (:mod:`ilc_steering.oracle`, which
     knows the true plant: never a learner), and report every map's share of that region."""
