@@ -117,13 +117,13 @@ def _run(args: Args, name: str, config: str, axes: Any, size: int, trials: int) 
 def main(args: Args) -> list[dict[str, Any]]:
     grid, trials = (3, 6) if args.quick else (args.grid, args.trials)
     maps = dict(list(MAPS.items())[:1]) if args.quick else MAPS
-    rows = []
+    rows: list[dict[str, Any]] = []
     for name, (config, axes, own_grid) in maps.items():
         size = grid if args.quick or own_grid is None else own_grid
         if args.report and not (args.out / name / "sweep.json").exists():
             print(f"{name}: not computed yet (no {args.out / name / 'sweep.json'})")
-            rows.append({"map": name, "grid": size, "axes": "-", "solvable": None})
-            rows[-1].update({k: None for m in METHODS for k in (f"{m}_of_solvable", f"{m}_median")})
+            missing: dict[str, Any] = {"map": name, "grid": size, "axes": "-", "solvable": None}
+            rows.append(missing | {k: None for m in METHODS for k in (f"{m}_of_solvable", f"{m}_median")})
             continue
         if args.report:
             by_method = committed_lines(args.out, name)

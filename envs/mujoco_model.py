@@ -21,12 +21,9 @@ are then the same numbers by construction; ``mjcf(config)`` prints the file for 
 from __future__ import annotations
 
 from math import atan, tan
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ilc_steering.errors import ConfigError
-
-if TYPE_CHECKING:  # the config's keys fill the template; the config module imports this one
-    from ilc_steering.envs.mujoco_car import MujocoCarConfig
 
 __all__ = ["STEER_JOINT_RANGE", "WHEELS", "WHEEL_HALF_WIDTH", "MujocoSim", "ackermann", "bicycle_angle", "mjcf"]
 
@@ -119,8 +116,9 @@ STEER_ARMATURE = 1e-4
 """[kg m²] the steering gearbox's reflected inertia on each kingpin."""
 
 
-def mjcf(config: MujocoCarConfig) -> str:
-    """The car's MJCF (MuJoCo's XML) for ``config``: its geometry, contact and build (see the module)."""
+def mjcf(config: Any) -> str:
+    """The car's MJCF (MuJoCo's XML) for ``config`` (a :class:`~ilc_steering.envs.mujoco_car.MujocoCarConfig`,
+    which imports this module): its geometry, contact and build (see the module)."""
     ell, rho = config.wheelbase, config.wheel_radius
     return _MJCF.format(
         timestep=config.timestep,
@@ -156,7 +154,7 @@ def _load_mujoco() -> Any:
 class MujocoSim:
     """MuJoCo's model and data of one plant, with the addresses the adapter reads and writes."""
 
-    def __init__(self, config: MujocoCarConfig) -> None:
+    def __init__(self, config: Any) -> None:
         mujoco = _load_mujoco()
         self.mujoco = mujoco
         self.model = mujoco.MjModel.from_xml_string(mjcf(config))
@@ -167,7 +165,7 @@ class MujocoSim:
         self.wheels = [model.geom(name).id for name in WHEELS]
         self.height = self._settle(config)
 
-    def _settle(self, config: MujocoCarConfig) -> float:
+    def _settle(self, config: Any) -> float:
         """The chassis' height [m] at rest on its tyres (they sink into the soft floor): the car is
         dropped from ``rho`` and held still for 0.5 s, once per plant."""
         mujoco, data = self.mujoco, self.data

@@ -260,7 +260,7 @@ def test_resumed_cells_are_checked_against_their_key(tmp_path):
         (original[:-5], "not a readable cell"),
         ("", "not a readable cell"),
         ("[1, 2]", "not a cell"),
-        (json.dumps({**json.loads(original), "trials": "4"}), "'trials' is missing"),
+        (json.dumps({**json.loads(original), "trials": "4"}), "trials: must be an integer, got '4'"),
         (second.read_text(), "holds seed 1, not 0"),
         (json.dumps({**json.loads(original), "trials_to": {"1cm": 2}}), "'trials_to' needs"),
     ):
