@@ -58,8 +58,9 @@ class SessionPending(PlantError):
         self.request = request
 
 
-class _Mismatch(PlantError):
-    """A replay's request differs from the recorded one (raised through the env, refused as bad input)."""
+class _SessionFileError(PlantError):
+    """A session's file that the replay cannot take: unreadable, of another shape, or a request
+    other than the replay's (raised through the env, refused as bad input by :meth:`Session.replay`)."""
 
 
 class _FolderCable:
@@ -73,7 +74,16 @@ class _FolderCable:
         self._pending: dict[str, Any] | None = None
 
     def fail(self, problem: str) -> PlantError:
-        return PlantError(f"{self.name}: {problem}")
+        return _SessionFileError(f"{self.name}: {problem}")
+
+    def _read(self, path: Path) -> dict[str, Any]:
+        try:
+            data = read_json(path, MAX_RECORD_BYTES)
+        except ValueError as error:
+            raise _SessionFileError(str(error)) from None
+        if not isinstance(data, dict):
+            raise _SessionFileError(f"{path}: holds a {type(data).__name__}, not a JSON object")
+        return data
 
     def send(self, message: dict[str, Any], what: str) -> None:
         self._pending = message
@@ -85,17 +95,16 @@ class _FolderCable:
         folder = self.trials / f"{k:04d}"
         recorded = folder / "request.json"
         if recorded.exists():
-            before = read_json(recorded, MAX_RECORD_BYTES)
+            before = self._read(recorded)
             if before.get("c") != request["c"]:
-                raise _Mismatch(
+                raise _SessionFileError(
                     f"{recorded}: the replay asks trial {k} with other coefficients than the recorded ones "
                     f"({request['c']} != {before.get('c')}): the session was started by another version of the "
                     "library or of the learner, and cannot be continued by this one"
                 )
         result = folder / "result.json"
         if result.exists():
-            answer: dict[str, Any] = read_json(result, MAX_RECORD_BYTES)
-            return answer
+            return self._read(result)
         if self.write and not recorded.exists():
             folder.mkdir(parents=True, exist_ok=True)
             write_atomic(folder / "commands.csv", _commands_csv(request))
@@ -224,8 +233,8 @@ class Session:
             result = run_ilc(config, trials=self.trials, learner=self.learner, seed=self.seed)
         except SessionPending as pending:  # run_ilc keeps the trials before it, judged as run judges
             return Replay(pending.partial, pending.trial, pending.folder, request=pending.request)
-        except _Mismatch as mismatch:
-            raise ValueError(str(mismatch)) from None
+        except _SessionFileError as error:
+            raise ValueError(str(error)) from None
         except LimitError as refused:
             k = len(refused.partial.trials) + 1
             return Replay(refused.partial, k, self.folder / "trials" / f"{k:04d}", refused)
@@ -250,7 +259,7 @@ class Session:
         write_json(result, {"type": "result", "trial": before.pending, "final": values})
         try:
             return self.replay(write=False)
-        except PlantError as error:  # the pose refused (outside the workspace, ...): the session unchanged
+        except (PlantError, ValueError) as error:  # the pose refused (outside the workspace, ...): unchanged
             result.unlink()
             raise ValueError(str(error)) from None
 

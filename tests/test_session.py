@@ -207,3 +207,16 @@ def test_a_pose_file_records_the_end_of_a_measured_trajectory(
     assert main(["session", "record", str(folder), "--pose-file", str(odometry)]) == 0
     result = json.loads((folder / "trials" / "0001" / "result.json").read_text())
     assert result["final"] == [x, y, theta, phi]
+
+
+@pytest.mark.parametrize("text", ["{not json", "[1, 2]", '{"type": "result", "trial": 1, "final": "here"}'])
+def test_a_result_edited_by_hand_is_refused_naming_the_file(
+    started: Session, capsys: pytest.CaptureFixture[str], text: str
+) -> None:
+    """Bad input in the session's folder: exit 2 naming it, not the learner's fault nor the robot's."""
+    _run_robot(started, LabRobot(load_config("experiment_forward")), 1)
+    (started.folder / "trials" / "0001" / "result.json").write_text(text)
+    assert main(["session", "status", str(started.folder)]) == 2
+    err = capsys.readouterr().err
+    assert "result.json" in err or "the session's robot" in err, err
+    assert "learner" not in err
