@@ -18,7 +18,6 @@ run after.
 
 from __future__ import annotations
 
-import argparse
 import collections
 import dataclasses
 import json
@@ -31,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.tables import markdown_table, write_results
 
@@ -956,7 +956,7 @@ def main(args: Args) -> list[dict[str, str]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the first attack of each class only (CI)")
     parser.add_argument("--python", default=Args.python, help="the interpreter whose ilc_steering is attacked")
     parser.add_argument("--out", type=Path, default=Args.out)

@@ -13,7 +13,6 @@ writes ``costs.{csv,json,md}`` and ``costs_<task>_<cost>.png`` (committed in ``d
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +22,7 @@ import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.costs import NullSpaceCost
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, TaskConfig, load_config
 from ilc_steering.envs.rendering import draw_trial, draw_waypoints, setup_workspace
 from ilc_steering.envs.scenario import Scenario
@@ -161,7 +161,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the first case only, four trials")
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--trials", type=int, default=Args.trials)

@@ -13,7 +13,6 @@ writes ``disturbances.{csv,json,md}`` (committed in ``docs/disturbances``).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +24,7 @@ import gymnasium as gym
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.registry import lookup
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.loop import run_trials
@@ -124,7 +124,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one level of each, two seeds")
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--task", default=Args.task)

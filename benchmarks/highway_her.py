@@ -19,7 +19,6 @@ Resumable per training seed: each writes ``OUT/her_cells/seed{S}_steps{N}.json``
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
@@ -31,6 +30,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.output import write_atomic
 from ilc_steering.tables import markdown_table, write_results
 
@@ -186,7 +186,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--seeds", default=",".join(map(str, Args.seeds)))
     parser.add_argument("--timesteps", type=int, default=Args.timesteps)

@@ -17,7 +17,6 @@ seed) under ``OUT/cells`` as it finishes: a second call resumes from them.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from statistics import median
 from typing import Any
 
 import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.envs.highway import highway_config
 from ilc_steering.errors import ConfigError
@@ -167,7 +167,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--trials", type=int, default=Args.trials)
     parser.add_argument("--out", type=Path, default=Args.out)

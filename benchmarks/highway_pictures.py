@@ -11,13 +11,14 @@ writes ``highway_first_trial.png`` and ``highway_last_trial.png`` (committed in 
 
 from __future__ import annotations
 
-import argparse
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ilc_steering.arguments import Parser
 
 __all__ = ["Args", "main"]
 
@@ -77,7 +78,7 @@ def main(args: Args) -> list[Path]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--learner", default=Args.learner)
     parser.add_argument("--trials", type=int, default=Args.trials)

@@ -13,7 +13,6 @@ writes ``integrator.json``, ``integrator.csv`` and ``integrator.md`` to ``DIR``.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents import ILCAgent
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.reference import trial as car_trial
 from ilc_steering.envs.scenario import Scenario
@@ -117,7 +117,7 @@ def write(rows: list[dict[str, Any]], out: Path) -> None:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer step sizes, trials and repeats (CI)")
     parser.add_argument("--repeats", type=int, default=Args.repeats)
     parser.add_argument("--out", type=Path, default=Args.out)

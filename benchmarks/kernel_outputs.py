@@ -13,7 +13,6 @@ and exits 1 if any exceeds ``--tolerance`` (0: bit for bit).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.simulate import simulate
 from ilc_steering.envs.scenario import Scenario
@@ -96,7 +96,7 @@ def main(args: Args) -> int:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = Parser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--save", type=Path)
     parser.add_argument("--compare", type=Path)
     parser.add_argument("--size", type=int, default=Args.size)

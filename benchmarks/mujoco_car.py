@@ -24,7 +24,6 @@ writes ``mujoco_repeatability``, ``mujoco_learners``, ``mujoco_spread`` and ``mu
 
 from __future__ import annotations
 
-import argparse
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.runner import run_ilc
@@ -343,7 +343,7 @@ def floor_table(
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--repeats", type=int, default=Args.repeats)
     parser.add_argument("--trials", type=int, default=Args.trials)

@@ -21,7 +21,6 @@ writes ``newton_ilc.{csv,json,md}`` and ``newton_ilc_errors.png`` (committed in 
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,6 +35,7 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.base import Learner, LearnerContext, update_times
 from ilc_steering.agents.newton_ilc import NewtonILC
 from ilc_steering.agents.registry import lookup
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.loop import run_trials
@@ -261,7 +261,7 @@ def figure(rows: list[dict[str, Any]], path: Path) -> None:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="forward parking, one seed, a few trials")
     parser.add_argument("--out", type=Path, default=Args.out)
     return Args(**vars(parser.parse_args(argv)))

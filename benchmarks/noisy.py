@@ -24,7 +24,6 @@ interrupted resumes: every finished run is appended to ``noisy_runs.partial.json
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import time
@@ -33,6 +32,7 @@ from pathlib import Path
 from statistics import median
 from typing import Any
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.output import check_output_dir
 from ilc_steering.runner import run_ilc
@@ -229,7 +229,7 @@ def report(
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="two seeds, one learner, six trials")
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--seeds", type=int, default=Args.seeds)

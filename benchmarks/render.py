@@ -21,7 +21,6 @@ writes ``render.json``, ``render.csv`` and ``render.md`` to ``DIR`` (committed i
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import time
@@ -35,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.arguments import Parser
 from ilc_steering.envs.frames import HEIGHT, SNAPSHOTS, WIDTH, Scene
 from ilc_steering.envs.rendering import draw_trial, draw_waypoints, setup_workspace
 from ilc_steering.output import check_output_dir
@@ -221,7 +221,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the car and the cyclic env, few repeats (CI)")
     parser.add_argument("--repeats", type=int, default=Args.repeats, help="timing repeats; medians are reported")
     parser.add_argument("--out", type=Path, default=Args.out, help="folder for the results")

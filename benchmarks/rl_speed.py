@@ -24,7 +24,6 @@ writes ``rl_speed.{json,csv,md}`` to ``DIR``.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import time
@@ -34,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.output import check_output_dir
 from ilc_steering.tables import markdown_table, write_results
 
@@ -180,7 +180,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser = Parser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="td3 and sac, 20 and 60 trials, one repeat (CI)")
     parser.add_argument("--out", type=Path, default=Args.out, help="folder for rl_speed.{json,csv,md}")
     parser.add_argument("--algorithms", nargs="+", default=list(Args.algorithms), help="RL methods to time")

@@ -22,7 +22,6 @@ From a checkout, put it first on the path (``PYTHONPATH=.``): a script's own fol
 
 from __future__ import annotations
 
-import argparse
 import os
 import subprocess
 import sys
@@ -38,6 +37,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config, packaged_configs
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
@@ -210,7 +210,7 @@ def report(rows: list[dict[str, Any]], extra: dict[str, Any]) -> str:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a small batch and few repeats (CI)")
     parser.add_argument("--size", type=int, default=Args.size, help="trials per vector-env step")
     parser.add_argument("--repeats", type=int, default=Args.repeats, help="timing repeats; medians are reported")

@@ -13,11 +13,11 @@ The oracle knows the true plant; it is never a learner (see :mod:`ilc_steering.o
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.arguments import Parser
 from ilc_steering.sweep.command import main as sweep
 from ilc_steering.sweep.report import read_report
 from ilc_steering.sweep.rows import SweepArgs
@@ -171,7 +171,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--grid", type=int, default=Args.grid)
     parser.add_argument("--trials", type=int, default=Args.trials)

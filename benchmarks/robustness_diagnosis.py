@@ -14,7 +14,6 @@ the trailer map's lost cells (solvable, not converged) of the committed ``robust
 
 from __future__ import annotations
 
-import argparse
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.model_based import gauss_newton, levenberg_marquardt
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.family import ModelFamily
 
@@ -157,7 +157,7 @@ def main(args: Args) -> dict[str, Any]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--trailer", type=Path, default=Args.trailer)
     print(json.dumps(main(Args(**vars(parser.parse_args()))), indent=1))

@@ -32,7 +32,6 @@ writes ``throughput.json``, ``throughput.csv`` and ``throughput.md`` to ``DIR``.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import resource
@@ -48,6 +47,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.grid import steps_per_span
 from ilc_steering.core.integrate import integrate
@@ -391,7 +391,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small batches, few trials and repeats (CI)")
     parser.add_argument("--repeats", type=int, default=Args.repeats, help="timing repeats; medians are reported")
     parser.add_argument("--sizes", type=int, nargs="+", default=list(Args.sizes), help="batch sizes N")

@@ -16,7 +16,6 @@ It writes each run to ``cells-<trials>/`` as it finishes (a rerun resumes), then
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import math
@@ -26,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.output import check_output_dir, write_json
 from ilc_steering.tables import markdown_table, write_results
 
@@ -181,7 +181,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser = Parser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="two candidates, one seed, 60 trials (CI)")
     parser.add_argument("--out", type=Path, default=Args.out, help="folder for tuning.{csv,json,md}")
     parser.add_argument("--trials", type=int, default=Args.trials, help="budget of each candidate run [trials]")

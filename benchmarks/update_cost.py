@@ -20,7 +20,6 @@ writes ``update_cost[.LABEL].{csv,json,md}`` (committed in ``docs/benchmarks``).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import resource
 import subprocess
@@ -37,6 +36,7 @@ import numpy as np
 
 import ilc_steering
 from ilc_steering.agents.robust_ilc import RobustILC
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.output import check_output_dir
 from ilc_steering.runner import run_ilc
@@ -161,7 +161,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one seed of four trials per task, no reproduce")
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--seeds", type=int, default=Args.seeds)

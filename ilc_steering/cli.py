@@ -27,6 +27,7 @@ import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
+from ilc_steering.arguments import Parser
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, load_config, packaged_configs
 from ilc_steering.console import learn, save
@@ -97,7 +98,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="ilc-steering",
         description="Iterative learning control of nonholonomic robots (Oriolo, Panzieri, Ulivi 1998).",
         epilog="Exit codes: " + "; ".join(f"{code} {meaning}" for code, meaning in EXIT_CODES.items()) + ".",

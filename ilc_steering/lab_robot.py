@@ -17,13 +17,13 @@ simulated robot stopped where eqs. 4-5 break down), and a request it cannot serv
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from typing import IO, Any
 
 import numpy as np
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
 from ilc_steering.core.integrate import OK
@@ -107,7 +107,7 @@ class LabRobot:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m ilc_steering.lab_robot CONFIG``: serve trials on stdin/stdout until stdin closes."""
-    parser = argparse.ArgumentParser(description="section 5's simulated MARIO, speaking the process plant's protocol")
+    parser = Parser(description="section 5's simulated MARIO, speaking the process plant's protocol")
     parser.add_argument("config", help="a config whose plant the library simulates (path or packaged name)")
     args = parser.parse_args(argv)
     try:

@@ -101,3 +101,29 @@ def test_compare_quick_runs_every_method(quick_comparison):
         assert f"| forward_parking_noisy | {method} |" in table
     methods = len(compare.DEFAULT_METHODS)
     assert len(list((tmp_path / "cells").glob("*.json"))) == 2 * 6 * methods * 2  # priors, scenarios, methods, seeds
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        [],
+        ["bogus"],
+        ["run", "forward_parking", "--trials", "abc"],
+        ["run"],
+        ["compare", "--workers", "x"],
+        ["sweep", "forward_parking", "--grid", "x"],
+        ["session", "record", "folder", "--final", "abc", "0", "0"],
+        ["session", "record", "folder"],
+        ["session"],
+        ["current"],
+        ["tables", "docs/compare"],
+        ["plot", "run.json"],
+    ],
+)
+def test_a_bad_argument_is_one_line_naming_it_and_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as stopped:
+        main(argv)
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("ilc-steering") and ": error: " in err and err.rstrip().endswith("--help)"), err

@@ -206,7 +206,7 @@ def test_no_robot_kind_dispatch_outside_the_robots_modules():
 # is a module's or an entry's name) only modules of its own floor or below. The package's
 # __init__ is the roof: it registers the env ids by their entry strings and imports nothing.
 FLOORS = (
-    ("base", ("ilc_steering.errors", "ilc_steering.entries")),
+    ("base", ("ilc_steering.errors", "ilc_steering.entries", "ilc_steering.arguments")),
     ("core", ("ilc_steering.core",)),
     ("spaces", ("ilc_steering.boxes",)),
     (

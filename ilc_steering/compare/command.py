@@ -50,6 +50,7 @@ from typing import Any
 
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
+from ilc_steering.arguments import Parser
 from ilc_steering.compare.against import Cell, copy_committed, describe
 from ilc_steering.compare.args import MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, Args
 from ilc_steering.compare.cells import (
@@ -345,6 +346,6 @@ def from_namespace(ns: argparse.Namespace) -> Args:
 
 
 def parse(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser = Parser(description=(__doc__ or "").splitlines()[0])
     add_arguments(parser)
     return from_namespace(parser.parse_args(argv))
