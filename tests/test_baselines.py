@@ -62,8 +62,8 @@ def test_new_method_runs_in_compare_and_counts_every_env_step(method: str, step_
     assert cell["trials"] == cell["budget"] == 25
     assert step_counter[0] == 25  # probes, initial designs, deterministic trials: all counted
     assert cell["trials_to"]["10cm"] == 1  # the first trial is the nominal solution
-    package = {"crossq": "sbx-rl", "tqc": "sbx-rl", "bayes_opt": "botorch", "noisy_least_squares": "scipy"}[method]
-    assert cell["implementation"].split()[0] == package  # SBX is installed: it runs the RL methods
+    package = registry.lookup(method).package or "sbx-rl"  # SBX is installed: it runs the RL methods
+    assert cell["implementation"].split()[0] == package
 
 
 @pytest.mark.parametrize("backend", rl_settings.RL_BACKENDS)
@@ -112,7 +112,7 @@ def test_a_key_only_one_backend_knows_is_refused() -> None:
         rl_settings.check_hyperparameters("crossq", kwargs, "here")
 
 
-@pytest.mark.parametrize("algorithm", ["td3", "sac", "crossq", "tqc", "ppo"])
+@pytest.mark.parametrize("algorithm", [spec.id for spec in registry.REGISTRY.values() if spec.family == "RL"])
 @pytest.mark.slow  # JAX and torch compile a network each
 @pytest.mark.extra("rl", "rl-jax")
 def test_sbx_and_sb3_act_in_the_same_units(algorithm: str) -> None:
