@@ -3,11 +3,14 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from ilc_steering.cli import main
 from ilc_steering.compare import command as compare
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_run_writes_json_and_exits_0_when_converged(tmp_path, capsys):
@@ -41,11 +44,21 @@ def test_chained_run_prints_the_error_norm(capsys):
     assert "error norm" in capsys.readouterr().out
 
 
+def _printed(text: str) -> list[str]:
+    """What reproduce printed, but the committed file's header and where it wrote its JSON."""
+    return [line for line in text.splitlines() if not line.startswith(("#", "wrote "))]
+
+
 @pytest.mark.slow  # reproduce: six tasks and 10 seeds of two experiments
 def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, capsys):
     figures = tmp_path.parent / f"{tmp_path.name}-figures"
     assert main(["reproduce", "--json-dir", str(tmp_path), "--plots", str(figures)]) == 0
     out = capsys.readouterr().out
+    committed = (ROOT / "docs/reproduce/reproduce.txt").read_text()
+    assert _printed(out) == _printed(committed), (
+        "docs/reproduce/reproduce.txt is not what `ilc-steering reproduce` prints with this code: regenerate it "
+        "with the command on its first line"
+    )
     assert "| forward_parking | Figs. 3-6 | 4 | 4 |" in out
     assert "| parallel_parking | Figs. 11-14 | 5 | 5 |" in out
     assert "| cyclic_home_goal | Figs. 23-25 | not stated | 6 |" in out
