@@ -172,8 +172,8 @@ class HostilePerson(RuleBasedStateMachine):
         kept = path.read_bytes()
         path.write_text(edit[1])
         try:
-            if command == "withdraw" and path.name == "result.json" and self.recorded == 1:
-                return  # withdrawing the edited result is what a person would do: it is not read
+            if command == "withdraw" and edit[0].startswith("trials/"):
+                return  # withdraw reads no trial's files: it moves the last result away, as asked
             self._refused(["session", command, str(self.folder)])
         finally:
             path.write_bytes(kept)
