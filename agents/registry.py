@@ -5,7 +5,11 @@ Gymnasium keeps one ``register`` table and one ``make``; this is that table for 
 before a learner is built, and every command builds learners one way, :meth:`LearnerSpec.make`
 ``(context, budget)``: ``run --learner``, ``compare --methods``, ``sweep --methods``, the
 benchmarks and the tests. A user's factory ``module:attr`` is resolved by the same lookup,
-:func:`lookup`, into a spec of family ``"yours"``.
+:func:`lookup`, into a spec of family ``"yours"``; so is a learner an installed package names in the
+entry-point group :data:`GROUP` (``[project.entry-points."ilc_steering.learners"]`` of its
+``pyproject.toml``: ``my_method = "my_package.module:make"``), by its name, as robots are found
+(:mod:`ilc_steering.core.robots`): a string until it is named, never replacing an id of the
+library (such an entry point, or a malformed one, is skipped with a one-line warning on stderr).
 
 Adding a learner to the library is one line of :data:`REGISTRY` (and its module)::
 
@@ -23,8 +27,11 @@ them by their entry strings only, so that they may import it.
 
 from __future__ import annotations
 
+import re
+import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from typing import Any
 
 from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
@@ -33,6 +40,7 @@ from ilc_steering.entries import load_entry
 __all__ = [
     "DEFAULT_METHODS",
     "FAMILIES",
+    "GROUP",
     "METHODS",
     "REGISTRY",
     "Budgets",
@@ -40,12 +48,20 @@ __all__ = [
     "RLAlgorithm",
     "families",
     "ids",
+    "installed",
     "is_custom",
     "lookup",
 ]
 
 FAMILIES = ("model-based", "black-box", "RL", "yours")
-"""The families the comparison's figures colour by; ``yours``: a user's ``module:attr``."""
+"""The families the comparison's figures colour by; ``yours``: a user's ``module:attr`` or an
+installed package's learner (:data:`GROUP`)."""
+GROUP = "ilc_steering.learners"
+"""The entry-point group in which an installed package names its learners: ``name = "module:make"``."""
+_NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
+_ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+_INSTALLED: dict[str, tuple[str, str]] = {}  # name -> (entry, package), read once per process
+_READ: list[bool] = []
 _RL = "ilc_steering.agents.rl"
 _RL_SETTINGS = "ilc_steering.agents.rl_settings"
 _BLACKBOX = "ilc_steering.agents.blackbox"
@@ -115,7 +131,7 @@ class LearnerSpec:
     def factory(self) -> LearnerFactory:
         """The factory ``make(context)`` of a model-based or user's learner (imported now)."""
         if self.family == "yours":
-            return load_factory(self.id, self.option)
+            return load_factory(self.entry_point, self.option)
         return load_entry(self.entry_point, f"learner {self.id}")  # type: ignore[no-any-return]
 
     def expected_seconds(self, budget: int) -> float:
@@ -138,7 +154,7 @@ class LearnerSpec:
         if self.family == "RL":
             return str(load_entry(f"{_RL_SETTINGS}:implementation", self.id)(self.id))
         if self.family == "yours":
-            return self.id
+            return self.id if self.entry_point == self.id else self.summary
         if self.package is not None:
             return f"{self.package} {metadata.version(self.package)}"
         from ilc_steering import __version__
@@ -259,23 +275,56 @@ DEFAULT_METHODS = tuple(i for i, spec in REGISTRY.items() if spec.by_default)
 """What ``compare`` runs when ``--methods`` is not given."""
 
 
+def installed() -> dict[str, str]:
+    """The learners the installed packages name in :data:`GROUP`: name -> ``module:attr``, read once
+    per process (strings only: nothing is imported). An entry point whose name is an id of the
+    library, is not 1-40 lower-case letters, digits or '_', or whose value is not ``module:attr``,
+    or that names a learner another package names, is skipped with a one-line warning."""
+    if not _READ:
+        _READ.append(True)
+        try:
+            points = list(entry_points(group=GROUP))
+        except Exception as error:  # a broken distribution's metadata must not break the library
+            _skip("(installed metadata)", f"cannot be read ({type(error).__name__}: {error})")
+            points = []
+        for point in points:
+            package = getattr(getattr(point, "dist", None), "name", None) or "an unknown package"
+            where = f"{package}: {point.name} = {point.value}"
+            if point.name in REGISTRY:
+                _skip(where, f"{point.name!r} is a learner of the library, which a plugin cannot replace")
+            elif not _NAME.fullmatch(point.name) or not _ENTRY.fullmatch(point.value):
+                _skip(where, "a learner's entry point is name = 'package.module:make', its name 1-40 of a-z, 0-9, _")
+            elif _INSTALLED.get(point.name, (point.value,))[0] != point.value:
+                _skip(where, f"{point.name!r} is named already, by package {_INSTALLED[point.name][1]}")
+            else:
+                _INSTALLED[point.name] = (point.value, package)
+    return {name: entry for name, (entry, _) in _INSTALLED.items()}
+
+
+def _skip(where: str, reason: str) -> None:
+    print(f"ilc-steering: warning: learner plugin {where}: {reason}; skipped", file=sys.stderr)
+
+
 def is_custom(method: str) -> bool:
-    """A user's learner factory, ``module:attr``."""
-    return ":" in method
+    """A user's learner: a factory ``module:attr``, or an installed package's learner (:func:`installed`)."""
+    return ":" in method or method in installed()
 
 
 def lookup(name: str, option: str = "--methods") -> LearnerSpec:
-    """The spec of ``name``: a registry id, or a user's ``module:attr`` (imported now, so a factory
-    that cannot be imported is refused before the first trial). ``ValueError`` naming ``option``
-    for anything else."""
+    """The spec of ``name``: a registry id, a user's ``module:attr`` or an installed package's
+    learner (imported now, so a factory that cannot be imported is refused before the first
+    trial). ``ValueError`` naming ``option`` for anything else."""
     if name in REGISTRY:
         return REGISTRY[name]
     if isinstance(name, str) and is_custom(name):
-        spec = LearnerSpec(name, "yours", name, "custom_trials", "a user's learner", option=option)
+        entry = installed().get(name, name)
+        summary = "a user's learner" if entry == name else f"package {_INSTALLED[name][1]}'s learner {entry}"
+        spec = LearnerSpec(name, "yours", entry, "custom_trials", summary, option=option)
         spec.factory()
         return spec
     what = "learner" if option == "--learner" else "method"
-    raise ValueError(f"{option}: unknown {what} {name!r}; choose from {list(METHODS)} or give module:attr")
+    plugins = f", an installed learner {sorted(installed())}" if installed() else ""
+    raise ValueError(f"{option}: unknown {what} {name!r}; choose from {list(METHODS)}{plugins} or give module:attr")
 
 
 def families(methods: Iterable[str] = ()) -> dict[str, tuple[str, ...]]:

@@ -161,6 +161,40 @@ def test_a_learner_from_outside_runs_through_run_compare_and_sweep(tmp_path, mon
     assert list(maps) == [(spec, 1.0)] and len(maps[spec, 1.0]) == 2
 
 
+def test_an_installed_packages_learner_is_found_by_its_name(tmp_path, monkeypatch, capsys):
+    """A learner named in the entry-point group ilc_steering.learners of an installed distribution:
+    found by its name in run and compare (whose workers read the same metadata); an entry point
+    that would replace a library id, or is malformed, is skipped with one warning line each."""
+    (tmp_path / "outside_learners.py").write_text(OUTSIDE)
+    info = tmp_path / "outside_learners-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: outside-learners\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[ilc_steering.learners]\noutside = outside_learners:make\nilc = outside_learners:make\n"
+        "Bad-Name = outside_learners:make\nbroken = not an entry\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    monkeypatch.setattr(registry, "_INSTALLED", {})
+    monkeypatch.setattr(registry, "_READ", [])
+    assert registry.installed() == {"outside": "outside_learners:make"}
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 3 and "'ilc' is a learner of the library" in err and "broken = not an entry" in err
+    assert registry.lookup("ilc") is registry.REGISTRY["ilc"]
+    spec = registry.lookup("outside", "--learner")
+    assert (spec.family, spec.entry_point) == ("yours", "outside_learners:make")
+    assert spec.implementation() == "package outside-learners's learner outside_learners:make"
+    assert cli.main(["run", "forward_parking", "--learner", "outside", "--trials", "3"]) in (0, 1)
+    assert "forward_parking: 3 trials" in capsys.readouterr().out
+    args = compare.Args(
+        out=tmp_path / "c", methods=("outside",), priors=("nominal",), scenarios=("forward_parking",), seeds=(0,)
+    )
+    cells = compare.run_cells(dataclasses.replace(args, custom_trials=3, workers=1))
+    assert [c["method"] for c in cells] == ["outside"] and cells[0]["trials"] == 3
+    with pytest.raises(ValueError, match=r"an installed learner \['outside'\] or give module:attr"):
+        registry.lookup("outsider")
+
+
 def test_sweep_and_compare_run_the_same_trials_for_the_same_learner_cost_and_plant():
     """The vector form of the trial loop (sweep's rows) and the one-env form (compare's cells) give
     every trial the same action and the same true error, bit for bit, on a config with a cost."""
