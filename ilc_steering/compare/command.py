@@ -221,7 +221,7 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         runner,
         backend=args.backend,
         workers=args.workers,
-        timeout=the_plan.cell_timeout,
+        timeout=args.cell_timeout,
         inline=inline,
         before=before,
     )

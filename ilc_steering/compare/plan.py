@@ -22,7 +22,7 @@ from ilc_steering.compare.against import Cell, CommittedRun
 from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
 from ilc_steering.compare.cells import ENV_ID, budgets
 from ilc_steering.config import SteeringConfig
-from ilc_steering.engine.options import CellBound, check_cell_options
+from ilc_steering.engine.options import check_cell_options
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -52,7 +52,7 @@ def run_settings(args: Args) -> dict[str, Any]:
 
 
 @dataclass(frozen=True)
-class Plan(CellBound):
+class Plan:
     """A comparison as it will run: read by every stage, recomputed by none."""
 
     args: Args
@@ -98,9 +98,8 @@ def check_options(args: Args) -> Args:
     """Every option that needs no config: ``ValueError`` naming it: unknown or repeated priors,
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
-    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s. Returns ``args`` with the bound on
-    each cell [s] in ``cell_timeout`` (the engine's default when it was None)."""
-    args = replace(args, cell_timeout=check_cell_options(args.backend, args.workers, args.cell_timeout))
+    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s. Returns ``args``."""
+    check_cell_options(args.backend, args.workers, args.cell_timeout)
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:

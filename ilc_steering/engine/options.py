@@ -1,26 +1,25 @@
 """The options every command over cells shares: ``--backend``, ``--workers`` and ``--cell-timeout``.
 
 Declared once (:func:`add_cell_options`, one help each), checked once when a command makes its plan
-(:func:`check_cell_options`), where the cell timeout's default, :data:`DEFAULT_CELL_TIMEOUT`, is
-applied: the plan holds the bound, and :func:`~ilc_steering.engine.runs.compute_cells`,
-:func:`~ilc_steering.engine.backends.run_calls` and the workers
-(:mod:`~ilc_steering.engine.killable`) receive it as a number. A walk of ``--cell-timeout`` from the
-command line: ``cli`` parses it, the command's ``from_namespace`` puts it in its arguments, its
-plan checks it here and holds the bound, and its ``execute`` hands the bound down to the engine,
-the backend and the worker's deadline.
+(:func:`check_cell_options`, which only refuses), and the cell timeout's default,
+:data:`DEFAULT_CELL_TIMEOUT`, applied once, by the engine that keeps the time
+(:func:`~ilc_steering.engine.runs.compute_cells`). A walk of ``--cell-timeout`` from the command
+line goes one way, down, and returns nowhere: ``cli`` parses it, the command's ``from_namespace``
+puts it in its arguments (None when it is not given), its plan checks it here, and its
+``execute`` hands it down to the engine, which applies the default, then to the backend and the
+worker's deadline.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-from typing import Any
 
 __all__ = [
     "DEFAULT_CELL_TIMEOUT",
     "MAX_CELL_TIMEOUT",
-    "CellBound",
     "add_cell_options",
+    "cell_bound",
     "check_cell_options",
     "check_timeout",
     "timeout_help",
@@ -64,17 +63,20 @@ def add_cell_options(parser: argparse.ArgumentParser, what: str) -> None:
     )
 
 
-def check_cell_options(backend: str, workers: int, timeout: float | None) -> float:
-    """The shared options' rules, checked once, before any cell (``ValueError`` naming the
-    option); returns the bound on each cell [s]: ``timeout``, or :data:`DEFAULT_CELL_TIMEOUT` when
-    it is None. This is the one place the default is applied: a plan holds the bound, and the
-    engine and the workers receive a number."""
+def check_cell_options(backend: str, workers: int, timeout: float | None) -> None:
+    """The shared options' rules, checked once, before any cell: ``ValueError`` naming the option.
+    Nothing is returned: the options go on as given (``timeout`` None: the engine's default)."""
     from ilc_steering.engine.backends import check_backend, check_workers
 
     check_backend(backend)
     check_workers(workers)
-    checked = check_timeout(timeout)
-    return DEFAULT_CELL_TIMEOUT if checked is None else checked
+    check_timeout(timeout)
+
+
+def cell_bound(timeout: float | None) -> float:
+    """The bound on each cell [s]: ``timeout``, or :data:`DEFAULT_CELL_TIMEOUT` (read when called)
+    when it is None; the engine's, which keeps the time."""
+    return DEFAULT_CELL_TIMEOUT if timeout is None else float(timeout)
 
 
 def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> float | None:
@@ -85,16 +87,3 @@ def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> floa
     if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
         raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
     return float(timeout)
-
-
-class CellBound:
-    """A command's plan's bound on each cell [s] (compare's and sweep's ``Plan``): the
-    ``cell_timeout`` of its arguments, which ``plan()`` set through :func:`check_cell_options`."""
-
-    args: Any
-
-    @property
-    def cell_timeout(self) -> float:
-        bound = self.args.cell_timeout
-        assert bound is not None, "a Plan made by plan() holds the bound"
-        return float(bound)

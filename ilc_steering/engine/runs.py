@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ilc_steering.engine.backends import run_calls
-from ilc_steering.engine.options import DEFAULT_CELL_TIMEOUT
+from ilc_steering.engine.options import cell_bound
 from ilc_steering.engine.provenance import check_code, machine, provenance
 from ilc_steering.output import (
     check_output_dir,
@@ -173,20 +173,21 @@ def compute_cells(
     *,
     backend: str = "local",
     workers: int = 0,
-    timeout: float = DEFAULT_CELL_TIMEOUT,
+    timeout: float | None = None,
     inline: bool = False,
     before: Callable[[Mapping[K, Path]], None] | None = None,
 ) -> Outcome[K]:
     """Every cell of ``cells`` in ``folder`` (prepared), under its lock: the finished ones read back
     through ``cells.read``, the others computed by ``function(*cells.call(key))`` on ``backend``
     (``inline``: in this process, called as it is: a test's hook), each written as it finishes.
-    ``timeout`` [s] bounds each cell (the plan's bound:
-    :func:`~ilc_steering.engine.options.check_cell_options`). On the local backend
+    ``timeout`` [s] bounds each cell (None: the engine's default,
+    :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`, applied here). On the local backend
     the cells always run in worker processes that are killed at it, one worker included, so a
     cell stuck in compiled code or one whose learner ends its process (``os._exit``) is that
     cell's failure (:func:`~ilc_steering.engine.backends.run_calls`); on Ray the bound is a Python alarm
     in the cell's task, which a line on stderr says.
     ``before(todo)`` is called once the cells to compute are known (a message)."""
+    timeout = cell_bound(timeout)
     outcome: Outcome[K] = Outcome()
     with folder.locked():
         todo: dict[K, Path] = {}

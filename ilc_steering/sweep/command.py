@@ -37,7 +37,7 @@ from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
-from ilc_steering.engine.options import CellBound, add_cell_options, check_cell_options
+from ilc_steering.engine.options import add_cell_options, check_cell_options
 from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
@@ -65,7 +65,7 @@ Row = tuple[str, float, int]
 
 
 @dataclass(frozen=True)
-class Plan(CellBound):
+class Plan:
     """A sweep as it will run, resolved and checked once: read by every stage, recomputed by none."""
 
     args: SweepArgs
@@ -102,7 +102,7 @@ def plan(args: SweepArgs) -> Plan:
 
     config = load_config(args.config)
     names = _validate(args, config)
-    args = replace(args, cell_timeout=check_cell_options(args.backend, args.workers, args.cell_timeout))
+    check_cell_options(args.backend, args.workers, args.cell_timeout)
     gains: list[float | None] = list(args.nu_b) or [None]
     given = {config.learning.nu_b if g is None else g: g for g in gains}
     rows = tuple((m, gain, r) for m in args.methods for gain in given for r in range(args.grid))
@@ -247,7 +247,7 @@ def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]
         describe=lambda row: f"{row[0]} nu_b {gain_text(row[1])} row {row[2]}",
     )
     outcome = compute_cells(
-        folder, cells, run_row, backend=args.backend, workers=args.workers, timeout=the_plan.cell_timeout, before=oracle
+        folder, cells, run_row, backend=args.backend, workers=args.workers, timeout=args.cell_timeout, before=oracle
     )
     maps: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for method, gain, row in the_plan.rows:
