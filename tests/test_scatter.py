@@ -146,7 +146,7 @@ def _every_learner():
         yield pytest.param(name, marks=marks, id=name)
 
 
-@pytest.mark.parametrize("name", _every_learner())
+@pytest.mark.parametrize("name", list(_every_learner()))
 def test_no_learner_sends_a_failed_trial_again(name):
     """On a noisy plant whose tolerance no learner can reach (0.5 µm against 0.2 mm of measurement
     noise), no trial is followed by the same coefficients: each learner changes something."""
