@@ -71,6 +71,7 @@ oracle's unsolvable region), nor where the refit model's solvers miss a solution
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Mapping
 from typing import Any
@@ -82,7 +83,6 @@ from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.model_based import (
     Trial,
     box,
-    broyden_update,
     final_chained,
     gauss_newton,
     in_scatter_band,
@@ -90,7 +90,17 @@ from ilc_steering.agents.model_based import (
     measure,
     newton_solve,
 )
-from ilc_steering.agents.robust_identify import CHART_PENALTY, FIT_TOLERANCE, HALVINGS, GlobalIdentification
+from ilc_steering.agents.robust_identify import (
+    CHART_PENALTY,
+    FIT_TOLERANCE,
+    HALVINGS,
+    SECANT_TRIALS,
+    GlobalIdentification,
+    Secant,
+    chained_scatter,
+    fit_secant,
+)
+from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -100,9 +110,10 @@ Mask = npt.NDArray[np.bool_]
 
 HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
-THETA_CHANGE = 0.02
-"""A refit that moves ``theta`` more than this resets the secant (a smaller move, as measurement noise
-makes at every trial, keeps it: the secant is what learns what the family lacks)."""
+BAND_STEPS = 2.0
+"""A step in the scatter's band is at most this many times the longest of the last trials' steps."""
+REFIT_GAIN = 0.5
+"""A new estimate of ``theta`` is taken only if its squared misfit is below this times the old one's."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10
@@ -143,8 +154,7 @@ class RobustILC(GlobalIdentification):
         self.reset_identification()
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
-        self._D = np.zeros((self.model.dimension, self.start.size))
-        self._previous: Trial | None = None
+        self._D = Secant.none(self.model.dimension, self.start.size)
         self._radius = np.inf  # the trust region's half-width around the best trial [action scales]
         self._stalled = 0  # updates since the best error last halved
         self._reach = 1.0  # the fraction of the way to the goal aimed at while no trial stays in the chart
@@ -152,6 +162,7 @@ class RobustILC(GlobalIdentification):
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
         self._next = self.start.copy()
+        self._sigma_z: Array | None = None
 
     def act(self, observation: Any = None) -> Array:
         return self._next.copy()
@@ -175,16 +186,11 @@ class RobustILC(GlobalIdentification):
         # A learner that has stopped improving searches globally only every STALLED-th update:
         # where the true plant cannot reach the goal, that is all the search can find.
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
-        family, theta = self._identify()
-        if family is not self.family or np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
-            # The secant was learned against another model: it would only distort the new one.
-            self._D[:] = 0.0
-            self._previous = None
-        self.family, self.theta = family, theta
+        self.family, self.theta = self._refit()
         # A model that explains every trial it is fitted to is trusted whole: the trust region guards
         # against a model that does not, and one learned before the model changed would only hold back
         # the new model's answer.
-        explains = self._misfit(self._residuals(theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
+        explains = self._misfit(self._residuals(self.theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
         best = self._best
         if best is None and not ok:
             # No trial has stayed in the chart yet: aim at a point nearer the start.
@@ -192,9 +198,8 @@ class RobustILC(GlobalIdentification):
             self._next = self._solve(None, self._reach)
         elif best is not None and not trial.error < best.error:
             # Outside the trust region: it shrinks to half the failed step, and the refit model's
-            # answer from the best trial is taken within it; the secant is forgotten.
-            self._D[:] = 0.0
-            self._previous = None
+            # answer from the best trial is taken within it, the secant anchored there.
+            self._D = self._secant(best)
             self._radius = np.inf if explains else 0.5 * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
@@ -203,9 +208,24 @@ class RobustILC(GlobalIdentification):
             elif best is not None:
                 self._radius = max(self._radius, 2.0 * self._length(c - best.c))
             self._best = trial
-            self._update_secant(trial)
+            self._D = self._secant(trial)
             self._next = self._within(c, self._solve(trial, 1.0))
         self.update_seconds.append(time.perf_counter() - began)
+
+    def _refit(self) -> tuple[ModelFamily, Array]:
+        """The identification's new estimate, kept only if it explains the trials clearly better
+        (its squared misfit below :data:`REFIT_GAIN` times the old one's): a model outside every
+        family has fits of about equal misfit far apart, and a jump between them changes the
+        Jacobian the secant was learned against for nothing."""
+        family, theta = self._identify()
+        if family is self.family and np.array_equal(theta, self.theta):
+            return family, theta
+        trials = [t for t in self._fit_trials() if t.ok]
+        old, new = (
+            float(np.sum(self._residuals(th[None], trials, fam)[0][: -fam.size] ** 2))
+            for fam, th in ((self.family, self.theta), (family, theta))
+        )
+        return (family, theta) if new < REFIT_GAIN * old else (self.family, self.theta)
 
     # the scatter ---------------------------------------------------------------------------------
 
@@ -219,30 +239,45 @@ class RobustILC(GlobalIdentification):
     def _average(self, trial: Trial) -> None:
         """The next trial from the mean offset of the band's trials, on the refit model (step 4)."""
         self._thorough = False  # a local refit: the scatter, not the family, is what is left
-        self.family, self.theta = self._identify()
-        self._D[:] = 0.0
-        self._previous = None
+        self.family, self.theta = self._refit()
         self._best = trial
-        c = np.array([t.c for t in self._band])
-        z, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
-        if not np.any(ok):
+        self._D = self._secant(trial)
+        z, ok = self._final_z(self.theta[None], trial.c[None])
+        if not ok[0]:
             self._next = self._law(trial)
             return
-        d = np.mean((np.array([t.z for t in self._band]) - z)[ok], axis=0)
+        d = (trial.z if self._D.z is None else self._D.z) - self._D.A * z[0]  # the smoothed offset
         next_c, g = self._newton(trial.c, self.theta, self.model.z_goal - d, self._D, trial.c)
-        self._next = self._box(next_c) if np.all(np.isfinite(g)) else self._law(trial)
+        if not np.all(np.isfinite(g)):
+            self._next = self._law(trial)
+            return
+        # In the band a step corrects the scatter's draw: no longer than BAND_STEPS times the
+        # longest of the last trials' steps (a near-singular corrected Jacobian would send it far).
+        recent = [t.c for t in self._trials[-SECANT_TRIALS:]]
+        longest = max((self._length(b - a) for a, b in itertools.pairwise(recent)), default=0.0)
+        radius = BAND_STEPS * max(longest, 1e-6)
+        length = self._length(next_c - trial.c)
+        if length > radius:
+            next_c = trial.c + (next_c - trial.c) * (radius / length)
+        self._next = self._box(next_c)
 
     # the next trial -----------------------------------------------------------------------------
 
-    def _update_secant(self, trial: Trial) -> None:
-        previous = self._previous
-        self._previous = trial
-        if previous is None:
-            return
-        s = trial.c - previous.c
-        z, ok = self._final_z(np.tile(self.theta, (2, 1)), np.stack([trial.c, previous.c]))
-        if np.all(ok) and s @ s > 0:
-            broyden_update(self._D, s, (trial.z - z[0]) - (previous.z - z[1]))
+    def _secant(self, anchor: Trial) -> Secant:
+        """The secant correction of the refit model about ``anchor`` (:func:`fit_secant`) from the
+        anchor and the last :data:`SECANT_TRIALS` other in-chart trials."""
+        n, p = self.model.dimension, self.start.size
+        others = [t for t in self._trials[-SECANT_TRIALS - 1 :] if t.ok and t is not anchor][-SECANT_TRIALS:]
+        if not anchor.ok:
+            return Secant.none(n, p)
+        c = np.array([anchor.c, *[t.c for t in others]])
+        F, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
+        if not np.all(ok):
+            return Secant.none(n, p, anchor.z)
+        if self._sigma_z is None:
+            self._sigma_z = chained_scatter(self.family, self._goal_q, self.model)
+        found = fit_secant(F, np.array([anchor.z, *[t.z for t in others]]), (c - c[0]) / self._scale, self._sigma_z)
+        return Secant(found.A, found.D / self._scale, found.z)
 
     def _solve(self, trial: Trial | None, reach: float) -> Array:
         """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
@@ -250,10 +285,11 @@ class RobustILC(GlobalIdentification):
         model = self.model
         target = model.z_start + reach * (model.z_goal - model.z_start)
         if trial is None:
-            d, anchor, D = np.zeros_like(target), self._nominal_c, np.zeros_like(self._D)
+            d, anchor, D = np.zeros_like(target), self._nominal_c, Secant.none(*self._D.D.shape)
         else:
             z, ok = self._final_z(self.theta[None], trial.c[None])
-            d = trial.z - z[0] if ok[0] else np.zeros_like(target)
+            z_a = trial.z if self._D.z is None else self._D.z
+            d = z_a - self._D.A * z[0] if ok[0] else np.zeros_like(target)
             anchor, D = trial.c, self._D
 
         candidates = []
@@ -264,7 +300,7 @@ class RobustILC(GlobalIdentification):
         # The homotopy from the nominal model at its exact solution.
         c = self._box(model.solve(z_goal=model.z_start + reach * (model.z_goal - model.z_start)))
         for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
-            c, _ = self._newton(c, s * self.theta, target - s * d, s * D, anchor)
+            c, _ = self._newton(c, s * self.theta, target - s * d, D.part(s), anchor)
         candidates.append((c, self._mismatch(c[None], self.theta, target - d, D, anchor)[0][0]))
         norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
         pick = int(np.argmin(norms))
@@ -280,7 +316,7 @@ class RobustILC(GlobalIdentification):
             if self._thorough and min(np.linalg.norm(g) for _, g in candidates[-2:]) > SOLVED:
                 c_gn = self._box(model.solve(z_goal=target))
                 for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
-                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, s * D, anchor)
+                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, D.part(s), anchor)
                 candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
             norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
             pick = int(np.argmin(norms))
@@ -288,7 +324,7 @@ class RobustILC(GlobalIdentification):
             return self._box(c) if trial is None else self._law(trial)
         return self._box(candidates[pick][0])
 
-    def _damped(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> Array:
+    def _damped(self, c: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> Array:
         """Gauss-Newton on the model's configuration error (metres and radians, better conditioned
         than chained coordinates far from the goal) from ``c``, within the box."""
 
@@ -303,11 +339,11 @@ class RobustILC(GlobalIdentification):
         """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
         return self._box(law_step(self.model, trial))
 
-    def _mismatch(self, cs: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Mask]:
+    def _mismatch(self, cs: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> tuple[Array, Mask]:
         z, ok = self._final_z(np.tile(theta, (cs.shape[0], 1)), cs)
-        return z + (cs - anchor) @ D.T - target, ok
+        return D.A * z + (cs - anchor) @ D.D.T - target, ok
 
-    def _newton(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Array]:
+    def _newton(self, c: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> tuple[Array, Array]:
         """Newton's method on ``F(c; theta) + D (c - anchor) = target`` from ``c``, staying in the
         model's chart; returns the last iterate and its mismatch."""
 
