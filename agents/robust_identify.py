@@ -72,7 +72,7 @@ SECANT_SCATTER = (2e-3, 4e-3)
 angles (for a robot without a pose, the first for every coordinate)."""
 SECANT_CURVATURE = 1.0
 """[chained units per action scale squared] a step's linearization error over its length squared."""
-SECANT_PRIOR = 10.0
+SECANT_PRIOR = 3.0
 """[chained units per action scale] the prior size of an entry of the Jacobian's correction ``D``."""
 GAIN_PRIOR = 1.0
 """The prior size of ``A - 1``, the correction of the refit model's gain per chained coordinate."""

@@ -241,12 +241,17 @@ class RobustILC(GlobalIdentification):
         self._thorough = False  # a local refit: the scatter, not the family, is what is left
         self.family, self.theta = self._refit()
         self._best = trial
-        self._D = self._secant(trial)
-        z, ok = self._final_z(self.theta[None], trial.c[None])
-        if not ok[0]:
+        if len(self._band) == 1 or self._D.z is None:
+            # Entering the band: the secant as the trials before it taught it, kept while in the band
+            # (steps of the scatter's size would fit only the scatter's draws).
+            self._D = self._secant(trial)
+        c = np.array([t.c for t in self._band])
+        z, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
+        if not np.any(ok):
             self._next = self._law(trial)
             return
-        d = (trial.z if self._D.z is None else self._D.z) - self._D.A * z[0]  # the smoothed offset
+        local = self._D.A * z + (c - trial.c) @ self._D.D.T  # the refit model with the secant, about this trial
+        d = np.mean((np.array([t.z for t in self._band]) - local)[ok], axis=0)
         next_c, g = self._newton(trial.c, self.theta, self.model.z_goal - d, self._D, trial.c)
         if not np.all(np.isfinite(g)):
             self._next = self._law(trial)
