@@ -78,6 +78,8 @@ GAIN_PRIOR = 1.0
 """The prior size of ``A - 1``, the correction of the refit model's gain per chained coordinate."""
 MAX_GAIN = 4.0
 """The gains ``A`` stay within this factor of 1."""
+REFIT_GAIN = 0.5
+"""A new estimate of ``theta`` is taken only if its squared misfit is below this times the old one's."""
 _FIT_ITERATIONS = 20
 
 
@@ -194,6 +196,21 @@ class GlobalIdentification:
             best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
             self._escalations += 1
         return best[0], best[1]
+
+    def _refit(self) -> tuple[ModelFamily, Array]:
+        """The identification's new estimate, kept only if it explains the trials clearly better
+        (its squared misfit below :data:`REFIT_GAIN` times the old one's): a model outside every
+        family has fits of about equal misfit far apart, and a jump between them changes the
+        Jacobian the secant was learned against for nothing."""
+        family, theta = self._identify()
+        if family is self.family and np.array_equal(theta, self.theta):
+            return family, theta
+        trials = [t for t in self._fit_trials() if t.ok]
+        old, new = (
+            float(np.sum(self._residuals(th[None], trials, fam)[0][: -fam.size] ** 2))
+            for fam, th in ((self.family, self.theta), (family, theta))
+        )
+        return (family, theta) if new < REFIT_GAIN * old else (self.family, self.theta)
 
     def _grid_starts(self, trials: list[Trial]) -> Array:
         """The :data:`GRID_STARTS` points of the geometry's grid that explain ``trials`` best."""

@@ -21,24 +21,38 @@ each trial's measured final error, never the plant) and globalizes each of the t
    otherwise the geometry's fit is (a servo family that cannot explain the trials would only
    caricature what it lacks), and after ``ESCALATIONS`` such failures the servo's families are
    no longer tried.
-2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
+   A new fit replaces the last one only if its squared misfit is below ``REFIT_GAIN`` times the
+   last one's: outside every family, fits of about equal misfit lie far apart (parallel parking on
+   the simulated lab robot: a wheelbase ratio at the bound 2 and at 0.83), and a jump between them
+   would change the Jacobian the secant below was fitted against for nothing.
+2. **Continuation on a secant-corrected model.** The next coefficients solve the refit model
+   corrected by what the trials teach near the best trial :math:`c_b`,
 
    .. math::
 
-       F(c; \hat\theta) + d + D (c - c_b) = z^d, \qquad d = z_b - F(c_b; \hat\theta),
+       A \odot \bigl(F(c; \hat\theta) - F(c_b; \hat\theta)\bigr) + D (c - c_b) + \hat z_b = z^d,
 
-   (:math:`c_b, z_b` the best trial, :math:`D` a Broyden secant of the residual, as in
-   ``newton_ilc``) by Newton's method from the best trial; when that leaves a mismatch, by
-   Gauss-Newton's minimum-norm steps on the configuration error (the pseudo-inverse moves the
-   spare coefficients least where ``W`` is near-singular, as with parallel parking's symmetric
-   ``v1``; :func:`~ilc_steering.agents.model_based.gauss_newton`) from the best candidate and from
-   the nominal solution, and then along a homotopy that starts where the answer is known: the
-   nominal model at its exact solution (:math:`\theta = 0, d = 0`), :math:`\theta` and :math:`d`
-   moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved from the last. The
-   candidate nearest the goal is kept.
+   (:class:`~ilc_steering.agents.robust_identify.Secant`, fitted by
+   :func:`~ilc_steering.agents.robust_identify.fit_secant` to the best trial and the last
+   ``SECANT_TRIALS`` others): per chained coordinate a weighted ridge regression of what the model
+   leaves, :math:`z_i - F(c_i) = b + (A - 1)(F(c_i) - F(c_b)) + D (c_i - c_b)`, with :math:`A` a
+   gain (prior 1, within a factor ``MAX_GAIN``), :math:`D` a Jacobian correction (prior 0, of size
+   ``SECANT_PRIOR`` per action scale) and :math:`\hat z_b = F(c_b) + b` the best trial's outcome
+   as the nearby trials smooth it. A trial's equation is weighted by
+   :math:`1/\sqrt{\sigma^2 + (\kappa |s|^2)^2}` (``SECANT_SCATTER`` through the nominal map for
+   :math:`\sigma`, ``SECANT_CURVATURE`` for :math:`\kappa`, :math:`s` its step from :math:`c_b` in
+   action scales): far trials, where the plant is not linear, and steps within the scatter, which
+   measure only its draw, teach little. The equation is solved by Newton's method from the best
+   trial; when that leaves a mismatch, by Gauss-Newton's minimum-norm steps on the configuration
+   error (the pseudo-inverse moves the spare coefficients least where ``W`` is near-singular, as
+   with parallel parking's symmetric ``v1``; :func:`~ilc_steering.agents.model_based.gauss_newton`)
+   from the best candidate and from the nominal solution, and then along a homotopy that starts
+   where the answer is known: the nominal model at its exact solution (:math:`\theta = 0`, no
+   correction), :math:`\theta`, the offset and the correction moved to their estimates in
+   :data:`HOMOTOPY_STEPS` steps, each solved from the last. The candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
-   one so far is not learned from as a step (it still enters the identification): the next trial
-   halves the step from the best trial, and the secant is reset. A model that explains every
+   one so far is not learned from as a step (it still enters the identification and the secant):
+   the next trial halves the step from the best trial. A model that explains every
    trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
@@ -47,26 +61,35 @@ each trial's measured final error, never the plant) and globalizes each of the t
 
 4. **The plant's scatter.** As ``newton_ilc`` (its step 5): once the scatter can be estimated
    from the trials' residuals against the refit model and a trial lands within
-   :data:`~ilc_steering.agents.model_based.BAND` times it, the learner averages. The offset
-   :math:`d` is the mean over the trials since it entered the band, :math:`D = 0`, no global
-   search runs, and the next trial is the refit model's Newton solution from the last one, with
-   no trust region: in the band the measured error is mostly the scatter's draw, and a trust
-   region on it would only freeze the learner at its luckiest trial. A trial beyond twice the
+   :data:`~ilc_steering.agents.model_based.BAND` times it, the learner averages. The secant is
+   the one fitted on entering the band and kept while in it (steps of the scatter's size would
+   fit only its draws); the offset is the mean over the band's trials of what the corrected model
+   leaves, no global search runs, and the next trial is the corrected model's Newton solution from
+   the last one, with no trust region on the measured error (in the band it is mostly the
+   scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
+   but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
    band ends the averaging. A plant that repeats itself never enters it.
 
-**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0` and
-:math:`d = 0`: one update lands on the goal to the integrator's accuracy, as ``newton_ilc`` does
-(``tests/test_robust_ilc.py``). Inside a family (the geometry's, or a car's with its steering
-offset and lag) the trials identify the plant once they give more equations than the family
-has unknowns and the grid finds the basin (one in-chart trial for the geometry, two or three for
-the servo's four parameters), and the next trial solves the identified model, which is the plant:
-it lands on the goal whenever the model's solvers find a solution. Outside every family (backlash,
-encoder dead reckoning, a speed loop, measurement noise) nothing is identified exactly: the
-geometry's fit, the residual :math:`d` and the secant :math:`D` give a quasi-Newton iteration on
-the measured error, which converges locally (linearly, at the rate the secant's and the
-model's Jacobian errors allow) but is not guaranteed from far, and noise of the measured errors
-bounds how close it gets. It cannot converge where the true plant cannot reach the goal (the
-oracle's unsolvable region), nor where the refit model's solvers miss a solution the plant has.
+**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0`, the
+trials' residuals are 0, so :math:`A = 1`, :math:`D = 0` and the offset is 0: one update lands on
+the goal to the integrator's accuracy, as ``newton_ilc`` does (``tests/test_robust_ilc.py``).
+Inside a family (the geometry's, or a car's with its steering offset and lag) the trials identify
+the plant once they give more equations than the family has unknowns and the grid finds the basin
+(one in-chart trial for the geometry, two or three for the servo's four parameters), the residuals
+vanish again, and the next trial solves the identified model, which is the plant: it lands on the
+goal whenever the model's solvers find a solution. Outside every family (backlash, encoder dead
+reckoning, a speed loop, measurement noise) nothing is identified exactly, and the secant is what
+learns: a multi-secant quasi-Newton iteration on the measured outcome. It assumes that the plant is
+close to affine over the last trials' steps (the curvature weight) and that the model's Jacobian is
+right up to a gain per chained coordinate and a correction of size ``SECANT_PRIOR``; each trial
+adds one equation per coordinate, so it needs about as many trials near the goal as there are
+coefficients before the correction is determined, and converges linearly until then. Where it
+cannot: far from the goal, where the plant's map is not smooth at the trials' scale (the simulated
+lab robot's dead-reckoned heading and backlash: even the plant's own local Jacobian at a trial
+40 mm off sends a Newton step to 140 mm), the first trials improve by about half each; a scatter
+larger than ``SECANT_SCATTER`` makes the correction fit its draws (a ridge prior, and the band's
+frozen secant, bound that); and it cannot converge where the true plant cannot reach the goal (the
+oracle's unsolvable region), nor where the corrected model's solvers miss a solution the plant has.
 """
 
 from __future__ import annotations
@@ -100,7 +123,6 @@ from ilc_steering.agents.robust_identify import (
     chained_scatter,
     fit_secant,
 )
-from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -112,8 +134,6 @@ HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
 BAND_STEPS = 2.0
 """A step in the scatter's band is at most this many times the longest of the last trials' steps."""
-REFIT_GAIN = 0.5
-"""A new estimate of ``theta`` is taken only if its squared misfit is below this times the old one's."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10
@@ -211,21 +231,6 @@ class RobustILC(GlobalIdentification):
             self._D = self._secant(trial)
             self._next = self._within(c, self._solve(trial, 1.0))
         self.update_seconds.append(time.perf_counter() - began)
-
-    def _refit(self) -> tuple[ModelFamily, Array]:
-        """The identification's new estimate, kept only if it explains the trials clearly better
-        (its squared misfit below :data:`REFIT_GAIN` times the old one's): a model outside every
-        family has fits of about equal misfit far apart, and a jump between them changes the
-        Jacobian the secant was learned against for nothing."""
-        family, theta = self._identify()
-        if family is self.family and np.array_equal(theta, self.theta):
-            return family, theta
-        trials = [t for t in self._fit_trials() if t.ok]
-        old, new = (
-            float(np.sum(self._residuals(th[None], trials, fam)[0][: -fam.size] ** 2))
-            for fam, th in ((self.family, self.theta), (family, theta))
-        )
-        return (family, theta) if new < REFIT_GAIN * old else (self.family, self.theta)
 
     # the scatter ---------------------------------------------------------------------------------
 
