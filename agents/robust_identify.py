@@ -205,7 +205,7 @@ class GlobalIdentification:
         family, theta = self._identify()
         if family is self.family and np.array_equal(theta, self.theta):
             return family, theta
-        trials = [t for t in self._fit_trials() if t.ok]
+        trials = self._fit_trials()  # a halted trial counts by its chart penalty
         old, new = (
             float(np.sum(self._residuals(th[None], trials, fam)[0][: -fam.size] ** 2))
             for fam, th in ((self.family, self.theta), (family, theta))

@@ -52,7 +52,7 @@ each trial's measured final error, never the plant) and globalizes each of the t
    :data:`HOMOTOPY_STEPS` steps, each solved from the last. The candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification and the secant):
-   the next trial halves the step from the best trial. A model that explains every
+   the next step from the best trial is no longer than the failed one (``SHRINK``). A model that explains every
    trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
@@ -132,6 +132,9 @@ Mask = npt.NDArray[np.bool_]
 
 HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
+SHRINK = 1.0
+"""After a trial worse than the best, the next step from the best is at most this times the failed one's
+length (the failed trial has entered the secant: halving it, as before the secant, cost a trial)."""
 BAND_STEPS = 2.0
 """A step in the scatter's band is at most this many times the longest of the last trials' steps."""
 STALLED = 4
@@ -217,10 +220,10 @@ class RobustILC(GlobalIdentification):
             self._reach *= 0.5
             self._next = self._solve(None, self._reach)
         elif best is not None and not trial.error < best.error:
-            # Outside the trust region: it shrinks to half the failed step, and the refit model's
+            # Outside the trust region: it shrinks to the failed step (SHRINK), and the refit model's
             # answer from the best trial is taken within it, the secant anchored there.
             self._D = self._secant(best)
-            self._radius = np.inf if explains else 0.5 * self._length(c - best.c)
+            self._radius = np.inf if explains else SHRINK * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
             if explains:
