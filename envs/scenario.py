@@ -147,6 +147,11 @@ class Scenario:
     ) -> Scenario:
         """Every domain object of ``config``, built once (the config checked each rule on loading);
         ``measurement_noise``, ``start_error`` and ``parameter_jitter`` replace the config's if given."""
+        if config.is_segmented:  # one scenario per segment: config.segment_configs()
+            raise ValueError(
+                f"{config.name}: a manoeuvre of several segments (task.segments); "
+                "it runs in ilc_steering/SegmentedSteering-v0 (ilc-steering run), one scenario per segment"
+            )
         points = np.array([point for _, point in config.points()], dtype=np.float64)
         # the arguments win over the config's, 0 included
         simulation = config.simulation
