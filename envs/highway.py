@@ -24,7 +24,7 @@ from ilc_steering.config.steering import check_name
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import rotate
-from ilc_steering.envs.highway_plant import LENGTH, STEERING, nominal_map, parking_task
+from ilc_steering.envs.highway_plant import STEERING, inside_lot, nominal_map, parking_task
 
 __all__ = ["PROFILES", "choose_frame", "highway_config", "main", "nominal_path"]
 
@@ -53,9 +53,10 @@ STEERING_USE = 1.0
 STEERING_SPARE = 0.1
 """The fraction of the stop a profile's path leaves spare for :func:`choose_frame` to take it before
 the later (longer) profiles."""
-LOT = (35.0 - 3.0, 21.0 - 3.0)
-"""[m] the half-sizes of parking-v0's walled lot less the car's half-diagonal and the wall's half-width:
-the box the car's centre must stay in."""
+PATH_MARGIN = 1.5
+"""[m] how far inside the lot's walls the car's outline must stay along a task's nominal path: the
+learned paths stray from it, and a trial whose outline comes within
+:data:`~ilc_steering.envs.highway_plant.WALL_MARGIN` of a wall is a failed one."""
 
 
 def _profile(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> Any:
@@ -84,7 +85,7 @@ def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
     """The task frame [rad] and the profile (an index of :data:`PROFILES`) for a task, and the
     steering angle [rad] its nominal path (:func:`nominal_path`) needs: for each profile in turn,
     the frame whose path needs the least steering while it stays :data:`CHART_SLACK` inside the
-    chart and its centre inside :data:`LOT`; the first profile whose path keeps
+    chart and the car's outline :data:`PATH_MARGIN` inside the lot's walls; the first profile whose path keeps
     :data:`STEERING_SPARE` of the stop spare, else the one that steers least (``inf``: no frame
     keeps any path in)."""
     edge = pi / 2 - CHART_SLACK
@@ -97,9 +98,7 @@ def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
             for frame in np.arange(low, high + 1e-12, FRAME_GRID):
                 path = nominal_path(start, goal, float(frame), profile)
                 theta = path[:, 2] - frame
-                heading = np.stack([np.cos(path[:, 2]), np.sin(path[:, 2])], axis=-1)
-                centre = path[:, :2] + 0.5 * LENGTH * heading
-                inside = bool(np.all(np.abs(theta) < edge) and np.all(np.abs(centre) < LOT))
+                inside = bool(np.all(np.abs(theta) < edge) and np.all(inside_lot(path, PATH_MARGIN)))
                 steering = float(np.max(np.abs(path[:, 3])))
                 if inside and steering < mine[2]:
                     mine = (float(frame), index, steering)

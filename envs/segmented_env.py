@@ -28,13 +28,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.external import ExternalTrials, is_external
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.score import TRUE_KEYS
@@ -51,12 +52,20 @@ from ilc_steering.envs.steering_env import (
     trial_info,
 )
 
-__all__ = ["SegmentView", "SegmentedSteeringEnv"]
+__all__ = ["Carried", "SegmentView", "SegmentedSteeringEnv"]
 
 Array = npt.NDArray[np.float64]
 
 WORST = ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS)
 """The errors of a trial that are the worst over its segments' ends (every waypoint counted)."""
+
+
+@runtime_checkable
+class Carried(Protocol):
+    """An external plant's optional part for a manoeuvre: ``carry_on()``, after which its next trial
+    (the next segment) goes on from where the car stands instead of resetting it."""
+
+    def carry_on(self) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -161,11 +170,17 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 f"{self.config.name}: SegmentedSteeringEnv needs task.segments beside task.start; "
                 "use ilc_steering/ChainedSteering-v0 for one segment"
             )
-        self._segments = [Scenario.from_config(c, measurement_noise) for c in self.config.segment_configs()]
+        plant = self.config.plant.plant()  # one car for every segment
+        if is_external(plant) and not isinstance(plant, Carried):
+            raise ValueError(
+                f"{self.config.name}: plant.model {self.config.plant.model} resets for every trial and cannot go "
+                "on from where a segment left it (an external plant needs carry_on() for a manoeuvre)"
+            )
+        self._segments = [
+            Scenario.from_config(c, measurement_noise, plant=plant) for c in self.config.segment_configs()
+        ]
         for scenario in self._segments:
             scenario.refuse_disturbances("the segmented env")
-            if scenario.external is not None:
-                raise ValueError(f"{self.config.name}: the segmented env does not yet run an external plant")
         frames = {s.frame for s in self._segments}
         if len(frames) > 1 and self._segments[0].plant.state_dim > 6:
             raise ValueError(
@@ -232,8 +247,12 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 infos.append(trial_info(measured, applied, requested))
                 x = x0[0]  # type: ignore[index]
                 continue
+            if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
+                scenario.external.carry_on()
             trials = scenario.run(applied[None], x0, record)
             infos.append(trial_info(scenario.measure(trials.final, trials.status, noise=noise), applied, requested))
+            if isinstance(trials, ExternalTrials):  # what the external plant logged (its actions, a crash)
+                infos[-1]["plant"] = trials.logs[0]
             x = trials.final[0]
             halted = infos[-1]["left_chart"]
             if record:
@@ -259,6 +278,14 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             clipped=any(i["clipped"] for i in infos),
             segments=[{k: v for k, v in i.items() if k not in TRUE_KEYS} for i in infos],
         )
+        logs = [i["plant"] for i in infos if "plant" in i]
+        if logs:  # one log for the trial, as the one-trial env gives: every segment's actions, back to back
+            info["plant"] = {
+                **logs[-1],
+                "actions": [a for log in logs for a in log["actions"]],
+                "crashed": any(log.get("crashed", False) for log in logs),
+                "left_lot": any(log.get("left_lot", False) for log in logs),
+            }
         return info
 
     def render(self) -> npt.NDArray[np.uint8] | None:

@@ -160,3 +160,65 @@ def test_the_generator_writes_no_name_its_loader_refuses(capsys: pytest.CaptureF
     assert "name: must be" in capsys.readouterr().err
     assert highway.main(["--seed", "3", "--name", "spot.3"]) == 0
     assert load_config(yaml.safe_load(capsys.readouterr().out)).name == "spot.3"
+
+
+def test_the_outline_is_highway_envs_polygon() -> None:
+    """The car's outline (rear-axle configuration, LENGTH x WIDTH) is highway-env's own ``Vehicle.polygon()``."""
+    from highway_env.vehicle.kinematics import Vehicle
+
+    assert highway_plant.WIDTH == Vehicle.WIDTH
+    env = highway_plant._make_env()
+    for seed in (2, 4, 12):
+        env.reset(seed=seed)
+        vehicle = env.unwrapped.vehicle
+        theirs = np.array(vehicle.polygon())[:4]
+        mine = highway_plant.outline(highway_plant._pose(vehicle))
+        np.testing.assert_allclose(np.sort(mine, axis=0), np.sort(theirs, axis=0), atol=1e-12)
+    walls = [o for o in env.unwrapped.road.objects if o.LENGTH in (70, 42)]
+    assert len(walls) == 4 and all(o.WIDTH == 1 for o in walls)
+    for axis in (0, 1):  # the inner face: the wall's centre line less half its thickness
+        assert max(abs(float(o.position[axis])) for o in walls) - 0.5 == highway_plant.WALLS[axis]
+
+
+def test_a_trial_into_a_wall_is_a_failed_trial_counted() -> None:
+    """Three times the nominal speed drives seed 4's car into the east wall: the trial fails
+    (``left_chart``, the plant's ``left_lot``), scores the off-chart penalty, and counts as one."""
+    from ilc_steering.core.score import OFF_CHART_PENALTY, within_tolerance
+    from ilc_steering.loop import run_trials
+
+    class Fast:
+        def __init__(self, c: Any) -> None:
+            self.c = c
+
+        def act(self, observation: Any) -> Any:
+            return self.c
+
+        def learn(self, info: Any) -> None:
+            pass
+
+        def reset(self) -> None:
+            pass
+
+    env = gym.make(ENV, config="highway_parking")
+    c = env.unwrapped.nominal_model.solve() * np.array([3.0, 1.0, 1.0, 1.0, 1.0])
+    rollout = run_trials(env, Fast(c), 2, seed=0)
+    assert len(rollout) == 2
+    for info, reward in zip(rollout.infos, rollout.rewards):
+        assert info["left_chart"] and info["plant"]["left_lot"] and reward < -OFF_CHART_PENALTY
+        assert not within_tolerance(load_config("highway_parking").learning.tolerance, info)
+        # where it failed: its outline within WALL_MARGIN of the wall, not yet past it
+        assert not highway_plant.inside_lot(info["q_final"]) and highway_plant.inside_lot(info["q_final"], -1.0)
+
+
+def test_seed_2_keeps_inside_the_walls() -> None:
+    """Seed 2's task used to drive into the north wall: its nominal path's outline now keeps
+    PATH_MARGIN inside, and its first trial on highway-env's car neither crashes nor leaves the lot."""
+    config = highway.highway_config(2)
+    task = config["task"]
+    profile = highway._profile(tuple(task["pieces"]), tuple(task["v1_fixed"]))
+    path = highway.nominal_path(np.array(task["start"]), np.array(task["goal"]), task["frame"], profile)
+    assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
+    env = gym.make(ENV, config=load_config(config))
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(env.unwrapped.nominal_model.solve())
+    assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and info["cartesian_error"] < 0.5
