@@ -138,12 +138,13 @@ def inside_lot(q: Array, margin: float = WALL_MARGIN) -> Any:
     return np.all((corners[..., 0] <= WALLS[0] - margin) & (corners[..., 1] <= WALLS[1] - margin), axis=-1)
 
 
-def parking_task(seed: int) -> tuple[Array, Array]:
+def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:
     """parking-v0's start and goal for ``seed`` as world configurations ``(x, y, theta, phi)`` (rear
     axle [m], heading and steering [rad], the goal's steering 0): the start's heading in
     ``(-pi, pi]``, the goal's the way nearer it. ``ValueError`` naming the seed when the turn between
-    them exceeds :data:`MAX_TURN` (one chart cannot serve it), or when ``seed`` is not a whole
-    number >= 0 (what parking-v0's reset takes)."""
+    them exceeds :data:`MAX_TURN` (one chart cannot serve it; not checked with ``one_chart=False``,
+    for a manoeuvre of several segments), or when ``seed`` is not a whole number >= 0 (what
+    parking-v0's reset takes)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"parking-v0 seed {seed!r}: needs a whole number >= 0")
     env = _make_env()
@@ -159,7 +160,7 @@ def parking_task(seed: int) -> tuple[Array, Array]:
     )
     env.close()
     turn = abs(goal[2] - start[2])
-    if turn > MAX_TURN:
+    if one_chart and turn > MAX_TURN:
         raise ValueError(
             f"parking-v0 seed {seed}: the goal's heading is {np.degrees(turn):.0f}° from the start's, over the "
             f"{np.degrees(MAX_TURN):.0f}° one chart serves; this task cannot serve it (it needs a waypoint)"

@@ -77,11 +77,49 @@ def test_highway_env_clips_the_actions() -> None:
     assert beyond[3] == -pi / 4 and env.unwrapped.vehicle.speed == pytest.approx(3 * 5.0 * highway_plant.ACTION_STEP)
 
 
-def test_a_goal_it_cannot_serve_is_refused_by_name() -> None:
+def test_a_goal_it_cannot_serve_is_refused_by_name(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(ValueError, match=r"parking-v0 seed 12: the goal's heading is 180° from the start's"):
         highway_plant.parking_task(12)
-    with pytest.raises(ValueError, match=r"parking-v0 seed 11: this task cannot serve it in one chart: its nominal"):
-        highway.highway_config(11)
+    from ilc_steering.envs import highway_segments
+
+    monkeypatch.setattr(highway_segments, "BACK", ())  # no via point to try
+    highway._task.cache_clear()
+    try:
+        with pytest.raises(
+            ValueError, match=r"parking-v0 seed 12: its goal's heading is 180° from the start's, and no"
+        ):
+            highway.highway_config(12)
+    finally:
+        highway._task.cache_clear()
+
+
+@pytest.mark.parametrize("seed", [12, pytest.param(11, marks=pytest.mark.slow)])
+def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
+    """Seed 12 faces away from its spot (180°), seed 11 would steer 70° in one chart: each gets a
+    via point, two segments in their own charts within the stop, inside the walls; one trial runs
+    both on one parking-v0 episode (one reset): its logged actions, replayed through parking-v0's
+    public step from one reset, end where the trial says, bit for bit."""
+    from ilc_steering.envs.highway_plant import STEERING
+
+    raw = highway.highway_config(seed)
+    task = raw["task"]
+    assert len(task["via"]) == 1 and len(task["segments"]) == 2
+    points = [np.array(q) for q in (task["start"], *task["via"], task["goal"])]
+    for a, b, segment in zip(points, points[1:], task["segments"]):
+        profile = highway._profile(tuple(segment["pieces"]), tuple(segment["v1_fixed"]))
+        path = highway.nominal_path(a, b, segment["frame"], profile)
+        assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
+        assert np.max(np.abs(path[:, 3])) <= STEERING and np.max(np.abs(path[:, 2] - segment["frame"])) < pi / 2
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=load_config(raw))
+    env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    _, _, _, _, info = env.step(np.concatenate([view.nominal_model.solve() for view in views]))
+    assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and not info["left_chart"]
+    assert info["cartesian_error"] < 0.5 and info["orientation_error"] < 0.05
+    pose, crashed, _ = highway_plant.replay(seed, info["plant"]["actions"])
+    turn = np.angle(np.exp(1j * (pose[2] - info["q_final"][2])))
+    np.testing.assert_allclose([*pose[[0, 1, 3]], turn], [*info["q_final"][[0, 1, 3]], 0.0], atol=1e-12)
+    assert not crashed
 
 
 def test_a_task_for_any_seed_loads() -> None:
