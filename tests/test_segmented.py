@@ -121,3 +121,17 @@ def test_run_converges_at_every_waypoint(tmp_path):
     last = result.trials[-1]
     assert last.cartesian_error < 5e-4 and last.orientation_error < 5e-4
     assert main(["run", "segmented_parking", "--trials", "10"]) == 0
+
+
+def test_a_segment_learner_sees_no_true_error_and_one_trial_envs_refuse_a_manoeuvre():
+    from ilc_steering.core.score import TRUE_KEYS
+
+    env = gym.make(ENV_ID, config="segmented_parking")
+    env.reset(seed=0)
+    c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+    _, _, _, _, info = env.step(c)
+    assert all(key in info for key in TRUE_KEYS)  # the worst over the waypoints, for scoring
+    assert not any(key in segment for segment in info["segments"] for key in TRUE_KEYS)
+    with pytest.raises(ValueError, match="a manoeuvre of several segments"):
+        gym.make("ilc_steering/ChainedSteering-v0", config="segmented_parking")
+    assert main(["compare", "--scenarios", "segmented_parking", "--methods", "ilc_paper"]) == 2
