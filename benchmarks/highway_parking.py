@@ -4,8 +4,11 @@ For every parking-v0 seed and learner, a run of ``learning.trials`` trials on
 :func:`~ilc_steering.envs.highway.highway_config`'s task, counted by two rules, the first trial
 counted as 1: the first trial after which parking-v0's own success test passes
 (``info["plant"]["is_success"]``, a weighted distance below 0.12) and the first whose true errors
-are within 1 cm / 0.01 rad. A seed the task refuses (one chart cannot serve it) is a row with its
-reason. Goals are learned one after the other in seed order; ``first goal`` and ``later goals``
+are within 1 cm / 0.01 rad. A seed the generator refuses (no manoeuvre it tries serves it) is a row with its
+reason; a goal one chart cannot serve is a manoeuvre of two segments (``segments`` 2), its
+errors the worst over its waypoints. A crash is a trial that hit a wall or whose outline came within
+:data:`~ilc_steering.envs.highway_plant.WALL_MARGIN` of one (a failed trial). Goals are learned
+one after the other in seed order; ``first goal`` and ``later goals``
 summarize seed 0's row apart from the rest (no learner here carries anything from one goal to the
 next: see ``docs/highway.md``).
 
@@ -73,7 +76,8 @@ def _cell(learner: str, seed: int, trials: int) -> dict[str, Any]:
         "refused": "",
         "trials_to_success": _first(success),
         "trials_to_1cm": _first(tight),
-        "crashes": sum(bool(r["plant"]["crashed"]) for r in records),
+        "segments": len(config.segment_configs()),
+        "crashes": sum(bool(r["plant"]["crashed"] or r["plant"].get("left_lot")) for r in records),
         "first_error_m": records[0]["cartesian_error"],
         "last_error_m": records[-1]["cartesian_error"],
         "last_error_rad": records[-1]["orientation_error"],

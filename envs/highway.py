@@ -24,7 +24,7 @@ from ilc_steering.config.steering import check_name
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import rotate
-from ilc_steering.envs.highway_plant import LENGTH, STEERING, nominal_map, parking_task
+from ilc_steering.envs.highway_plant import MAX_TURN, STEERING, inside_lot, nominal_map, parking_task
 
 __all__ = ["PROFILES", "choose_frame", "highway_config", "main", "nominal_path"]
 
@@ -53,9 +53,10 @@ STEERING_USE = 1.0
 STEERING_SPARE = 0.1
 """The fraction of the stop a profile's path leaves spare for :func:`choose_frame` to take it before
 the later (longer) profiles."""
-LOT = (35.0 - 3.0, 21.0 - 3.0)
-"""[m] the half-sizes of parking-v0's walled lot less the car's half-diagonal and the wall's half-width:
-the box the car's centre must stay in."""
+PATH_MARGIN = 1.5
+"""[m] how far inside the lot's walls the car's outline must stay along a task's nominal path: the
+learned paths stray from it, and a trial whose outline comes within
+:data:`~ilc_steering.envs.highway_plant.WALL_MARGIN` of a wall is a failed one."""
 
 
 def _profile(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> Any:
@@ -80,26 +81,26 @@ def nominal_path(start: Array, goal: Array, frame: float, profile: InputProfile)
     return rotate(trials.states[0], -frame)
 
 
-def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
+def choose_frame(
+    start: Array, goal: Array, grid: float = FRAME_GRID, profiles: int = len(PROFILES)
+) -> tuple[float, int, float]:
     """The task frame [rad] and the profile (an index of :data:`PROFILES`) for a task, and the
     steering angle [rad] its nominal path (:func:`nominal_path`) needs: for each profile in turn,
     the frame whose path needs the least steering while it stays :data:`CHART_SLACK` inside the
-    chart and its centre inside :data:`LOT`; the first profile whose path keeps
+    chart and the car's outline :data:`PATH_MARGIN` inside the lot's walls; the first profile whose path keeps
     :data:`STEERING_SPARE` of the stop spare, else the one that steers least (``inf``: no frame
-    keeps any path in)."""
+    keeps any path in). ``grid`` [rad] spaces the frames tried, ``profiles`` tries the first few only."""
     edge = pi / 2 - CHART_SLACK
     low, high = max(start[2], goal[2]) - edge, min(start[2], goal[2]) + edge
     best = (0.5 * (start[2] + goal[2]), 0, np.inf)
     with np.errstate(all="ignore"):  # a path that blows up is left out below
-        for index, (pieces, v1_fixed) in enumerate(PROFILES):
+        for index, (pieces, v1_fixed) in enumerate(PROFILES[:profiles]):
             profile = _profile(pieces, v1_fixed)
             mine = (best[0], index, np.inf)
-            for frame in np.arange(low, high + 1e-12, FRAME_GRID):
+            for frame in np.arange(low, high + 1e-12, grid):
                 path = nominal_path(start, goal, float(frame), profile)
                 theta = path[:, 2] - frame
-                heading = np.stack([np.cos(path[:, 2]), np.sin(path[:, 2])], axis=-1)
-                centre = path[:, :2] + 0.5 * LENGTH * heading
-                inside = bool(np.all(np.abs(theta) < edge) and np.all(np.abs(centre) < LOT))
+                inside = bool(np.all(np.abs(theta) < edge) and np.all(inside_lot(path, PATH_MARGIN)))
                 steering = float(np.max(np.abs(path[:, 3])))
                 if inside and steering < mine[2]:
                     mine = (float(frame), index, steering)
@@ -111,80 +112,118 @@ def choose_frame(start: Array, goal: Array) -> tuple[float, int, float]:
 
 
 @lru_cache(maxsize=64)
-def _task(seed: int) -> tuple[Array, Array, float, int, float]:
-    """:func:`parking_task` and :func:`choose_frame` of ``seed``, once per process."""
-    start, goal = parking_task(seed)
-    return (start, goal, *choose_frame(start, goal))
+def _task(seed: int) -> tuple[Array, list[Array], list[tuple[float, int, float]]]:
+    """parking-v0 ``seed``'s waypoints (start, the via points, goal; world) and each segment's frame,
+    profile and steering, once per process: one segment in the frame :func:`choose_frame` finds
+    when one chart serves the goal within :data:`STEERING_USE` of the stop, else the two segments
+    :func:`~ilc_steering.envs.highway_segments.choose_via` finds (``ValueError`` naming the seed
+    when it finds none)."""
+    from ilc_steering.envs.highway_segments import choose_via
+
+    start, goal = parking_task(seed, one_chart=False)
+    one = None
+    if abs(goal[2] - start[2]) <= MAX_TURN:
+        one = choose_frame(start, goal)
+        if one[2] <= STEERING_USE * STEERING:
+            return start, [goal], [one]
+    try:
+        via, end, legs = choose_via(start, goal)
+    except ValueError as error:
+        turn = f"its goal's heading is {np.degrees(abs(goal[2] - start[2])):.0f}° from the start's"
+        needs = turn if one is None else f"its one-chart path needs {np.degrees(one[2]):.0f}° of steering"
+        raise ValueError(f"parking-v0 seed {seed}: {needs}, and {error}") from None
+    return start, [via, end], legs
+
+
+def _direction(a: Array, b: Array, frame: float, index: int) -> str:
+    """``forward`` or ``reverse``: the sign of ``v1`` on the learned piece of the segment ``a -> b``
+    in ``frame`` with profile ``index`` (eq. 12: ``z1`` is ``x`` in the task frame)."""
+    pieces, v1_fixed = PROFILES[index]
+    travel = rotate(b, frame)[0] - rotate(a, frame)[0] - sum(v * (d - RAMP) for v, d in zip(v1_fixed, pieces[1:]))
+    return "forward" if travel > 0 else "reverse"
 
 
 def highway_config(seed: int, name: str | None = None, trials: int = 15) -> dict[str, Any]:
     """The config (as a mapping for :func:`~ilc_steering.config.load_config`) of parking-v0 ``seed``'s
-    task, to 1 cm / 0.01 rad, in the frame :func:`choose_frame` finds; ``ValueError`` naming the seed
-    when one chart cannot serve it (the turn, or a nominal path past :data:`STEERING_USE` of the stop),
-    and a ``ParameterError`` (a ``ValueError``) for a ``name`` its loader would refuse (it names files)."""
+    task, to 1 cm / 0.01 rad: one segment in the frame :func:`choose_frame` finds, or a manoeuvre of
+    two (``task.via``, ``task.segments``: each its frame, profile and direction) where one chart cannot
+    serve the goal; ``ValueError`` naming the seed when neither can, and a ``ParameterError`` (a
+    ``ValueError``) for a ``name`` its loader would refuse (it names files)."""
     if name is not None:
         check_name(name)
-    start, goal, frame, index, steering = _task(seed)
-    pieces, v1_fixed = PROFILES[index]
-    if steering > STEERING_USE * STEERING:
-        needs = (
-            "no frame keeps its path in the chart and the lot"
-            if steering == np.inf
-            else (f"its nominal path needs {np.degrees(steering):.0f}° of steering in the best frame")
-        )
-        raise ValueError(
-            f"parking-v0 seed {seed}: this task cannot serve it in one chart: {needs} "
-            f"(the car stops at 45°; it needs a waypoint)"
-        )
-    return {
+    start, ends, legs = _task(seed)
+    learning = {"nu_a": 1.0, "nu_b": 1.0, "trials": trials, "tolerance": {"cartesian": 0.01, "orientation": 0.01}}
+    config: dict[str, Any] = {
         "name": name or f"highway_parking_seed{seed}",
         "plant": {"model": "highway_parking", "seed": seed},
-        "task": {
-            "start": start.tolist(),
-            "goal": goal.tolist(),
-            "pieces": list(pieces),
-            "v1_fixed": list(v1_fixed),
-            "v2_terms": V2_TERMS,
-            "v1_shape": "trapezoid",
-            "ramp": RAMP,
-            "frame": frame,
-        },
-        "learning": {
-            "nu_a": 1.0,
-            "nu_b": 1.0,
-            "trials": trials,
-            "tolerance": {"cartesian": 0.01, "orientation": 0.01},
-        },
     }
+    segments = []
+    for a, b, (frame, index, _) in zip([start, *ends[:-1]], ends, legs):
+        pieces, v1_fixed = PROFILES[index]
+        segments.append(
+            {
+                "pieces": list(pieces),
+                "v1_fixed": list(v1_fixed),
+                "v2_terms": V2_TERMS,
+                "v1_shape": "trapezoid",
+                "ramp": RAMP,
+                "frame": frame,
+                "direction": _direction(a, b, frame, index),
+            }
+        )
+    if len(ends) == 1:
+        task = {"start": start.tolist(), "goal": ends[0].tolist(), **segments[0]}
+        del task["direction"]
+    else:
+        task = {"start": start.tolist(), "via": [q.tolist() for q in ends[:-1]], "goal": ends[-1].tolist()}
+        task["segments"] = segments
+    return {**config, "task": task, "learning": learning}
+
+
+_KEYS = (
+    ("pieces", "Delta_i [s], whole 0.2 s action steps"),
+    ("v1_fixed", "v1 on pieces 2..p [m/s]"),
+    ("v2_terms", "q"),
+    ("v1_shape", "the speed rises from rest and falls back to it"),
+    ("ramp", "[s]"),
+    ("frame", "[rad] the task frame with the least steering (choose_frame)"),
+    ("direction", "the sign of v1: forward or reverse (checked against the nominal solution)"),
+)
 
 
 def _yaml(config: dict[str, Any]) -> str:
     task, learning = config["task"], config["learning"]
-    return "\n".join(
-        [
-            f"# parking-v0 (highway-env) seed {config['plant']['seed']}: its start and goal, read by",
-            f"# python -m ilc_steering.envs.highway --seed {config['plant']['seed']}",
-            f"name: {json.dumps(config['name'])}",  # a JSON string is a YAML string, whatever it holds
-            "plant:",
-            '  model: highway_parking   # highway-env\'s car steps the trials (pip install "ilc-steering[highway]")',
-            f"  seed: {config['plant']['seed']}                  # parking-v0's reset seed: the start and goal below",
-            "task:",
-            f"  start: {task['start']!r}   # rear axle x [m], y [m], theta [rad], phi [rad]",
-            f"  goal:  {task['goal']!r}    # parking-v0's spot, the rear axle L/2 behind its centre",
-            f"  pieces: {task['pieces']!r}          # Delta_i [s], whole 0.2 s action steps",
-            f"  v1_fixed: {task['v1_fixed']!r}        # v1 on pieces 2..p [m/s]",
-            f"  v2_terms: {task['v2_terms']}               # q",
-            "  v1_shape: trapezoid       # the speed rises from rest and falls back to it",
-            f"  ramp: {task['ramp']}                 # [s]",
-            f"  frame: {task['frame']!r}   # [rad] the task frame with the least steering (choose_frame)",
-            "learning:",
-            f"  nu_a: {learning['nu_a']}                 # gain of eq. 33",
-            f"  nu_b: {learning['nu_b']}                 # gain of eq. 34",
-            f"  trials: {learning['trials']}",
-            "  tolerance: {cartesian: 0.01, orientation: 0.01}   # [m], [rad]",
-            "",
-        ]
-    )
+    seed = config["plant"]["seed"]
+    lines = [
+        f"# parking-v0 (highway-env) seed {seed}: its start and goal, read by",
+        f"# python -m ilc_steering.envs.highway --seed {seed}",
+        f"name: {json.dumps(config['name'])}",  # a JSON string is a YAML string, whatever it holds
+        "plant:",
+        '  model: highway_parking   # highway-env\'s car steps the trials (pip install "ilc-steering[highway]")',
+        f"  seed: {seed}                  # parking-v0's reset seed: the start and goal below",
+        "task:",
+        f"  start: {task['start']!r}   # rear axle x [m], y [m], theta [rad], phi [rad]",
+    ]
+    if "via" in task:
+        lines.append("  via:                      # the waypoints between, chosen by highway_segments.choose_via")
+        lines += [f"    - {q!r}" for q in task["via"]]
+    lines.append(f"  goal:  {task['goal']!r}    # parking-v0's spot, the rear axle L/2 behind its centre")
+    if "segments" in task:
+        lines.append("  segments:                 # one per segment: start -> via -> goal, each its chart")
+        for segment in task["segments"]:
+            rows = [f"{key}: {json.dumps(segment[key])}   # {note}" for key, note in _KEYS]
+            lines += [f"    - {rows[0]}", *(f"      {row}" for row in rows[1:])]
+    else:
+        lines += [f"  {key}: {json.dumps(task[key])}   # {note}" for key, note in _KEYS if key in task]
+    lines += [
+        "learning:",
+        f"  nu_a: {learning['nu_a']}                 # gain of eq. 33",
+        f"  nu_b: {learning['nu_b']}                 # gain of eq. 34",
+        f"  trials: {learning['trials']}",
+        "  tolerance: {cartesian: 0.01, orientation: 0.01}   # [m], [rad], at every waypoint",
+        "",
+    ]
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:

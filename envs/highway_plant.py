@@ -23,6 +23,12 @@ geometry: Euler integration at 1/15 s, the steering angle set (not integrated) a
 the speed reached through a clipped acceleration (one action step of lag), the ±45° stop, and
 the walls (a crash stops the car; ``info["plant"]["crashed"]``).
 
+**The walls.** A trial whose car outline (``LENGTH`` x ``WIDTH``, :func:`outline`) comes within
+:data:`WALL_MARGIN` of a wall at an action step (:func:`inside_lot`), or that crashes, is a failed
+trial: from there the car brakes to a stop, wheels straight, and the trial reports the
+configuration where it failed with the status ``LEFT_CHART`` (``info["left_chart"]``: the off-chart
+penalty, never within the tolerance) and ``info["plant"]["left_lot"]``. It is counted like any trial.
+
 The tasks (parking-v0's start and goal for a seed, as a config) are :mod:`~ilc_steering.envs.highway`'s.
 """
 
@@ -49,9 +55,14 @@ __all__ = [
     "LENGTH",
     "MAX_TURN",
     "STEERING",
+    "WALLS",
+    "WALL_MARGIN",
+    "WIDTH",
     "HighwayParkingPlant",
     "HighwayPlantConfig",
+    "inside_lot",
     "nominal_map",
+    "outline",
     "parking_task",
     "replay",
 ]
@@ -63,6 +74,13 @@ HIGHWAY = PlantKind("highway_parking", True, CAR.coordinates, CAR.inputs)
 """A car (the library's configuration, rear axle first), stepped by highway-env."""
 LENGTH = 5.0
 """[m] highway-env's ``Vehicle.LENGTH``: the nominal wheelbase (``tests/test_highway.py`` checks it)."""
+WIDTH = 2.0
+"""[m] highway-env's ``Vehicle.WIDTH``: the car's outline is ``LENGTH`` x ``WIDTH`` about its centre."""
+WALLS = (34.5, 20.5)
+"""[m] the inner faces of parking-v0's walls (a 70 m x 42 m lot, walls 1 m thick, ``add_walls``):
+``|x| <= 34.5``, ``|y| <= 20.5`` in the world frame."""
+WALL_MARGIN = 0.5
+"""[m] how far inside the walls the car's outline must stay in every trial: one action step at 2.5 m/s."""
 ACCELERATION = 5.0
 """[m/s²] ``ContinuousAction.ACCELERATION_RANGE``: an action of 1 is this acceleration."""
 STEERING = pi / 4
@@ -101,12 +119,32 @@ def _pose(vehicle: Any) -> Array:
     return np.array([x - 0.5 * LENGTH * np.cos(heading), y - 0.5 * LENGTH * np.sin(heading), heading, steering])
 
 
-def parking_task(seed: int) -> tuple[Array, Array]:
+def outline(q: Array) -> Array:
+    """The corners ``(..., 4, 2)`` [m] of the car's ``LENGTH`` x ``WIDTH`` outline at world
+    configurations ``q`` ``(..., 4)`` (rear axle, heading): highway-env's centre is ``L/2`` ahead."""
+    q = np.asarray(q, dtype=np.float64)
+    c, s = np.cos(q[..., 2])[..., None], np.sin(q[..., 2])[..., None]
+    along = np.array([0.0, LENGTH, LENGTH, 0.0])  # from the rear axle, the car's centre L/2 ahead of it
+    across = 0.5 * WIDTH * np.array([-1.0, -1.0, 1.0, 1.0])
+    x = q[..., 0:1] + c * along - s * across
+    y = q[..., 1:2] + s * along + c * across
+    return np.stack([x, y], axis=-1)
+
+
+def inside_lot(q: Array, margin: float = WALL_MARGIN) -> Any:
+    """Whether the car's outline at world configurations ``q`` ``(..., 4)`` is ``margin`` [m]
+    inside the lot's walls (:data:`WALLS`), for each configuration."""
+    corners = np.abs(outline(q))
+    return np.all((corners[..., 0] <= WALLS[0] - margin) & (corners[..., 1] <= WALLS[1] - margin), axis=-1)
+
+
+def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:
     """parking-v0's start and goal for ``seed`` as world configurations ``(x, y, theta, phi)`` (rear
     axle [m], heading and steering [rad], the goal's steering 0): the start's heading in
     ``(-pi, pi]``, the goal's the way nearer it. ``ValueError`` naming the seed when the turn between
-    them exceeds :data:`MAX_TURN` (one chart cannot serve it), or when ``seed`` is not a whole
-    number >= 0 (what parking-v0's reset takes)."""
+    them exceeds :data:`MAX_TURN` (one chart cannot serve it; not checked with ``one_chart=False``,
+    for a manoeuvre of several segments), or when ``seed`` is not a whole number >= 0 (what
+    parking-v0's reset takes)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"parking-v0 seed {seed!r}: needs a whole number >= 0")
     env = _make_env()
@@ -122,7 +160,7 @@ def parking_task(seed: int) -> tuple[Array, Array]:
     )
     env.close()
     turn = abs(goal[2] - start[2])
-    if turn > MAX_TURN:
+    if one_chart and turn > MAX_TURN:
         raise ValueError(
             f"parking-v0 seed {seed}: the goal's heading is {np.degrees(turn):.0f}° from the start's, over the "
             f"{np.degrees(MAX_TURN):.0f}° one chart serves; this task cannot serve it (it needs a waypoint)"
@@ -142,6 +180,7 @@ class HighwayParkingPlant(ExternalPlantBase):
     frame: float = 0.0
     render_mode: str | None = None
     _env: list[Any] = field(default_factory=list, compare=False, repr=False)
+    _carry: list[bool] = field(default_factory=lambda: [False], compare=False, repr=False)
     frames: list[Any] = field(default_factory=list, compare=False, repr=False)
     """With ``render_mode="rgb_array"``: highway-env's frames of the last trial, one per action step."""
 
@@ -156,7 +195,12 @@ class HighwayParkingPlant(ExternalPlantBase):
         return self._env[0]
 
     def with_frame(self, angle: float) -> HighwayParkingPlant:
-        return replace(self, frame=float(angle), _env=self._env, frames=self.frames)
+        return replace(self, frame=float(angle), _env=self._env, _carry=self._carry, frames=self.frames)
+
+    def carry_on(self) -> None:
+        """The next trial goes on from where the car stands, without parking-v0's reset: the next
+        segment of a manoeuvre (:mod:`~ilc_steering.envs.segmented_env`), one trial of which resets once."""
+        self._carry[0] = True
 
     def check_configuration(self, q: Array) -> None:
         check_chart(q)
@@ -175,18 +219,21 @@ class HighwayParkingPlant(ExternalPlantBase):
 
     def trial(self, profile: InputProfile, x0: Array, c: Array, steps: int) -> tuple[Array, int, Array, dict[str, Any]]:
         env = self.env
-        env.reset(seed=self.seed)
+        carried, self._carry[0] = self._carry[0], False
+        if not carried:
+            env.reset(seed=self.seed)
+            self.frames.clear()
         vehicle = env.unwrapped.vehicle
         q = self._measure(vehicle)
         if float(np.max(np.abs(q - x0))) > 1e-6:  # the config's task.start or start_error: bad input
+            where = "where the last segment left the car" if carried else f"parking-v0 seed {self.seed}'s start"
             raise ConfigError(
-                f"task.start {rotate(x0, -self.frame).tolist()} is not parking-v0 seed {self.seed}'s start "
+                f"task.start {rotate(x0, -self.frame).tolist()} is not {where} "
                 f"{_pose(vehicle).tolist()}: a highway-env trial starts where parking-v0 puts the car "
                 "(no simulation.start_error)"
             )
-        self.frames.clear()
         states, actions = [q], []
-        status, halted = OK, q
+        status, halted, left_lot = OK, q, False
         command = float(q[3])  # the steering command the adapter integrates from u2 (the servo's state)
         for k in range(steps):
             if status == OK and abs(q[2]) >= pi / 2 - CHART_MARGIN:
@@ -207,8 +254,16 @@ class HighwayParkingPlant(ExternalPlantBase):
                 self.frames.append(env.render())
             q = self._measure(vehicle)
             states.append(q)
+            if status == OK and (vehicle.crashed or not inside_lot(_pose(vehicle))):  # a failed trial, counted
+                status, halted, left_lot = LEFT_CHART, q, True
         final = q if status == OK else halted
-        log = {"seed": self.seed, "actions": actions, "crashed": bool(vehicle.crashed), "is_success": _success(env)}
+        log = {
+            "seed": self.seed,
+            "actions": actions,
+            "crashed": bool(vehicle.crashed),
+            "left_lot": left_lot,
+            "is_success": _success(env),
+        }
         return final, status, np.array(states), log
 
     @staticmethod

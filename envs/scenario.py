@@ -144,9 +144,16 @@ class Scenario:
         measurement_noise: float | Sequence[float] | None = None,
         start_error: float | Sequence[float] | None = None,
         parameter_jitter: float | None = None,
+        plant: Plant | None = None,
     ) -> Scenario:
         """Every domain object of ``config``, built once (the config checked each rule on loading);
-        ``measurement_noise``, ``start_error`` and ``parameter_jitter`` replace the config's if given."""
+        ``measurement_noise``, ``start_error`` and ``parameter_jitter`` replace the config's if given;
+        ``plant`` replaces the config's true plant (the one car every segment of a manoeuvre drives)."""
+        if config.is_segmented:  # one scenario per segment: config.segment_configs()
+            raise ValueError(
+                f"{config.name}: a manoeuvre of several segments (task.segments); "
+                "it runs in ilc_steering/SegmentedSteering-v0 (ilc-steering run), one scenario per segment"
+            )
         points = np.array([point for _, point in config.points()], dtype=np.float64)
         # the arguments win over the config's, 0 included
         simulation = config.simulation
@@ -154,7 +161,7 @@ class Scenario:
         start = simulation.start_error if start_error is None else start_error
         jitter = simulation.parameter_jitter if parameter_jitter is None else parameter_jitter
         return cls(
-            config.plant.plant(),
+            config.plant.plant() if plant is None else plant,
             config.plant.nominal_map(),
             [leg.profile() for _, leg in config.legs()],
             points,

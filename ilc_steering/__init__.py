@@ -3,7 +3,8 @@
 ``import ilc_steering`` registers ``ilc_steering/ChainedSteering-v0`` (one trial per episode; its
 ``vector_entry_point`` runs ``num_envs`` trials per step in one batched call) and
 ``ilc_steering/CyclicSteering-v0`` (a non-resetting cycle of waypoints; its ``vector_entry_point``
-drives ``num_envs`` robots around it in step) with string entry points,
+drives ``num_envs`` robots around it in step) and ``ilc_steering/SegmentedSteering-v0`` (a manoeuvre of
+several segments in one trial) with string entry points,
 so nothing heavy is imported before ``gym.make``. ``ILCAgent``, ``SteeringConfig`` and
 ``load_config`` are loaded on first use.
 """
@@ -36,6 +37,8 @@ if "ilc_steering/CyclicSteering-v0" not in registry:
         entry_point="ilc_steering.envs.cyclic_env:make_cyclic_env",
         vector_entry_point="ilc_steering.envs.cyclic_vector_env:CyclicSteeringVectorEnv",
     )
+if "ilc_steering/SegmentedSteering-v0" not in registry:
+    register(id="ilc_steering/SegmentedSteering-v0", entry_point="ilc_steering.envs.segmented_env:SegmentedSteeringEnv")
 
 
 def __getattr__(name: str) -> Any:

@@ -17,7 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from ilc_steering.agents.base import LearnerContext
+from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
@@ -27,6 +27,7 @@ from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.errors import LearnerError, LimitError, PlantError
 from ilc_steering.loop import run_trials
+from ilc_steering.segmented import segmented_learner
 from ilc_steering.verdict import Verdict, verdict, with_scatter
 
 __all__ = [
@@ -44,6 +45,7 @@ __all__ = [
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
 CYCLIC_ENV_ID = "ilc_steering/CyclicSteering-v0"
+SEGMENTED_ENV_ID = "ilc_steering/SegmentedSteering-v0"
 DEFAULT_LEARNER = "ilc_paper"
 """``run``'s learner: the paper's eqs. 33-34, its fictitious zero iteration first. Every id of
 :data:`ilc_steering.agents.registry.REGISTRY` means the same in ``run``, ``compare`` and ``sweep``
@@ -108,6 +110,8 @@ def step_warning(config: SteeringConfig) -> str | None:
 
     if config.is_cyclic:
         return None
+    if config.is_segmented:  # each segment is a one-trial task of its own
+        return next((w for w in map(step_warning, config.segment_configs()) if w is not None), None)
     step = config.simulation.max_step
     finer = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, max_step=step / 2))
     coarse, fine = Scenario.from_config(config), Scenario.from_config(finer)
@@ -244,10 +248,24 @@ def run_ilc(
     config = load_config(config)
     spec = learner_spec(learner)
     count = config.learning.trials if trials is None else trials
-    env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
-    check_task(env, config.name)
-    agent = spec.make(LearnerContext.from_env(env, seed=seed), count)
+    agent: Learner
+    if config.is_segmented:  # one learner per segment, each on its segment's one-trial view
+        env = gym.make(SEGMENTED_ENV_ID, config=config, record_trajectory=trajectories)
+        views = env.unwrapped.segment_views()  # type: ignore[attr-defined]
+        for k, view in enumerate(views):
+            check_task(view, f"{config.name} task.segments[{k}]")
+        agent = segmented_learner(lambda context: spec.make(context, count), views, seed)
+    else:
+        env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
+        check_task(env, config.name)
+        agent = spec.make(LearnerContext.from_env(env, seed=seed), count)
     model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
+
+    def judged(met: list[bool]) -> Verdict:  # the scatter's bound is one segment's model's: not for a manoeuvre
+        if config.is_segmented:
+            return verdict(met, hold)
+        return with_scatter(config, model, records, verdict(met, hold))
+
     records: list[TrialRecord] = []
     met: list[bool] = []
 
@@ -260,11 +278,11 @@ def run_ilc(
     try:
         run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
     except (LearnerError, PlantError, LimitError) as error:  # the trials before it are kept
-        error.partial = RunResult(config, records, with_scatter(config, model, records, verdict(met, hold)))
+        error.partial = RunResult(config, records, judged(met))
         raise
     finally:
         env.close()
-    return RunResult(config, records, with_scatter(config, model, records, verdict(met, hold)))
+    return RunResult(config, records, judged(met))
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,7 @@ MethodName = Annotated[
 
 STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
 """How every schema reads: strict types, no unknown key, finite numbers."""
-TAGS = ("one-trial", "cyclic")
+TAGS = ("one-trial", "cyclic", "segmented")
 """The tags of a tagged union (a config's ``task``), left out of a key's name."""
 
 _REPR = reprlib.Repr()

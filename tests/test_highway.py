@@ -77,11 +77,49 @@ def test_highway_env_clips_the_actions() -> None:
     assert beyond[3] == -pi / 4 and env.unwrapped.vehicle.speed == pytest.approx(3 * 5.0 * highway_plant.ACTION_STEP)
 
 
-def test_a_goal_it_cannot_serve_is_refused_by_name() -> None:
+def test_a_goal_it_cannot_serve_is_refused_by_name(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(ValueError, match=r"parking-v0 seed 12: the goal's heading is 180° from the start's"):
         highway_plant.parking_task(12)
-    with pytest.raises(ValueError, match=r"parking-v0 seed 11: this task cannot serve it in one chart: its nominal"):
-        highway.highway_config(11)
+    from ilc_steering.envs import highway_segments
+
+    monkeypatch.setattr(highway_segments, "BACK", ())  # no via point to try
+    highway._task.cache_clear()
+    try:
+        with pytest.raises(
+            ValueError, match=r"parking-v0 seed 12: its goal's heading is 180° from the start's, and no"
+        ):
+            highway.highway_config(12)
+    finally:
+        highway._task.cache_clear()
+
+
+@pytest.mark.parametrize("seed", [12, pytest.param(11, marks=pytest.mark.slow)])
+def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
+    """Seed 12 faces away from its spot (180°), seed 11 would steer 70° in one chart: each gets a
+    via point, two segments in their own charts within the stop, inside the walls; one trial runs
+    both on one parking-v0 episode (one reset): its logged actions, replayed through parking-v0's
+    public step from one reset, end where the trial says, bit for bit."""
+    from ilc_steering.envs.highway_plant import STEERING
+
+    raw = highway.highway_config(seed)
+    task = raw["task"]
+    assert len(task["via"]) == 1 and len(task["segments"]) == 2
+    points = [np.array(q) for q in (task["start"], *task["via"], task["goal"])]
+    for a, b, segment in zip(points, points[1:], task["segments"]):
+        profile = highway._profile(tuple(segment["pieces"]), tuple(segment["v1_fixed"]))
+        path = highway.nominal_path(a, b, segment["frame"], profile)
+        assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
+        assert np.max(np.abs(path[:, 3])) <= STEERING and np.max(np.abs(path[:, 2] - segment["frame"])) < pi / 2
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=load_config(raw))
+    env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    _, _, _, _, info = env.step(np.concatenate([view.nominal_model.solve() for view in views]))
+    assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and not info["left_chart"]
+    assert info["cartesian_error"] < 0.5 and info["orientation_error"] < 0.05
+    pose, crashed, _ = highway_plant.replay(seed, info["plant"]["actions"])
+    turn = np.angle(np.exp(1j * (pose[2] - info["q_final"][2])))
+    np.testing.assert_allclose([*pose[[0, 1, 3]], turn], [*info["q_final"][[0, 1, 3]], 0.0], atol=1e-12)
+    assert not crashed
 
 
 def test_a_task_for_any_seed_loads() -> None:
@@ -160,3 +198,65 @@ def test_the_generator_writes_no_name_its_loader_refuses(capsys: pytest.CaptureF
     assert "name: must be" in capsys.readouterr().err
     assert highway.main(["--seed", "3", "--name", "spot.3"]) == 0
     assert load_config(yaml.safe_load(capsys.readouterr().out)).name == "spot.3"
+
+
+def test_the_outline_is_highway_envs_polygon() -> None:
+    """The car's outline (rear-axle configuration, LENGTH x WIDTH) is highway-env's own ``Vehicle.polygon()``."""
+    from highway_env.vehicle.kinematics import Vehicle
+
+    assert highway_plant.WIDTH == Vehicle.WIDTH
+    env = highway_plant._make_env()
+    for seed in (2, 4, 12):
+        env.reset(seed=seed)
+        vehicle = env.unwrapped.vehicle
+        theirs = np.array(vehicle.polygon())[:4]
+        mine = highway_plant.outline(highway_plant._pose(vehicle))
+        np.testing.assert_allclose(np.sort(mine, axis=0), np.sort(theirs, axis=0), atol=1e-12)
+    walls = [o for o in env.unwrapped.road.objects if o.LENGTH in (70, 42)]
+    assert len(walls) == 4 and all(o.WIDTH == 1 for o in walls)
+    for axis in (0, 1):  # the inner face: the wall's centre line less half its thickness
+        assert max(abs(float(o.position[axis])) for o in walls) - 0.5 == highway_plant.WALLS[axis]
+
+
+def test_a_trial_into_a_wall_is_a_failed_trial_counted() -> None:
+    """Three times the nominal speed drives seed 4's car into the east wall: the trial fails
+    (``left_chart``, the plant's ``left_lot``), scores the off-chart penalty, and counts as one."""
+    from ilc_steering.core.score import OFF_CHART_PENALTY, within_tolerance
+    from ilc_steering.loop import run_trials
+
+    class Fast:
+        def __init__(self, c: Any) -> None:
+            self.c = c
+
+        def act(self, observation: Any) -> Any:
+            return self.c
+
+        def learn(self, info: Any) -> None:
+            pass
+
+        def reset(self) -> None:
+            pass
+
+    env = gym.make(ENV, config="highway_parking")
+    c = env.unwrapped.nominal_model.solve() * np.array([3.0, 1.0, 1.0, 1.0, 1.0])
+    rollout = run_trials(env, Fast(c), 2, seed=0)
+    assert len(rollout) == 2
+    for info, reward in zip(rollout.infos, rollout.rewards):
+        assert info["left_chart"] and info["plant"]["left_lot"] and reward < -OFF_CHART_PENALTY
+        assert not within_tolerance(load_config("highway_parking").learning.tolerance, info)
+        # where it failed: its outline within WALL_MARGIN of the wall, not yet past it
+        assert not highway_plant.inside_lot(info["q_final"]) and highway_plant.inside_lot(info["q_final"], -1.0)
+
+
+def test_seed_2_keeps_inside_the_walls() -> None:
+    """Seed 2's task used to drive into the north wall: its nominal path's outline now keeps
+    PATH_MARGIN inside, and its first trial on highway-env's car neither crashes nor leaves the lot."""
+    config = highway.highway_config(2)
+    task = config["task"]
+    profile = highway._profile(tuple(task["pieces"]), tuple(task["v1_fixed"]))
+    path = highway.nominal_path(np.array(task["start"]), np.array(task["goal"]), task["frame"], profile)
+    assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
+    env = gym.make(ENV, config=load_config(config))
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(env.unwrapped.nominal_model.solve())
+    assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and info["cartesian_error"] < 0.5

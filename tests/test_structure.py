@@ -224,6 +224,7 @@ FLOORS = (
         "trials",
         (
             "ilc_steering.loop",
+            "ilc_steering.segmented",
             "ilc_steering.verdict",
             "ilc_steering.runner",
             "ilc_steering.oracle",

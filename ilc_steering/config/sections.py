@@ -22,7 +22,9 @@ __all__ = [
     "MAX_TRIALS",
     "CyclicTaskConfig",
     "LearningConfig",
+    "LegConfig",
     "SegmentConfig",
+    "SegmentedTaskConfig",
     "SimulationConfig",
     "Task",
     "TaskConfig",
@@ -124,6 +126,46 @@ class SegmentConfig:
 
 
 @dataclass(frozen=True)
+class LegConfig(SegmentConfig):
+    """A segment of a manoeuvre (:class:`SegmentedTaskConfig`): a segment's profile, its chart and its direction."""
+
+    frame: float | None = None  # [rad] this segment's task frame; None: frame_angle of its two ends
+    # the sign of v1 on the learned piece: forward (> 0), reverse (< 0); None: whichever the nominal solution takes
+    direction: Literal["forward", "reverse"] | None = None
+
+    def __post_init__(self) -> None:
+        require(self.frame is None or isfinite(self.frame), "frame", f"must be a finite angle [rad], got {self.frame}")
+        super().__post_init__()
+
+
+@dataclass(frozen=True)
+class SegmentedTaskConfig:
+    start: tuple[float, ...]  # as task.start of a one-trial task
+    goal: tuple[float, ...]  # as task.goal
+    via: tuple[tuple[float, ...], ...]  # the waypoints between, in order, as start and goal
+    segments: tuple[LegConfig, ...]  # one per segment: start -> via[0] -> ... -> goal
+
+    def __post_init__(self) -> None:
+        points = (self.start, *self.via, self.goal)
+        require(all(isfinite(v) for w in points for v in w), "start, via, goal", "values must be finite")
+        require(
+            len(self.segments) == len(self.via) + 1,
+            "segments",
+            f"needs one entry per segment, len(via) + 1 = {len(self.via) + 1}, got {len(self.segments)}",
+        )
+
+    @property
+    def action_bound(self) -> None:
+        """None: each segment's box is 10x its own ``NominalModel.action_scale()``."""
+        return None
+
+    @property
+    def waypoints(self) -> tuple[tuple[float, ...], ...]:
+        """Start, the via points and goal: segment ``k`` runs from ``waypoints[k]`` to ``waypoints[k + 1]``."""
+        return (self.start, *self.via, self.goal)
+
+
+@dataclass(frozen=True)
 class CyclicTaskConfig:
     waypoints: tuple[tuple[float, ...], ...]  # q_0^d (home), q_1^d, ...; the cycle ends back at home
     segments: tuple[SegmentConfig, ...]  # one per segment (waypoint l-1 -> l), or one for all
@@ -199,13 +241,21 @@ class SimulationConfig:
 
 
 def _task_kind(value: Any) -> str | None:
-    """The tag of a task: a one-trial task has ``start``, a cycle ``waypoints`` (exactly one)."""
+    """The tag of a task: a one-trial task has ``start``, a cycle ``waypoints`` (exactly one of the two),
+    a manoeuvre ``start`` and ``segments``."""
     found = {"start", "waypoints"} & set(value) if isinstance(value, dict) else set()
-    return None if len(found) != 1 else "cyclic" if "waypoints" in found else "one-trial"
+    if len(found) != 1:
+        return None
+    if "waypoints" in found:
+        return "cyclic"
+    return "segmented" if "segments" in value else "one-trial"
 
 
 Task = Annotated[
-    Annotated[TaskConfig, Tag("one-trial")] | Annotated[CyclicTaskConfig, Tag("cyclic")],
+    Annotated[TaskConfig, Tag("one-trial")]
+    | Annotated[CyclicTaskConfig, Tag("cyclic")]
+    | Annotated[SegmentedTaskConfig, Tag("segmented")],
     Discriminator(_task_kind),
 ]
-"""The schema of ``task``: a one-trial task or a cycle, told apart by ``start`` or ``waypoints``."""
+"""The schema of ``task``: a one-trial task, a cycle or a manoeuvre, told apart by ``start``,
+``waypoints`` or ``start`` with ``segments``."""

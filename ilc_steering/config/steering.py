@@ -12,6 +12,7 @@ from ilc_steering.config.sections import (
     CyclicTaskConfig,
     LearningConfig,
     SegmentConfig,
+    SegmentedTaskConfig,
     SimulationConfig,
     TaskConfig,
     domain,
@@ -20,6 +21,7 @@ from ilc_steering.config.sections import (
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.robots.car import frame_angle, rotate
+from ilc_steering.errors import ConfigError
 from ilc_steering.schema import NAME_PATTERN, show
 
 __all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name"]
@@ -34,7 +36,7 @@ below it ``W`` is all but singular and the ``c11`` box all but zero wide."""
 class SteeringConfig:
     name: str
     plant: PlantConfig  # plant.model names a robot of ilc_steering.core.robots, whose config class has the rest
-    task: TaskConfig | CyclicTaskConfig
+    task: TaskConfig | CyclicTaskConfig | SegmentedTaskConfig
     learning: LearningConfig
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
 
@@ -42,14 +44,32 @@ class SteeringConfig:
     def is_cyclic(self) -> bool:
         return isinstance(self.task, CyclicTaskConfig)
 
+    @property
+    def is_segmented(self) -> bool:
+        """A manoeuvre of several segments in one trial (``task.segments`` beside ``task.start``)."""
+        return isinstance(self.task, SegmentedTaskConfig)
+
     def points(self) -> list[tuple[str, tuple[float, ...]]]:
-        """The task's configurations with their keys: start and goal, or the waypoints."""
+        """The task's configurations with their keys: start and goal, the waypoints of a cycle, or start,
+        the via points and goal of a manoeuvre."""
         if isinstance(self.task, CyclicTaskConfig):
             return [(f"task.waypoints[{i}]", w) for i, w in enumerate(self.task.waypoints)]
+        if isinstance(self.task, SegmentedTaskConfig):
+            via = [(f"task.via[{i}]", w) for i, w in enumerate(self.task.via)]
+            return [("task.start", self.task.start), *via, ("task.goal", self.task.goal)]
         return [("task.start", self.task.start), ("task.goal", self.task.goal)]
 
+    def segment_configs(self) -> list[SteeringConfig]:
+        """A manoeuvre's segments, each the one-trial task from its waypoint to the next (checked as
+        one when the config loaded); ``[self]`` for a one-trial task. Not for a cycle."""
+        segments: list[SteeringConfig] = self.__dict__.get("_segments", [self])
+        return segments
+
     def legs(self) -> list[tuple[str, TaskConfig | SegmentConfig]]:
-        """One (key, segment) per trial of a cycle: the task itself for a one-trial task."""
+        """One (key, segment) per trial of a cycle, or per segment of a manoeuvre: the task itself for a
+        one-trial task."""
+        if isinstance(self.task, SegmentedTaskConfig):
+            return [(f"task.segments[{i}]", leg) for i, leg in enumerate(self.task.segments)]
         if isinstance(self.task, CyclicTaskConfig):
             many = len(self.task.segments) > 1
             return [
@@ -90,6 +110,9 @@ class SteeringConfig:
                 "learning.tolerance",
                 "a chained plant needs {error: ...} alone (it has no Cartesian or orientation error)",
             )
+        if isinstance(self.task, SegmentedTaskConfig):
+            self._check_segments(self.task)
+            return
         frame = 0.0
         if self.plant.kind.has_pose:
             with domain(points[-1][0]):
@@ -151,6 +174,47 @@ class SteeringConfig:
                 f"v1 covers only {travel:.3g} along z1, so W is singular (eq. 11); add a piece with a nonzero "
                 "fixed v1, as in the paper's parallel parking",
             )
+
+    def _check_segments(self, task: SegmentedTaskConfig) -> None:
+        """Each segment checked as the one-trial task it is (its keys named ``task.segments[k]``), and
+        its direction against the nominal solution's: the sign of ``c11`` (eq. 12)."""
+        waypoints, segments = task.waypoints, []
+        for k, leg in enumerate(task.segments):
+            key = f"task.segments[{k}]"
+            one = TaskConfig(
+                waypoints[k],
+                waypoints[k + 1],
+                leg.pieces,
+                leg.v1_fixed,
+                leg.v2_terms,
+                None,
+                leg.v1_shape,
+                leg.ramp,
+                leg.frame,
+            )
+            try:
+                segment = SteeringConfig(f"{self.name[:96]}.{k}", self.plant, one, self.learning, self.simulation)
+            except ConfigError as error:
+                raise ConfigError(f"{key}: {error}".replace(f"{key}: task.", f"{key}.")) from None
+            if leg.direction is not None:
+                ramp, chained_map = leg.ramp or 0.0, self.plant.nominal_map()
+                ends = [
+                    rotate(np.array(q), segment.frame()) if self.plant.kind.has_pose else q
+                    for q in (one.start, one.goal)
+                ]
+                z1 = [float(np.asarray(chained_map.to_chained(np.array(q)), dtype=np.float64)[..., 0]) for q in ends]
+                fixed = sum(v * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+                sign = 1.0 if leg.direction == "forward" else -1.0
+                require(
+                    sign * (z1[1] - z1[0] - fixed) > 0,
+                    f"{key}.direction",
+                    f"{leg.direction} disagrees with the segment's nominal c11 (eq. 12: it moves "
+                    f"{z1[1] - z1[0] - fixed:+.3g} along z1 on the learned piece, x in frame "
+                    f"{segment.frame():.4g} rad)",
+                )
+            segments.append(segment)
+        object.__setattr__(self, "_segments", segments)  # derived, not a field: asdict and == ignore it
+        object.__setattr__(self, "_frame", segments[0].frame())
 
 
 def check_name(name: str) -> None:

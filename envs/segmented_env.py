@@ -1,0 +1,301 @@
+r"""``SegmentedSteeringEnv``: a manoeuvre of several segments, run back to back in one trial.
+
+**Design.** A manoeuvre is ``start -> via[0] -> ... -> goal`` (``task.via``, ``task.segments``;
+:class:`~ilc_steering.config.SegmentedTaskConfig`), each segment a one-trial task of its own: its
+profile (eqs. 15-17), its chart (``frame``, the task frame it is steered in) and its direction of
+travel (``forward`` or ``reverse``, the sign of ``c11``, checked on loading). The config builds each
+segment as the one-trial config it is (``config.segment_configs()``), so every rule of a one-trial
+task is checked once, per segment, where it is checked today, and each segment's
+:class:`~ilc_steering.envs.scenario.Scenario` is the one the one-trial env would build.
+
+One trial is one ``step``: the segments run back to back on the same plant, nothing reset between
+them; segment ``k + 1`` starts from the plant state segment ``k`` really ended in (rotated from
+frame ``k`` to frame ``k + 1``). Every trial counts once, whatever its segments, and every waypoint
+is counted: the trial's errors are the worst over the segments' ends.
+
+The learner is one learner per segment (:class:`~ilc_steering.segmented.SegmentedLearner`), each
+built by the usual factory from its own segment's view (:meth:`SegmentedSteeringEnv.segment_views`: the one-trial env's
+nominal model, action box and observation), and each handed its own segment's ``info`` (the error at
+its waypoint, measured from where its segment really began). So every existing learner runs
+unchanged: it sees exactly a one-trial env. One stacked vector for all segments would have needed
+a stacked nominal model (``K n`` errors, a block ``W``) that no learner knows. The price: segment
+``k + 1``'s start moves while segment ``k`` learns, a start that repeats once segment ``k`` has
+converged (the paper's cyclic law, eq. 39, cancels it; the one-trial learners absorb it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.core.external import ExternalTrials, is_external
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.robots.car import rotate
+from ilc_steering.core.score import TRUE_KEYS
+from ilc_steering.envs.frames import Scene, draw_scene
+from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.steering_env import (
+    TrialView,
+    action_names,
+    check_action,
+    check_flag,
+    check_render_mode,
+    reward,
+    task_spaces,
+    trial_info,
+)
+
+__all__ = ["Carried", "SegmentView", "SegmentedSteeringEnv"]
+
+Array = npt.NDArray[np.float64]
+
+WORST = ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS)
+"""The errors of a trial that are the worst over its segments' ends (every waypoint counted)."""
+
+
+@runtime_checkable
+class Carried(Protocol):
+    """An external plant's optional part for a manoeuvre: ``carry_on()``, after which its next trial
+    (the next segment) goes on from where the car stands instead of resetting it."""
+
+    def carry_on(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class SegmentView:
+    """What a learner of one segment may see, shaped as a one-trial env's ``unwrapped`` (so that
+    ``LearnerContext.from_env(view)`` builds its context): the segment's config, nominal model,
+    action box and observation space."""
+
+    config: SteeringConfig
+    nominal_model: NominalModel
+    action_space: gym.spaces.Box
+    observation_space: gym.spaces.Box
+    observation: npt.NDArray[np.float32]
+
+    @property
+    def unwrapped(self) -> SegmentView:
+        return self
+
+
+class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
+    r"""Steer a robot through a manoeuvre of several segments in one trial (see the module's design).
+
+    ## Description
+
+    The robot starts at ``task.start`` and runs segment ``k`` (waypoint ``k`` to ``k + 1``) with
+    the input profile of eqs. 15-17 in the segment's own task frame, from the state the last
+    segment ended in. One ``step`` is one trial: every segment, back to back.
+
+    ## Action Space
+
+    The segments' coefficient vectors ``(c11, c21..c2q)`` concatenated, each in its segment's box
+    (10 times its nominal model's ``action_scale()``): ``Box(-b, b, (sum_k (1 + q_k),), float32)``.
+    Out-of-bound values are clipped; a wrong shape or a non-finite value raises ``ValueError``.
+
+    ## Observation Space
+
+    The segments' one-trial observations (their start and goal ``z`` in their own charts)
+    concatenated, constant.
+
+    ## Rewards
+
+    Minus the weighted error at the worst waypoint (``ChainedSteeringEnv``'s reward of it).
+
+    ## Starting State
+
+    ``task.start``, exactly.
+
+    ## Episode End
+
+    After its one step: ``terminated=True``. A segment that leaves its chart ends the trial there;
+    the later segments are not run and each is measured where the robot halted, ``left_chart``.
+
+    ## Info
+
+    ``segments``: one ``info`` per segment, as the one-trial env's for its waypoint, without the
+    true errors; at the top, the worst ``error_norm``, ``cartesian_error``, ``orientation_error``
+    over the waypoints (measured and ``true_``), ``left_chart`` and ``clipped`` of any segment,
+    ``q_final`` and ``z_final`` at the goal, ``error`` (every segment's, concatenated) and
+    ``action``; with ``record_trajectory=True``, ``trajectories``, one per segment run.
+
+    ## Rendering
+
+    ``render_mode="rgb_array"``: the waypoints and the last trial's segments, ``(480, 480, 3)``.
+
+    ## Arguments
+
+    ``config``: a manoeuvre config (``task.segments``), a path, a packaged name or a
+    :class:`SteeringConfig`. ``render_mode``, ``record_trajectory``, ``measurement_noise``: as for
+    ``ChainedSteeringEnv``. ``env.unwrapped.segment_views()`` is each segment's learner's view.
+
+    ## Version History
+
+    * v0: Initial version.
+
+    ## Example
+
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import ilc_steering
+    >>> env = gym.make("ilc_steering/SegmentedSteering-v0", config="segmented_parking")
+    >>> obs, info = env.reset(seed=0)
+    >>> c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+    >>> obs, reward, terminated, truncated, info = env.step(c)
+    >>> len(info["segments"]), terminated, bool(info["cartesian_error"] < 0.2)
+    (2, True, True)
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(
+        self,
+        config: str | Path | SteeringConfig = "segmented_parking",
+        render_mode: str | None = None,
+        record_trajectory: bool = False,
+        measurement_noise: float | Sequence[float] | None = None,
+    ) -> None:
+        self.render_mode = check_render_mode(render_mode, self.metadata)
+        self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
+        self.config = load_config(config)
+        if not self.config.is_segmented:
+            raise ValueError(
+                f"{self.config.name}: SegmentedSteeringEnv needs task.segments beside task.start; "
+                "use ilc_steering/ChainedSteering-v0 for one segment"
+            )
+        plant = self.config.plant.plant()  # one car for every segment
+        if is_external(plant) and not isinstance(plant, Carried):
+            raise ValueError(
+                f"{self.config.name}: plant.model {self.config.plant.model} resets for every trial and cannot go "
+                "on from where a segment left it (an external plant needs carry_on() for a manoeuvre)"
+            )
+        self._segments = [
+            Scenario.from_config(c, measurement_noise, plant=plant) for c in self.config.segment_configs()
+        ]
+        for scenario in self._segments:
+            scenario.refuse_disturbances("the segmented env")
+        frames = {s.frame for s in self._segments}
+        if len(frames) > 1 and self._segments[0].plant.state_dim > 6:
+            raise ValueError(
+                f"{self.config.name}: segments in different frames need a plant whose state turns with the frame "
+                "(x, y, theta first); a lab robot's dead-reckoned estimate does not: give every segment one frame"
+            )
+        self._views = []
+        for c, scenario in zip(self.config.segment_configs(), self._segments):
+            action_space, observation_space, observation = task_spaces(scenario)
+            self._views.append(SegmentView(c, scenario.nominal, action_space, observation_space, observation))
+        self._sizes = [view.action_space.shape[0] for view in self._views]
+        self._split = np.cumsum(self._sizes)[:-1]
+        low = np.concatenate([view.action_space.low for view in self._views])
+        high = np.concatenate([view.action_space.high for view in self._views])
+        self.action_space = gym.spaces.Box(low, high, dtype=np.float32)
+        self._observation = np.concatenate([view.observation for view in self._views])
+        bound = np.concatenate([view.observation_space.high for view in self._views])
+        self.observation_space = gym.spaces.Box(-bound, bound, dtype=np.float32)
+        self._action_names = " + ".join(action_names(view.nominal_model) for view in self._views)
+        waypoints = np.array(self.config.task.waypoints, dtype=np.float64)  # type: ignore[union-attr]
+        names = ["start", *(f"via{i}" for i in range(len(waypoints) - 2)), "goal"]
+        model = self._segments[0].nominal
+        self._view = TrialView(waypoints, model.chained_map, names, self._segments[0].kind.has_pose)
+
+    def segment_views(self) -> list[SegmentView]:
+        """Each segment's one-trial view, for the learner of that segment (the nominal models only)."""
+        return list(self._views)
+
+    @property
+    def nominal_model(self) -> NominalModel:
+        """The last segment's nominal model (the one that ends at the goal)."""
+        return self._views[-1].nominal_model
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed)
+        if options:
+            raise ValueError(f"options: the segmented env takes none, got {sorted(map(str, options))}")
+        return self._observation.copy(), {"q_start": self._segments[0].start.copy(), "q_goal": self._view_goal()}
+
+    def _view_goal(self) -> Array:
+        return self._segments[-1].goal.copy()
+
+    def _carry(self, x: Array, k: int) -> Array:
+        """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame."""
+        turn = self._segments[k].frame - self._segments[k - 1].frame
+        return rotate(x, turn) if turn else x
+
+    def step(self, action: Any) -> tuple[npt.NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+        c = check_action(action, (sum(self._sizes),), self._action_names)
+        record = self.record_trajectory or self.render_mode is not None
+        pieces = np.split(c, self._split)
+        infos: list[dict[str, Any]] = []
+        trajectories = []
+        x: Array | None = None
+        halted = False
+        for k, (scenario, view, requested) in enumerate(zip(self._segments, self._views, pieces)):
+            applied = np.clip(requested, view.action_space.low, view.action_space.high)
+            x0 = None if x is None else self._carry(x, k)[None]
+            noise = scenario.draw_noise(self.np_random, 1)
+            if halted:  # not run: measured where the robot halted, off its chart
+                measured = scenario.measure(x0, np.ones(1, dtype=np.int64), noise=noise)  # type: ignore[arg-type]
+                infos.append(trial_info(measured, applied, requested))
+                x = x0[0]  # type: ignore[index]
+                continue
+            if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
+                scenario.external.carry_on()
+            trials = scenario.run(applied[None], x0, record)
+            infos.append(trial_info(scenario.measure(trials.final, trials.status, noise=noise), applied, requested))
+            if isinstance(trials, ExternalTrials):  # what the external plant logged (its actions, a crash)
+                infos[-1]["plant"] = trials.logs[0]
+            x = trials.final[0]
+            halted = infos[-1]["left_chart"]
+            if record:
+                trajectories.append(scenario.trajectory(trials, applied[None]))
+        info = self._summary(infos)
+        if record:
+            for trajectory in trajectories:
+                self._view.add(trajectory, info, keep=len(trajectories))
+            if self.record_trajectory:
+                info["trajectories"] = trajectories
+        return self._observation.copy(), float(reward(info)), True, False, info
+
+    def _summary(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
+        """The trial's ``info``: the worst waypoint's errors, the goal's configuration, and each segment's own."""
+        last = infos[-1]
+        info: dict[str, Any] = {key: max(i[key] for i in infos) for key in WORST if key in last}
+        info.update(
+            q_final=last["q_final"],
+            z_final=last["z_final"],
+            error=np.concatenate([i["error"] for i in infos]),
+            action=np.concatenate([i["action"] for i in infos]),
+            left_chart=any(i["left_chart"] for i in infos),
+            clipped=any(i["clipped"] for i in infos),
+            segments=[{k: v for k, v in i.items() if k not in TRUE_KEYS} for i in infos],
+        )
+        logs = [i["plant"] for i in infos if "plant" in i]
+        if logs:  # one log for the trial, as the one-trial env gives: every segment's actions, back to back
+            info["plant"] = {
+                **logs[-1],
+                "actions": [a for log in logs for a in log["actions"]],
+                "crashed": any(log.get("crashed", False) for log in logs),
+                "left_lot": any(log.get("left_lot", False) for log in logs),
+            }
+        return info
+
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """An RGB frame ``(480, 480, 3)``: the waypoints and the last trial's segments."""
+        if self.render_mode is None:
+            gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
+            return None
+        return draw_scene(self.scene())
+
+    def scene(self) -> Scene:
+        """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene`."""
+        count = self._view.count
+        return self._view.scene(f"{self.config.name}: " + ("last trial" if count else "before the first trial"))

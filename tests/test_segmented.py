@@ -1,0 +1,137 @@
+"""Manoeuvres of several segments in one trial (issue 50, item 1): the config, the env, the learners.
+
+Each segment is the one-trial task from its waypoint to the next, run from where the last segment
+really ended; the tests hold it to the one-trial task it is, and to the closed form of the nominal
+solution (section 2.2: exact on the nominal plant, whatever the waypoints).
+"""
+
+import copy
+import doctest
+from importlib import resources
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering.agents.base import LearnerContext
+from ilc_steering.agents.registry import lookup
+from ilc_steering.cli import main
+from ilc_steering.config import load_config
+from ilc_steering.config.loading import packaged_configs
+from ilc_steering.envs import segmented_env
+from ilc_steering.errors import ConfigError
+from ilc_steering.loop import run_trials
+from ilc_steering.runner import run_ilc
+from ilc_steering.segmented import segmented_learner
+
+ENV_ID = "ilc_steering/SegmentedSteering-v0"
+
+
+def packaged():
+    assert "segmented_parking" in packaged_configs()
+    return yaml.safe_load((resources.files("ilc_steering.configs") / "segmented_parking.yaml").read_text())
+
+
+def test_doctest():
+    assert doctest.testmod(segmented_env, raise_on_error=True).attempted > 0
+
+
+def test_config_refusals_name_the_key():
+    data = packaged()
+    data["task"]["segments"][1]["direction"] = "forward"
+    with pytest.raises(ConfigError, match=r"task\.segments\[1\]\.direction: forward disagrees"):
+        load_config(data)
+    data = packaged()
+    data["task"]["segments"] = data["task"]["segments"][:1]
+    with pytest.raises(ConfigError, match=r"task\.segments: needs one entry per segment, len\(via\) \+ 1 = 2, got 1"):
+        load_config(data)
+    data = packaged()
+    data["task"]["segments"][0]["v2_terms"] = 2  # a one-trial rule, checked for the segment
+    with pytest.raises(ConfigError, match=r"task\.segments\[0\]\.v2_terms: needs q >= n - 1 = 3"):
+        load_config(data)
+    data = packaged()
+    data["task"]["segments"][0]["wheel"] = 1
+    with pytest.raises(ConfigError, match="wheel"):
+        load_config(data)
+
+
+def test_each_segment_is_its_one_trial_task():
+    """Segment 0 of the manoeuvre, learned by the paper's law, is trial for trial bit for bit the
+    one-trial task from the start to the via point: nothing of the later segments leaks into it."""
+    config = load_config("segmented_parking")
+    spec = lookup("ilc_paper")
+    env = gym.make(ENV_ID, config=config)
+    learner = segmented_learner(lambda context: spec.make(context, 6), env.unwrapped.segment_views(), seed=1)
+    rollout = run_trials(env, learner, 6, seed=1)
+    alone = gym.make("ilc_steering/ChainedSteering-v0", config=config.segment_configs()[0])
+    one = run_trials(alone, spec.make(LearnerContext.from_env(alone, seed=1), 6), 6, seed=1)
+    for mine, its in zip(rollout.infos, one.infos):
+        np.testing.assert_array_equal(mine["segments"][0]["action"], its["action"])
+        np.testing.assert_array_equal(mine["segments"][0]["q_final"], its["q_final"])
+    assert len(rollout) == 6  # every trial counts once, whatever its segments
+
+
+def test_nominal_plant_reaches_every_waypoint_in_one_trial():
+    """Closed form (section 2.2): on a car whose true geometry is the nominal one, the nominal solution
+    of each segment from its waypoint reaches the next one exactly, through a forward and a reverse
+    segment in different charts; and a trial's errors are the worst over its waypoints."""
+    data = packaged()
+    data["plant"].update(true_wheelbase=0.2, true_wheel_radius=0.02)
+    data["task"]["via"] = [[0.5, 0.3, 0.9, 0.0]]
+    data["task"]["segments"][1]["frame"] = 0.7
+    config = load_config(data)
+    env = gym.make(ENV_ID, config=config)
+    env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    assert views[0].config.frame() != views[1].config.frame()
+    _, _, _, _, info = env.step(np.concatenate([view.nominal_model.solve() for view in views]))
+    assert info["cartesian_error"] < 1e-9 and info["orientation_error"] < 1e-9
+    for segment in info["segments"]:
+        assert segment["cartesian_error"] < 1e-9 and not segment["left_chart"]
+    assert info["cartesian_error"] == max(s["cartesian_error"] for s in info["segments"])
+
+
+def test_second_segment_starts_where_the_first_ended():
+    """On the perturbed car, segment 1's error is that of the one-trial task from the state segment 0
+    really ended in (not from the via point)."""
+    config = load_config("segmented_parking")
+    env = gym.make(ENV_ID, config=config)
+    env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    c = [view.nominal_model.solve() for view in views]
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first_end = info["segments"][0]["q_final"]
+    assert 0.05 < info["segments"][0]["cartesian_error"]  # the perturbed car misses the via point
+    moved = copy.deepcopy(packaged())
+    moved["task"]["start"] = first_end.tolist()
+    moved["task"]["via"] = []
+    moved["task"]["segments"] = moved["task"]["segments"][1:]
+    single = load_config(moved).segment_configs()[0]
+    alone = gym.make("ilc_steering/ChainedSteering-v0", config=single)
+    alone.reset(seed=0)
+    _, _, _, _, its = alone.step(c[1])
+    np.testing.assert_allclose(info["segments"][1]["q_final"], its["q_final"], atol=1e-12)
+
+
+def test_run_converges_at_every_waypoint(tmp_path):
+    result = run_ilc("segmented_parking", learner="ilc_paper")
+    assert result.converged_at is not None and result.converged_at <= 8
+    last = result.trials[-1]
+    assert last.cartesian_error < 5e-4 and last.orientation_error < 5e-4
+    assert main(["run", "segmented_parking", "--trials", "10"]) == 0
+
+
+def test_a_segment_learner_sees_no_true_error_and_one_trial_envs_refuse_a_manoeuvre():
+    from ilc_steering.core.score import TRUE_KEYS
+
+    env = gym.make(ENV_ID, config="segmented_parking")
+    env.reset(seed=0)
+    c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+    _, _, _, _, info = env.step(c)
+    assert all(key in info for key in TRUE_KEYS)  # the worst over the waypoints, for scoring
+    assert not any(key in segment for segment in info["segments"] for key in TRUE_KEYS)
+    with pytest.raises(ValueError, match="a manoeuvre of several segments"):
+        gym.make("ilc_steering/ChainedSteering-v0", config="segmented_parking")
+    assert main(["compare", "--scenarios", "segmented_parking", "--methods", "ilc_paper"]) == 2
