@@ -120,13 +120,15 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     ## Episode End
 
     After its one step: ``terminated=True``. A segment that leaves its chart ends the trial there;
-    the later segments are not run and each is measured where the robot halted, ``left_chart``.
+    the later segments are not run (``ran=False``) and each is measured where the robot halted,
+    ``left_chart``. The trial counts once, failed.
 
     ## Info
 
     ``segments``: one ``info`` per segment, as the one-trial env's for its waypoint, without the
     true errors, and ``z_start``: where the segment began, in its chart's chained coordinates
-    (measured: the last segment's measured end; segment 0: ``task.start``); at the top, the worst
+    (measured: the last segment's measured end; segment 0: ``task.start``) and ``ran`` (``False``:
+    an earlier segment halted, this one was not run and must not be learned from); at the top, the worst
     ``error_norm``, ``cartesian_error``, ``orientation_error`` over the waypoints (measured and
     ``true_``), ``left_chart`` and ``clipped`` of any segment, ``q_final`` and ``z_final`` at the
     goal, ``error`` (every segment's, concatenated) and ``action``; with ``record_trajectory=True``,
@@ -263,14 +265,14 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])
             if halted:  # not run: measured where the robot halted, off its chart
                 measured = scenario.measure(x0, np.ones(1, dtype=np.int64), noise=noise)  # type: ignore[arg-type]
-                infos.append({**trial_info(measured, applied, requested), "z_start": z_start})
+                infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": False})
                 x = x0[0]  # type: ignore[index]
                 continue
             if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
                 scenario.external.carry_on()
             trials = scenario.run(applied[None], x0, record)
             measured = scenario.measure(trials.final, trials.status, noise=noise)
-            infos.append({**trial_info(measured, applied, requested), "z_start": z_start})
+            infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": True})
             if isinstance(trials, ExternalTrials):  # what the external plant logged (its actions, a crash)
                 infos[-1]["plant"] = trials.logs[0]
             x = trials.final[0]

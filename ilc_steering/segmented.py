@@ -23,7 +23,8 @@ Array = npt.NDArray[np.float64]
 
 class SegmentedLearner:
     """One learner per segment: ``act`` concatenates their actions, ``learn`` hands each its own
-    segment's ``info`` (``info["segments"][k]``, without the true errors), ``reset`` resets each."""
+    segment's ``info`` (``info["segments"][k]``, without the true errors) if that segment ran,
+    ``reset`` resets each."""
 
     def __init__(self, learners: Sequence[Learner], views: Sequence[SegmentView]) -> None:
         if len(learners) != len(views) or not learners:
@@ -38,9 +39,12 @@ class SegmentedLearner:
 
     def learn(self, info: Mapping[str, Any]) -> None:
         """Each segment's learner learns from its own segment's ``info``, its error re-based to the
-        segment's nominal start (:func:`rebased`)."""
+        segment's nominal start (:func:`rebased`). A segment that was not run (``ran`` false: an
+        earlier one halted) produced nothing of its action: its learner skips the trial, keeps its
+        state and repeats its action."""
         for learner, view, segment in zip(self.learners, self.views, info["segments"]):
-            learner.learn(rebased(segment, view.nominal_model))
+            if segment["ran"]:
+                learner.learn(rebased(segment, view.nominal_model))
 
     def reset(self) -> None:
         for learner in self.learners:

@@ -161,3 +161,24 @@ def test_a_segment_learns_as_if_it_began_at_its_via_point():
     assert first_within(rollout) <= 3
     goal = [info["segments"][1]["cartesian_error"] for info in rollout.infos]
     assert goal[1] < goal[0]
+
+
+@pytest.mark.parametrize("name", ["ilc_paper", "newton_ilc", "robust_ilc"])
+def test_a_segment_that_never_ran_is_not_learned_from(name):
+    """Finding 2 of the review: when segment 0 leaves its chart, segment 1 is not run; it is marked
+    ``ran=False`` and its learner keeps its state (its next action is its last), while segment 0's
+    learner learns from its own chart exit; the trial counts once, failed."""
+    env = gym.make(ENV_ID, config="segmented_parking")
+    obs, _ = env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    n0 = views[0].action_space.shape[0]
+    learner = segmented_learner(lambda c: lookup(name).make(c, 4), views, seed=1)
+    action = learner.act(obs)
+    action[:n0] = views[0].action_space.high * np.array([1, 1, 0, 0])  # off segment 0's chart
+    _, _, _, _, info = env.step(action)
+    assert [s["ran"] for s in info["segments"]] == [True, False]
+    assert info["segments"][0]["left_chart"] and info["left_chart"]
+    learner.learn(info)
+    after = learner.act(obs)
+    np.testing.assert_array_equal(after[n0:], action[n0:])
+    assert not np.array_equal(after[:n0], action[:n0])
