@@ -89,6 +89,16 @@ class SegmentView:
         return self
 
 
+def _at_edge(scenario: Scenario, q_task: Array) -> Array:
+    """Configurations in a segment's task frame, a heading past its chart read at the chart's edge
+    (as ``Scenario.measure`` reads a noisy one), where the chained map is defined."""
+    q = np.array(q_task, dtype=np.float64)
+    if scenario.kind.has_pose:
+        edge = np.pi / 2 - CHART_MARGIN
+        q[..., 2:] = np.clip(q[..., 2:], -edge, edge)
+    return q
+
+
 class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
     r"""Steer a robot through a manoeuvre of several segments in one trial (see the module's design).
 
@@ -241,13 +251,8 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     @staticmethod
     def _measured_start(scenario: Scenario, q_world: Array) -> Array:
         """Where a segment began, in its own chained coordinates: the last segment's measured end
-        (world frame), in this segment's frame, through the nominal map (read at the chart's edge
-        if it lies past it, as ``Scenario.measure`` does)."""
-        q = scenario.to_task(q_world)
-        if scenario.kind.has_pose:
-            edge = np.pi / 2 - CHART_MARGIN
-            q[..., 2:] = np.clip(q[..., 2:], -edge, edge)
-        z: Array = scenario.to_chained(q)
+        (world frame), in this segment's frame, through the nominal map (at the chart's edge if past it)."""
+        z: Array = scenario.to_chained(_at_edge(scenario, scenario.to_task(q_world)))
         return z
 
     def step(self, action: Any) -> tuple[npt.NDArray[np.float32], float, bool, bool, dict[str, Any]]:
@@ -263,8 +268,9 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             x0 = None if x is None else self._carry(x, k)[None]
             noise = scenario.draw_noise(self.np_random, 1)
             z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])
-            if halted:  # not run: measured where the robot halted, off its chart
-                measured = scenario.measure(x0, np.ones(1, dtype=np.int64), noise=noise)  # type: ignore[arg-type]
+            if halted:  # not run: measured where the robot halted, off its chart (at the edge if past it)
+                q = _at_edge(scenario, scenario.plant.configuration(x0))  # type: ignore[arg-type]
+                measured = scenario.measure_configurations(q, np.ones(1, dtype=np.int64), noise=noise)
                 infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": False})
                 x = x0[0]  # type: ignore[index]
                 continue

@@ -182,3 +182,20 @@ def test_a_segment_that_never_ran_is_not_learned_from(name):
     after = learner.act(obs)
     np.testing.assert_array_equal(after[n0:], action[n0:])
     assert not np.array_equal(after[:n0], action[:n0])
+
+
+def test_a_segment_not_run_is_measured_at_its_charts_edge():
+    """Segment 0 halts at its chart's edge, a heading past segment 1's chart (its frame turned 0.7 rad
+    the other way): segment 1 is not run, and is measured at its own chart's edge, ``left_chart``,
+    not a ``ValueError`` from the chained map (the trial counts, failed)."""
+    data = packaged()
+    data["task"]["segments"][1]["frame"] = 0.7
+    env = gym.make(ENV_ID, config=load_config(data))
+    obs, _ = env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    n0 = views[0].action_space.shape[0]
+    action = np.concatenate([view.nominal_model.solve() for view in views])
+    action[:n0] = views[0].action_space.high * np.array([-1, 1, 0, 0])
+    _, _, _, _, info = env.step(action)
+    assert [s["ran"] for s in info["segments"]] == [True, False]
+    assert all(s["left_chart"] for s in info["segments"]) and np.all(np.isfinite(info["error"]))
