@@ -39,6 +39,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import ExternalTrials, is_external
+from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import CHART_MARGIN
 from ilc_steering.core.robots.car import rotate
@@ -277,7 +278,10 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
                 scenario.external.carry_on()
             trials = scenario.run(applied[None], x0, record)
-            measured = scenario.measure(trials.final, trials.status, noise=noise)
+            q = scenario.plant.configuration(trials.final)
+            if trials.status[0] != OK:  # halted (its chart, a wall): read at the chart's edge if past it
+                q = _at_edge(scenario, q)
+            measured = scenario.measure_configurations(q, trials.status, noise=noise)
             infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": True})
             if isinstance(trials, ExternalTrials):  # what the external plant logged (its actions, a crash)
                 infos[-1]["plant"] = trials.logs[0]
