@@ -44,6 +44,7 @@ from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import CHART_MARGIN
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.score import TRUE_KEYS
+from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import (
@@ -100,6 +101,17 @@ def _at_edge(scenario: Scenario, q_task: Array) -> Array:
     return q
 
 
+def _joined(trajectories: Sequence[Trajectory]) -> Trajectory:
+    """The segments' trajectories (each in the world frame, its time from its own start) as one: the
+    times run on from one segment into the next, whose first sample (the last one's end) is dropped."""
+    t, q, u = [trajectories[0].t], [trajectories[0].q], [trajectories[0].u]
+    for trajectory in trajectories[1:]:
+        t.append(t[-1][-1] + trajectory.t[1:])
+        q.append(trajectory.q[1:])
+        u.append(trajectory.u[1:])
+    return Trajectory(np.concatenate(t), np.concatenate(q), np.concatenate(u), any(x.left_chart for x in trajectories))
+
+
 class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
     r"""Steer a robot through a manoeuvre of several segments in one trial (see the module's design).
 
@@ -143,7 +155,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     ``error_norm``, ``cartesian_error``, ``orientation_error`` over the waypoints (measured and
     ``true_``), ``left_chart`` and ``clipped`` of any segment, ``q_final`` and ``z_final`` at the
     goal, ``error`` (every segment's, concatenated) and ``action``; with ``record_trajectory=True``,
-    ``trajectories``, one per segment run.
+    ``trajectories``, one per segment run, and ``trajectory``, them joined (time running on).
 
     ## Rendering
 
@@ -295,6 +307,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 self._view.add(trajectory, info, keep=len(trajectories))
             if self.record_trajectory:
                 info["trajectories"] = trajectories
+                info["trajectory"] = _joined(trajectories)
         return self._observation.copy(), float(reward(info)), True, False, info
 
     def _summary(self, infos: list[dict[str, Any]]) -> dict[str, Any]:

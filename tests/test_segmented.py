@@ -232,3 +232,18 @@ def test_the_second_segment_of_seed_12_learns_as_fast_as_the_first(seed_12):
     last = rollout.infos[-1]
     assert last["cartesian_error"] < 1e-2 and last["orientation_error"] < 1e-2
     assert not last["plant"]["crashed"] and not last["plant"]["left_lot"]
+
+
+def test_run_json_keeps_the_manoeuvres_trajectory_for_plot(tmp_path):
+    """Finding 4 of the review: ``run --json`` on a manoeuvre keeps each trial's trajectory (the
+    segments joined, time running on, starting at ``task.start`` and ending at the goal's measured
+    configuration), so ``plot`` draws it."""
+    path = tmp_path / "run.json"
+    assert main(["run", "segmented_parking", "--trials", "8", "--json", str(path)]) == 0
+    result = run_ilc("segmented_parking", learner="ilc_paper", trials=3, trajectories=True)
+    trajectory = result.trials[-1].trajectory
+    assert trajectory is not None and np.all(np.diff(trajectory.t) > 0)
+    config = load_config("segmented_parking")
+    np.testing.assert_allclose(trajectory.q[0], config.task.start, atol=1e-12)
+    assert trajectory.t[-1] == pytest.approx(sum(sum(c.task.pieces) for c in config.segment_configs()))
+    assert main(["plot", str(path), "--out", str(tmp_path / "plots")]) == 0
