@@ -13,16 +13,18 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.base import Closable, Learner, LearnerContext
+from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.segmented_env import SegmentView
 
-__all__ = ["SegmentedLearner", "segmented_learner"]
+__all__ = ["SegmentedLearner", "rebased", "segmented_learner"]
 
 Array = npt.NDArray[np.float64]
 
 
 class SegmentedLearner:
     """One learner per segment: ``act`` concatenates their actions, ``learn`` hands each its own
-    segment's ``info`` (``info["segments"][k]``, without the true errors), ``reset`` resets each."""
+    segment's ``info`` (``info["segments"][k]``, without the true errors) if that segment ran,
+    ``reset`` resets each."""
 
     def __init__(self, learners: Sequence[Learner], views: Sequence[SegmentView]) -> None:
         if len(learners) != len(views) or not learners:
@@ -36,9 +38,13 @@ class SegmentedLearner:
         return np.concatenate([np.asarray(a, dtype=np.float64) for a in actions])
 
     def learn(self, info: Mapping[str, Any]) -> None:
-        """Each segment's learner learns from its own segment's ``info``."""
-        for learner, segment in zip(self.learners, info["segments"]):
-            learner.learn(segment)
+        """Each segment's learner learns from its own segment's ``info``, its error re-based to the
+        segment's nominal start (:func:`rebased`). A segment that was not run (``ran`` false: an
+        earlier one halted) produced nothing of its action: its learner skips the trial, keeps its
+        state and repeats its action."""
+        for learner, view, segment in zip(self.learners, self.views, info["segments"]):
+            if segment["ran"]:
+                learner.learn(rebased(segment, view.nominal_model))
 
     def reset(self) -> None:
         for learner in self.learners:
@@ -49,6 +55,27 @@ class SegmentedLearner:
         for learner in self.learners:
             if isinstance(learner, Closable):
                 learner.close()
+
+
+def rebased(segment: Mapping[str, Any], model: NominalModel) -> dict[str, Any]:
+    r"""A segment's ``info`` with the error it would have had from its nominal start.
+
+    The segment began at ``z_start`` (``segment["z_start"]``, measured: where the last segment really
+    ended), not at the via point ``z_v`` its learner was built for. By eq. 23 (with eq. 12) the
+    nominal ``z(T)`` is ``F(z0, c) = (z0_1 + Delta z_1(c11), V(c11) z0_b + W(c11) c_2)``, so the
+    start's share of the error is ``F(z_start, c) - F(z_v, c) = (Delta z0_1, V(c11) Delta z0_b)``,
+    and the learner is handed ``e + F(z_start, c) - F(z_v, c)``: the error "as if it had begun at the
+    via point", exact on the nominal chained form, first order otherwise. It is the cyclic law's
+    feedforward of the measured start (eq. 39, :mod:`~ilc_steering.agents.cyclic_ilc`), moved from
+    the action to the error, so that every one-trial learner runs unchanged. Only the nominal model is
+    used, never the plant.
+    """
+    out = dict(segment)
+    c = np.asarray(segment["action"], dtype=np.float64)
+    shift = model.final_state(c, np.asarray(segment["z_start"], dtype=np.float64)) - model.final_state(c)
+    out["error"] = np.asarray(segment["error"], dtype=np.float64) + shift
+    out["error_norm"] = float(np.linalg.norm(out["error"]))
+    return out
 
 
 def segmented_learner(
