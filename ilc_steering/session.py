@@ -264,16 +264,31 @@ class Session:
             raise ValueError(str(error)) from None
 
     def withdraw(self) -> int:
-        """Move the last recorded result to ``withdrawn/``: that trial is asked again, uncounted."""
+        """Move the last recorded result to ``withdrawn/``: that trial is asked again, uncounted.
+        The next trial's commands, learned from that result, go with it (``NNNN-<time>/``)."""
         recorded = sorted((self.folder / "trials").glob("*/result.json"))
         if not recorded:
             raise ValueError(f"{self.folder}: no recorded trial to withdraw")
         last = recorded[-1]
         k = int(last.parent.name)
-        target = self.folder / "withdrawn" / f"{k:04d}-{_now().replace(':', '')}.json"
-        target.parent.mkdir(exist_ok=True)
-        shutil.move(last, target)
+        stamp = _now().replace(":", "")
+        withdrawn = self.folder / "withdrawn"
+        withdrawn.mkdir(exist_ok=True)
+        shutil.move(last, _unused(withdrawn / f"{k:04d}-{stamp}", ".json"))
+        for later in sorted((self.folder / "trials").iterdir()):
+            if later.is_dir() and later.name.isdigit() and int(later.name) > k:
+                shutil.move(later, _unused(withdrawn / f"{later.name}-{stamp}", ""))
         return k
+
+
+def _unused(stem: Path, suffix: str) -> Path:
+    """``stem + suffix``, or with ``-2``, ``-3``, ... before the suffix if taken (two withdrawals in
+    one second keep both)."""
+    path, n = Path(f"{stem}{suffix}"), 1
+    while path.exists():
+        n += 1
+        path = Path(f"{stem}-{n}{suffix}")
+    return path
 
 
 def _session_config(config: SteeringConfig, folder: Path) -> SteeringConfig:

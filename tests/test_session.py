@@ -100,7 +100,32 @@ def test_a_withdrawn_trial_is_asked_again_uncounted(started: Session) -> None:
     assert started.withdraw() == 1
     replay = started.replay()
     assert replay.pending == 1 and not replay.result.trials
-    assert len(list((started.folder / "withdrawn").iterdir())) == 1
+    withdrawn = sorted(p.name for p in (started.folder / "withdrawn").iterdir())
+    assert len(withdrawn) == 2 and withdrawn[0].startswith("0001-") and withdrawn[1].startswith("0002-")
+
+
+def test_a_trial_recorded_again_after_a_withdrawal_asks_new_commands(
+    started: Session, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The next trial's commands were learned from the withdrawn result: they go with it, so a
+    different pose recorded in its place asks commands learned from that pose."""
+    robot = LabRobot(load_config("experiment_forward"))
+    _run_robot(started, robot, 1)
+    assert started.replay().pending == 2  # trial 2's commands written, from trial 1's result
+    asked = json.loads((started.folder / "trials" / "0002" / "request.json").read_text())["c"]
+    started.withdraw()
+    assert not (started.folder / "trials" / "0002").exists()
+    request = json.loads((started.folder / "trials" / "0001" / "request.json").read_text())
+    final = robot.trial(request)["final"]
+    started.record([final[0] + 0.01, *final[1:]])  # measured again, a centimetre further
+    replay = started.replay()
+    assert replay.pending == 2 and replay.pending_folder is not None
+    assert json.loads((replay.pending_folder / "request.json").read_text())["c"] != asked
+    monkeypatch.setattr("ilc_steering.session._now", lambda: "2026-12-03T00:00:00Z")
+    started.withdraw()
+    started.record(final)
+    started.withdraw()  # twice within one second: both withdrawn results are kept
+    assert len(list((started.folder / "withdrawn").glob("0001-*.json"))) == 3
 
 
 def test_a_replay_that_differs_from_the_record_is_refused(started: Session) -> None:

@@ -190,11 +190,16 @@ REFERENCE = _reference()
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
-def test_a_hostile_person_leaves_the_session_consistent(tmp_path_factory, capsys):
+@pytest.mark.parametrize(
+    ("examples", "steps"),
+    [(3, 8), pytest.param(60, 20, marks=pytest.mark.slow)],  # the fast tier a few sequences, the slow tier many
+    ids=["small", "large"],
+)
+def test_a_hostile_person_leaves_the_session_consistent(examples, steps, tmp_path_factory, capsys):
     HostilePerson._tmp = tmp_path_factory
     HostilePerson._capsys = capsys
     runner = HostilePerson.TestCase
     runner.settings = settings(
-        max_examples=10, stateful_step_count=12, deadline=None, suppress_health_check=list(HealthCheck)
+        max_examples=examples, stateful_step_count=steps, deadline=None, suppress_health_check=list(HealthCheck)
     )
     runner().runTest()
