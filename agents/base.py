@@ -14,6 +14,7 @@ the comparison runs, users' own included, is made by a :data:`LearnerFactory` fr
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
@@ -35,8 +36,10 @@ __all__ = [
     "LearnerContext",
     "LearnerFactory",
     "TimedUpdates",
+    "Transferable",
     "close_learner",
     "load_factory",
+    "transferred",
     "update_times",
 ]
 
@@ -75,6 +78,17 @@ class TimedUpdates(Protocol):
     update_seconds: list[float]
 
 
+@runtime_checkable
+class Transferable(Protocol):
+    """A learner's optional part: ``transfer()``, what it learned of the robot (not of the goal: a
+    car's identified geometry, its servo's offset) for the next goal's learner of the same id, which
+    gets it as :attr:`LearnerContext.carried`. Called once, after the last trial and before
+    ``close()``; plain data (it is written into a run's JSON), or ``None`` when there is nothing to
+    carry yet."""
+
+    def transfer(self) -> Mapping[str, Any] | None: ...
+
+
 class BaseLearner:
     """A base class that declares a learner's optional parts with their defaults (SB3's
     ``BaseAlgorithm`` in small): subclass it and override :meth:`close`, or append to
@@ -103,6 +117,23 @@ def close_learner(learner: Learner) -> None:
     """Call the learner's ``close()`` if it declares one (:class:`Closable`)."""
     if isinstance(learner, Closable):
         learner.close()
+
+
+def transferred(learner: Learner) -> dict[str, Any] | None:
+    """What ``learner`` hands to the next goal (:class:`Transferable`), a copy as plain JSON data;
+    ``None`` if it carries nothing. ``TypeError`` if it hands something else."""
+    if not isinstance(learner, Transferable):
+        return None
+    carried = learner.transfer()
+    if carried is None:
+        return None
+    if not isinstance(carried, Mapping):
+        raise TypeError(f"transfer() must return a mapping or None, got {type(carried).__name__}")
+    try:
+        data: dict[str, Any] = json.loads(json.dumps(dict(carried), allow_nan=False))
+    except (TypeError, ValueError) as error:
+        raise TypeError(f"transfer() must return plain JSON data (finite numbers, strings, lists): {error}") from None
+    return data
 
 
 def update_times(learner: Learner) -> list[float]:
@@ -155,6 +186,11 @@ class LearnerContext:
     """The config's name, for learners with per-task settings (RL's hyperparameter files)."""
     progress_bar: bool = False
     """Show a training's progress bar, for learners that have one (RL, in one process)."""
+    carried: Mapping[str, Any] | None = None
+    """What the last goal's learner of the same id learned of the same robot (its
+    :meth:`Transferable.transfer`), for ``run`` on a list of goals with ``--carry``; ``None`` for a
+    first goal, and always in ``compare`` and ``sweep``, whose every cell starts afresh. A learner
+    that reads it checks it, and may ignore it."""
 
     @classmethod
     def from_env(
@@ -165,6 +201,7 @@ class LearnerContext:
         prior: str = "nominal",
         nu_b: float | None = None,
         progress_bar: bool = False,
+        carried: Mapping[str, Any] | None = None,
     ) -> LearnerContext:
         """The context of a learner on ``env`` (a one-trial env, or a vector env whose every env
         gets the same), with its config's gains, ``learning.cost`` and name: the one place a
@@ -189,6 +226,7 @@ class LearnerContext:
             cost=learning.cost,
             task=owner.config.name,
             progress_bar=progress_bar,
+            carried=carried,
         )
 
     def __post_init__(self) -> None:

@@ -30,7 +30,7 @@ from pathlib import Path
 from ilc_steering.arguments import Parser
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, load_config, packaged_configs
-from ilc_steering.console import learn, save
+from ilc_steering.console import learn, learn_goals, save, save_goals
 from ilc_steering.core.scatter import HOLD
 from ilc_steering.errors import ConfigError, LearnerError, LimitError, PlantError
 from ilc_steering.output import check_output_dir, check_output_file
@@ -63,7 +63,11 @@ EXIT_CODES = {
 
 # Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
 def _run(args: argparse.Namespace) -> int:
-    config = load_config(args.config)
+    if len(args.config) > 1:
+        return _run_goals(args)
+    if args.carry:
+        raise ValueError("--carry needs two or more configs (goals of one robot, in order)")
+    config = load_config(args.config[0])
     if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
         raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
     if not 1 <= args.hold <= MAX_TRIALS:
@@ -85,6 +89,29 @@ def _run(args: argparse.Namespace) -> int:
     if result.converged_at is not None:
         return 0
     return 5 if result.verdict.floor else 1
+
+
+def _run_goals(args: argparse.Namespace) -> int:
+    """``run A B C [--carry]``: one run per goal, in order, the learner carrying what it learned."""
+    configs = [load_config(name) for name in args.config]
+    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
+        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
+    if not 1 <= args.hold <= MAX_TRIALS:
+        raise ValueError(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
+    if args.plots is not None:
+        raise ValueError("--plots draws one run: give one config (or plot a goal's run from --json)")
+    if args.json is not None:
+        check_output_file(args.json, "--json")
+    try:
+        results = learn_goals(configs, args.trials, args.learner, args.hold, args.carry)
+    except (LearnerError, PlantError, LimitError) as error:
+        if isinstance(error.partial, list) and error.partial:
+            save_goals(error.partial, args.json)  # the goals it completed are kept
+        raise
+    save_goals(results, args.json)
+    if all(r.converged_at is not None for r in results):
+        return 0
+    return 5 if all(r.converged_at is not None or r.verdict.floor for r in results) else 1
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -111,7 +138,18 @@ def _parser() -> argparse.ArgumentParser:
         "run",
         help="learn on one scenario (one-trial or cyclic); exit 0 if it converged and held, 5 at the plant's floor",
     )
-    run.add_argument("config", help="a YAML file or a packaged config name, e.g. forward_parking")
+    run.add_argument(
+        "config",
+        nargs="+",
+        help="a YAML file or a packaged config name, e.g. forward_parking; several: goals of one robot, "
+        "run in order (see --carry)",
+    )
+    run.add_argument(
+        "--carry",
+        action="store_true",
+        help="with several configs: each goal's learner starts from what the last one learned of the robot "
+        "(its transfer(); a learner that carries nothing starts afresh)",
+    )
     run.add_argument(
         "--trials",
         type=int,

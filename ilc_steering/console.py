@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.scatter import FLOOR, HOLD
 from ilc_steering.output import write_json
@@ -17,10 +19,11 @@ from ilc_steering.runner import (
     TrialRecord,
     learner_spec,
     run_cyclic_ilc,
+    run_goals,
     run_ilc,
 )
 
-__all__ = ["learn", "print_header", "print_row", "save"]
+__all__ = ["learn", "learn_goals", "print_header", "print_row", "save", "save_goals"]
 
 
 def _columns(config: SteeringConfig) -> list[str]:
@@ -122,6 +125,65 @@ def learn(
         print(f"{clipped} of {len(records)} actions were clipped to the action box (task.action_bound)")
     print_verdict(result, unit, done)
     return result
+
+
+def learn_goals(
+    configs: list[SteeringConfig], count: int | None, learner: str, hold: int, carry: bool
+) -> list[RunResult]:
+    """Run ``learner`` on each goal in turn (as :func:`learn`, a table each), carrying what it learned
+    of the robot from goal to goal with ``carry``; then one line of trials to the tolerance: the
+    first goal's, and the later goals' median."""
+    cyclic = [config.name for config in configs if config.is_cyclic]
+    if cyclic:
+        raise ValueError(f"a list of goals takes one-trial configs; {cyclic[0]} is cyclic")
+    learner_spec(learner)
+
+    def started(k: int) -> None:
+        config = configs[k]
+        print(f"goal {k + 1} of {len(configs)}:", end=" ")
+        print_header(config, config.learning.trials if count is None else count)
+
+    def ended(k: int, result: RunResult) -> None:
+        print_verdict(result, "trials", len(result.trials))
+        if k + 1 < len(configs):
+            started(k + 1)
+
+    started(0)
+    results = run_goals(configs, count, learner, hold=hold, carry=carry, on_goal=ended, on_trial=print_row)
+    print(goals_line(results, carry))
+    return results
+
+
+def goals_line(results: list[RunResult], carry: bool) -> str:
+    """``goals: 3 of 3 converged; trials to the tolerance: first goal 4, goals 2-3 median 2 (carried)``."""
+    reached = [_first_within(r) for r in results]
+    converged = sum(r.converged_at is not None for r in results)
+    first = "not reached" if reached[0] is None else str(reached[0])
+    line = f"goals: {converged} of {len(results)} converged; trials to the tolerance: first goal {first}"
+    later = sorted(k for k in reached[1:] if k is not None)
+    if len(results) > 1:
+        missed = len(results) - 1 - len(later)
+        if len(results) == 2:
+            line += f", goal 2 {later[0] if later else 'not reached'}"
+        else:
+            median = "none reached" if not later else f"median {float(np.median(later)):g}"
+            line += f", goals 2-{len(results)} {median}" + (f" ({missed} not reached)" if missed else "")
+    return line + (" (learning carried from goal to goal)" if carry else " (each goal from scratch)")
+
+
+def _first_within(result: RunResult) -> int | None:
+    """The first trial within the tolerance, if any (``goals_line``'s trials to the tolerance)."""
+    verdict = result.verdict
+    if verdict.relapses:
+        return verdict.relapses[0][0]
+    return len(result.trials) - verdict.held + 1 if verdict.held else None
+
+
+def save_goals(results: list[RunResult], json_path: Path | None) -> None:
+    """Write the goals' runs as one JSON (``{"kind": "goals", "goals": [run, ...]}``), where asked."""
+    if json_path is not None:
+        write_json(json_path, {"kind": "goals", "goals": [r.to_json() for r in results]})
+        print(f"wrote {json_path}")
 
 
 def save(result: RunResult | CyclicRunResult, json_path: Path | None, plots: Path | None) -> None:

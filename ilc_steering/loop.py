@@ -20,7 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ilc_steering.agents.base import Closable, Learner
+from ilc_steering.agents.base import Closable, Learner, transferred
 from ilc_steering.core.score import TRUE_KEYS
 from ilc_steering.errors import LearnerError, LimitError
 
@@ -43,6 +43,8 @@ class Rollout:
     rewards: list[float] = field(default_factory=list)
     stopped: bool = False
     """A callback stopped the loop before the budget was spent."""
+    carried: dict[str, Any] | None = None
+    """What the learner handed to the next goal (``run_trials(..., transfer=True)``)."""
 
     def __len__(self) -> int:
         return len(self.infos)
@@ -57,6 +59,7 @@ def run_trials(
     options: dict[str, Any] | None = None,
     callbacks: Sequence[TrialCallback] = (),
     name: str | None = None,
+    transfer: bool = False,
 ) -> Rollout:
     """Run ``learner`` on ``env`` for at most ``trials`` trials: act, step, learn, and reset when the
     episode ends (every trial for the one-trial env; at truncation for the cyclic env).
@@ -68,7 +71,9 @@ def run_trials(
     (:class:`~ilc_steering.agents.base.Closable`: the adapters of pull-style optimizers) is
     closed when the loop ends, however it ends.
 
-    ``name`` names the learner in a :class:`LearnerError` (default: its class).
+    ``name`` names the learner in a :class:`LearnerError` (default: its class). With ``transfer``,
+    the rollout keeps what the learner hands to the next goal
+    (:func:`~ilc_steering.agents.base.transferred`), asked after the last trial, before ``close()``.
     """
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
@@ -99,6 +104,11 @@ def run_trials(
                 break
             if k < trials and (terminated or truncated):
                 observation, _ = env.reset()
+        if transfer:
+            try:
+                rollout.carried = transferred(learner)
+            except (Exception, SystemExit) as error:
+                raise _fault(who, "transfer() raised", len(rollout), error) from error
         failed = False
     finally:
         if isinstance(learner, Closable):

@@ -10,8 +10,8 @@ converged, and whether the plant's scatter allowed it to, is its verdict
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +39,7 @@ __all__ = [
     "check_task",
     "learner_spec",
     "run_cyclic_ilc",
+    "run_goals",
     "run_ilc",
     "step_warning",
 ]
@@ -202,9 +203,15 @@ class RunResult(_Judged):
     config: SteeringConfig
     trials: list[TrialRecord]
     verdict: Verdict
+    carried: dict[str, Any] | None = None
+    """What the learner handed to the next goal (``run_ilc(..., carried=...)`` with a list of goals)."""
+    started_from: dict[str, Any] | None = None
+    """What the learner was handed by the last goal's (:attr:`LearnerContext.carried`), if anything."""
 
     def to_json(self) -> dict[str, Any]:
-        return _run_json(self.config, "trials", self.trials, self.verdict)
+        data = _run_json(self.config, "trials", self.trials, self.verdict)
+        extra = {"started_from": self.started_from, "carried": self.carried}
+        return {**data, **{k: v for k, v in extra.items() if v is not None}}
 
 
 def _record(index: int, info: dict[str, Any]) -> TrialRecord:
@@ -231,6 +238,8 @@ def run_ilc(
     learner: str = DEFAULT_LEARNER,
     seed: int = 1,
     hold: int = scatter_.HOLD,
+    carried: Mapping[str, Any] | None = None,
+    transfer: bool = False,
 ) -> RunResult:
     """Run a learner (default: the paper's eqs. 33-34; any id of the registry or ``module:attr``,
     :func:`learner_spec`) for ``trials`` trials (default: the config's), with ``seed`` for the
@@ -239,6 +248,9 @@ def run_ilc(
 
     ``on_trial`` is called with each record as soon as the trial ends. ``trajectories`` keeps
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
+    ``carried`` is what a learner of the same id learned of the same robot on an earlier goal
+    (:attr:`~ilc_steering.agents.base.LearnerContext.carried`); with ``transfer`` the result keeps
+    what this one hands on (:func:`run_goals` chains them).
 
     A learner that fails raises :class:`~ilc_steering.errors.LearnerError` naming it (``learner``),
     its ``partial`` the :class:`RunResult` of the trials run before; so do a plant that fails
@@ -254,11 +266,12 @@ def run_ilc(
         views = env.unwrapped.segment_views()  # type: ignore[attr-defined]
         for k, view in enumerate(views):
             check_task(view, f"{config.name} task.segments[{k}]")
-        agent = segmented_learner(lambda context: spec.make(context, count), views, seed)
+        agent = segmented_learner(lambda context: spec.make(replace(context, carried=carried), count), views, seed)
     else:
         env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
         check_task(env, config.name)
-        agent = spec.make(LearnerContext.from_env(env, seed=seed), count)
+        agent = spec.make(LearnerContext.from_env(env, seed=seed, carried=carried), count)
+    started_from = None if carried is None else dict(carried)
     model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
 
     def judged(met: list[bool]) -> Verdict:  # the scatter's bound is one segment's model's: not for a manoeuvre
@@ -276,13 +289,54 @@ def run_ilc(
             on_trial(records[-1])
 
     try:
-        run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner)
+        rollout = run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner, transfer=transfer)
     except (LearnerError, PlantError, LimitError) as error:  # the trials before it are kept
-        error.partial = RunResult(config, records, judged(met))
+        error.partial = RunResult(config, records, judged(met), started_from=started_from)
         raise
     finally:
         env.close()
-    return RunResult(config, records, judged(met))
+    return RunResult(config, records, judged(met), rollout.carried, started_from)
+
+
+def run_goals(
+    configs: Sequence[str | Path | SteeringConfig],
+    trials: int | None = None,
+    learner: str = DEFAULT_LEARNER,
+    seed: int = 1,
+    hold: int = scatter_.HOLD,
+    carry: bool = True,
+    on_goal: Callable[[int, RunResult], None] | None = None,
+    on_trial: Callable[[TrialRecord], None] | None = None,
+) -> list[RunResult]:
+    """One run of ``learner`` per goal (a one-trial config each, in order, on the same robot), each
+    with its own budget and trial counter; with ``carry``, each learner starts from what the last
+    one learned of the robot (:class:`~ilc_steering.agents.base.Transferable`: a learner that
+    carries nothing starts afresh, as without ``carry``). ``on_goal(k, result)`` is called after goal
+    ``k`` (from 0). A failure raises as :func:`run_ilc`'s, its ``partial`` the list so far."""
+    goals = [load_config(config) for config in configs]
+    if not goals:
+        raise ValueError("run_goals needs at least one config")
+    for k, goal in enumerate(goals[1:], 1):
+        if carry and goal.plant != goals[0].plant:
+            raise ValueError(
+                f"goal {k + 1} ({goal.name}) has another plant than goal 1 ({goals[0].name}): "
+                "learning is carried between goals of one robot"
+            )
+    results: list[RunResult] = []
+    carried: dict[str, Any] | None = None
+    for k, config in enumerate(goals):
+        try:
+            result = run_ilc(
+                config, trials, on_trial, False, learner, seed, hold, carried if carry else None, transfer=carry
+            )
+        except (LearnerError, PlantError, LimitError) as error:
+            error.partial = [*results, error.partial] if error.partial is not None else results
+            raise
+        results.append(result)
+        carried = result.carried
+        if on_goal is not None:
+            on_goal(k, result)
+    return results
 
 
 @dataclass(frozen=True)

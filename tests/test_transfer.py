@@ -1,0 +1,144 @@
+"""Learning carried from goal to goal (issue 50, item 3): ``run_goals`` and ``run A B --carry`` hand
+each goal's learner what the last one learned of the robot (``transfer()``), and nothing else."""
+
+from __future__ import annotations
+
+import json
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from ilc_steering.cli import main
+from ilc_steering.errors import LearnerError
+from ilc_steering.runner import run_goals
+
+LEARNERS = textwrap.dedent(
+    """
+    import math
+
+    import numpy as np
+
+    from ilc_steering.agents.ilc import make_ilc
+
+    SEEN = []  # each goal's context.carried, in order
+
+
+    class Carrying:
+        def __init__(self, context, handed):
+            self.inner, self.handed, self.trials = make_ilc(context), handed, 0
+            SEEN.append(None if context.carried is None else dict(context.carried))
+
+        def act(self, observation):
+            return self.inner.act(observation)
+
+        def learn(self, info):
+            self.trials += 1
+            self.inner.learn(info)
+
+        def reset(self):
+            self.inner.reset()
+
+        def transfer(self):
+            return self.handed(self)
+
+
+    def make(context):
+        before = 0 if context.carried is None else context.carried["trials"]
+        return Carrying(context, lambda learner: {"trials": before + learner.trials, "note": "geometry"})
+
+
+    def make_nan(context):
+        return Carrying(context, lambda learner: {"theta": [math.nan]})
+
+
+    def make_object(context):
+        return Carrying(context, lambda learner: {"theta": np.ones(2)})
+
+
+    def make_list(context):
+        return Carrying(context, lambda learner: [1, 2])
+    """
+)
+
+
+@pytest.fixture
+def learners(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    (tmp_path / "carrying_learners.py").write_text(LEARNERS)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sys.modules.pop("carrying_learners", None)
+    import carrying_learners
+
+    yield carrying_learners
+    sys.modules.pop("carrying_learners", None)
+
+
+def test_each_goal_starts_from_what_the_last_handed_on(learners) -> None:
+    results = run_goals(["forward_parking"] * 3, trials=2, learner="carrying_learners:make", carry=True)
+    assert learners.SEEN == [None, {"trials": 2, "note": "geometry"}, {"trials": 4, "note": "geometry"}]
+    assert [r.started_from for r in results] == learners.SEEN
+    assert [r.carried for r in results] == [{"trials": 2 * k, "note": "geometry"} for k in (1, 2, 3)]
+    assert [len(r.trials) for r in results] == [2, 2, 2]  # each goal its own budget and counter
+
+
+def test_without_carry_every_goal_starts_afresh(learners) -> None:
+    results = run_goals(["forward_parking"] * 2, trials=2, learner="carrying_learners:make", carry=False)
+    assert learners.SEEN == [None, None]
+    assert all(r.carried is None and r.started_from is None for r in results)
+
+
+def test_a_learner_that_carries_nothing_runs_each_goal_as_alone() -> None:
+    alone = run_goals(["forward_parking"], trials=3, learner="newton_ilc")[0]
+    carried = run_goals(["forward_parking"] * 2, trials=3, learner="newton_ilc", carry=True)
+    assert carried[1].carried is None and carried[1].started_from is None
+    assert [t.error for t in carried[1].trials] == [t.error for t in alone.trials]
+
+
+@pytest.mark.parametrize(
+    ("factory", "problem"),
+    [("make_nan", "finite"), ("make_object", "JSON"), ("make_list", "mapping")],
+)
+def test_a_transfer_that_is_not_plain_data_is_the_learners_failure(learners, factory: str, problem: str) -> None:
+    with pytest.raises(LearnerError, match=f"carrying_learners:{factory}: transfer\\(\\) raised.*{problem}") as raised:
+        run_goals(["forward_parking"] * 2, trials=2, learner=f"carrying_learners:{factory}", carry=True)
+    partial = raised.value.partial  # goal 1's trials ran and are kept; it handed nothing on
+    assert len(partial) == 1 and len(partial[0].trials) == 2 and partial[0].carried is None
+
+
+def test_goals_of_two_robots_refuse_to_carry() -> None:
+    with pytest.raises(ValueError, match="goal 2 \\(unicycle_parking\\) has another plant"):
+        run_goals(["forward_parking", "unicycle_parking"], trials=2, carry=True)
+
+
+def test_the_command_runs_the_goals_and_writes_them(learners, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "goals.json"
+    argv = ["run", "forward_parking", "forward_parking", "--trials", "6", "--learner", "carrying_learners:make"]
+    assert main([*argv, "--carry", "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "goal 2 of 2: forward_parking" in printed
+    assert "goals: 2 of 2 converged; trials to the tolerance: first goal" in printed
+    assert printed.rstrip().splitlines()[-2].endswith("(learning carried from goal to goal)")
+    data = json.loads(out.read_text())
+    assert data["kind"] == "goals" and [g["carried"]["trials"] for g in data["goals"]] == [6, 12]
+    assert data["goals"][1]["started_from"] == {"trials": 6, "note": "geometry"}
+
+
+@pytest.mark.parametrize(
+    ("extra", "problem"),
+    [
+        (["forward_parking", "--carry"], "--carry needs two or more configs"),
+        (["forward_parking", "forward_parking", "--plots", "p"], "--plots draws one run"),
+        (["forward_parking", "cyclic_home_goal"], "cyclic_home_goal is cyclic"),
+        (["forward_parking", "unicycle_parking", "--carry"], "another plant"),
+    ],
+)
+def test_the_command_refuses_a_list_it_cannot_run_in_one_line(
+    extra, problem, tmp_path: Path, capsys, monkeypatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", *extra]) == 2
+    err = capsys.readouterr().err
+    assert problem in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "p").exists()
