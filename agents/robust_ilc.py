@@ -123,6 +123,7 @@ from ilc_steering.agents.robust_identify import (
     chained_scatter,
     fit_secant,
 )
+from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -164,14 +165,42 @@ class RobustILC(GlobalIdentification):
         The env's action box [physical units].
     """
 
-    def __init__(self, model: NominalModel, start: Array, low: Array, high: Array) -> None:
+    def __init__(
+        self, model: NominalModel, start: Array, low: Array, high: Array, carried: Mapping[str, Any] | None = None
+    ) -> None:
         super().__init__(model)
         self.start = np.array(start, dtype=np.float64)
         self.low = np.asarray(low, dtype=np.float64)
         self.high = np.asarray(high, dtype=np.float64)
         self._scale = model.action_scale()
         self._nominal_c = np.clip(model.solve(), self.low, self.high)
+        self._carried = None if carried is None else self._carried_family(carried)
         self.reset()
+
+    def _carried_family(self, carried: Mapping[str, Any]) -> tuple[ModelFamily, Array]:
+        """The family and parameters another goal's learner identified (:meth:`transfer`), checked
+        against this robot's families; ``ValueError`` naming what does not fit."""
+        found = carried.get("robust_ilc") if isinstance(carried, Mapping) else None
+        values = found.get("parameters") if isinstance(found, Mapping) else None
+        if not isinstance(values, Mapping):
+            raise ValueError(
+                f"context.carried is not robust_ilc's transfer() ({{'robust_ilc': {{'parameters': ...}}}}): {carried!r}"
+            )
+        for family in self._families:
+            if list(family.names) == list(values):
+                theta = np.array([values[name] for name in family.names], dtype=np.float64)
+                if not (np.all(np.isfinite(theta)) and np.all(theta >= family.low) and np.all(theta <= family.high)):
+                    raise ValueError(
+                        f"context.carried: robust_ilc's parameters {dict(values)} lie outside the family's bounds"
+                    )
+                return family, theta
+        names = [list(f.names) for f in self._families]
+        raise ValueError(f"context.carried: parameters {list(values)} are none of this robot's families {names}")
+
+    def transfer(self) -> dict[str, Any]:
+        """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``):
+        the family's parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s])."""
+        return {"robust_ilc": {"parameters": dict(zip(self.family.names, map(float, self.theta)))}}
 
     def reset(self) -> None:
         self.reset_identification()
@@ -186,6 +215,9 @@ class RobustILC(GlobalIdentification):
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
         self._next = self.start.copy()
         self._sigma_z: Array | None = None
+        if self._carried is not None:  # another goal of the same robot identified it: its model's solution first
+            self.family, self.theta = self._carried[0], self._carried[1].copy()
+            self._next = self._solve(None, 1.0)
 
     def act(self, observation: Any = None) -> Array:
         return self._next.copy()
@@ -391,4 +423,4 @@ def make_robust_ilc(context: LearnerContext) -> RobustILC:
     """``compare`` method ``robust_ilc`` (and ``run --learner robust_ilc``), from the context's first trial."""
     low = np.asarray(context.action_space.low, dtype=np.float64)
     high = np.asarray(context.action_space.high, dtype=np.float64)
-    return RobustILC(context.model, context.first_action(), low, high)
+    return RobustILC(context.model, context.first_action(), low, high, context.carried)

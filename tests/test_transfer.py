@@ -8,6 +8,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ilc_steering.cli import main
@@ -142,3 +143,50 @@ def test_the_command_refuses_a_list_it_cannot_run_in_one_line(
     err = capsys.readouterr().err
     assert problem in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "p").exists()
+
+
+def _car(name: str, wheelbase: float, radius: float):
+    import dataclasses
+
+    from ilc_steering.config import load_config
+
+    config = load_config(name)
+    return dataclasses.replace(
+        config, plant=dataclasses.replace(config.plant, true_wheelbase=wheelbase, true_wheel_radius=radius)
+    )
+
+
+@pytest.mark.parametrize("wheelbase", [0.14, 0.3])
+def test_robust_ilc_carries_the_identified_car_and_lands_the_next_goals_at_their_first_trial(wheelbase: float) -> None:
+    goals = [_car(name, wheelbase, 0.024) for name in ("forward_parking", "parallel_parking", "forward_parking")]
+    alone = run_goals(goals, trials=4, learner="robust_ilc", carry=False)
+    carried = run_goals(goals, trials=4, learner="robust_ilc", carry=True)
+    tolerance = goals[0].learning.tolerance.cartesian
+    assert [t.error for t in carried[0].trials] == [t.error for t in alone[0].trials]  # goal 1 as alone
+    assert all(r.trials[0].cartesian_error > tolerance for r in alone)  # from scratch, each first trial misses
+    assert all(r.trials[0].cartesian_error < 1e-6 for r in carried[1:])  # carried: the true car's solution at once
+    parameters = carried[-1].carried["robust_ilc"]["parameters"]
+    assert parameters["wheelbase_ratio"] == pytest.approx(np.log(wheelbase / 0.2), abs=1e-6)
+    assert parameters["wheel_radius_ratio"] == pytest.approx(np.log(0.024 / 0.02), abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("carried", "problem"),
+    [
+        ({"newton_ilc": {}}, "not robust_ilc's transfer"),
+        ({"robust_ilc": {"parameters": {"axle_width_ratio": 0.1}}}, "none of this robot's families"),
+        ({"robust_ilc": {"parameters": {"wheelbase_ratio": 9.0, "wheel_radius_ratio": 0.0}}}, "outside the family"),
+    ],
+)
+def test_robust_ilc_refuses_what_it_cannot_have_carried(carried, problem: str) -> None:
+    import dataclasses
+
+    import gymnasium as gym
+
+    from ilc_steering.agents.base import LearnerContext
+    from ilc_steering.agents.robust_ilc import make_robust_ilc
+
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
+    context = dataclasses.replace(LearnerContext.from_env(env), carried=carried)
+    with pytest.raises(ValueError, match=problem):
+        make_robust_ilc(context)
