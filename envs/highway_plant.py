@@ -225,7 +225,9 @@ class HighwayParkingPlant(ExternalPlantBase):
             self.frames.clear()
         vehicle = env.unwrapped.vehicle
         q = self._measure(vehicle)
-        if float(np.max(np.abs(q - x0))) > 1e-6:  # the config's task.start or start_error: bad input
+        gap = q - x0
+        gap[2] = np.angle(np.exp(1j * gap[2]))  # headings compared modulo 2 pi: the measured one is wrapped
+        if float(np.max(np.abs(gap))) > 1e-6:  # the config's task.start or start_error: bad input
             where = "where the last segment left the car" if carried else f"parking-v0 seed {self.seed}'s start"
             raise ConfigError(
                 f"task.start {rotate(x0, -self.frame).tolist()} is not {where} "

@@ -96,9 +96,17 @@ def _at_edge(scenario: Scenario, q_task: Array) -> Array:
     (as ``Scenario.measure`` reads a noisy one), where the chained map is defined."""
     q = np.array(q_task, dtype=np.float64)
     if scenario.kind.has_pose:
+        q = _wrapped(q)
         edge = np.pi / 2 - CHART_MARGIN
         q[..., 2:] = np.clip(q[..., 2:], -edge, edge)
     return q
+
+
+def _wrapped(x: Array) -> Array:
+    """A state with a pose (``x, y, theta`` first) with ``theta`` wrapped to ``(-pi, pi]``."""
+    out = np.array(x, dtype=np.float64)
+    out[..., 2] = np.angle(np.exp(1j * out[..., 2]))
+    return out
 
 
 def _joined(trajectories: Sequence[Trajectory]) -> Trajectory:
@@ -144,7 +152,10 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
 
     After its one step: ``terminated=True``. A segment that leaves its chart ends the trial there;
     the later segments are not run (``ran=False``) and each is measured where the robot halted,
-    ``left_chart``. The trial counts once, failed.
+    ``left_chart``. The trial counts once, failed. So does a segment that would start off its own
+    chart (the carried heading, wrapped to ``(-pi, pi]``, refused by the plant's
+    ``check_configuration``) or that the plant refuses after an earlier one drove it (a
+    ``ValueError``): it is not run, and its ``info`` says why (``refused``).
 
     ## Info
 
@@ -257,9 +268,21 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         return self._segments[-1].goal.copy()
 
     def _carry(self, x: Array, k: int) -> Array:
-        """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame."""
+        """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame, its heading
+        wrapped to ``(-pi, pi]`` (a turn of the frame may carry it past ``pi``, where an external
+        plant reads it wrapped)."""
         turn = self._segments[k].frame - self._segments[k - 1].frame
-        return rotate(x, turn) if turn else x
+        return _wrapped(rotate(x, turn)) if turn else x
+
+    def _refusal(self, k: int, x0: Array) -> str | None:
+        """Why segment ``k`` cannot start from plant state ``x0`` ``(1, nx)`` (its frame), or ``None``:
+        a start off its chart or past the plant's limits (``check_configuration``) is not run."""
+        plant = self._segments[k].plant
+        try:
+            plant.check_configuration(plant.configuration(x0))
+        except ValueError as error:
+            return f"segment {k} would start off its chart: {error}"
+        return None
 
     @staticmethod
     def _measured_start(scenario: Scenario, q_world: Array) -> Array:
@@ -281,15 +304,25 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             x0 = None if x is None else self._carry(x, k)[None]
             noise = scenario.draw_noise(self.np_random, 1)
             z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])
-            if halted:  # not run: measured where the robot halted, off its chart (at the edge if past it)
+            refused = None if halted or x0 is None else self._refusal(k, x0)
+            trials = None
+            if k and not (halted or refused):
+                if isinstance(scenario.external, Carried):  # the same car goes on, no reset
+                    scenario.external.carry_on()
+                try:  # the car has driven: whatever refuses this segment fails the trial, counted
+                    trials = scenario.run(applied[None], x0, record)
+                except ValueError as error:
+                    refused = f"segment {k} refused: {type(error).__name__}: {error}"
+            if halted or refused:  # not run: measured where the robot halted, off its chart (at the edge if past it)
                 q = _at_edge(scenario, scenario.plant.configuration(x0))  # type: ignore[arg-type]
                 measured = scenario.measure_configurations(q, np.ones(1, dtype=np.int64), noise=noise)
                 infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": False})
-                x = x0[0]  # type: ignore[index]
+                if refused:
+                    infos[-1]["refused"] = refused
+                x, halted = x0[0], True  # type: ignore[index]
                 continue
-            if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
-                scenario.external.carry_on()
-            trials = scenario.run(applied[None], x0, record)
+            if trials is None:
+                trials = scenario.run(applied[None], x0, record)
             q = scenario.plant.configuration(trials.final)
             if trials.status[0] != OK:  # halted (its chart, a wall): read at the chart's edge if past it
                 q = _at_edge(scenario, q)

@@ -260,3 +260,21 @@ def test_seed_2_keeps_inside_the_walls() -> None:
     env.reset(seed=0)
     _, _, _, _, info = env.step(env.unwrapped.nominal_model.solve())
     assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and info["cartesian_error"] < 0.5
+
+
+def test_the_start_heading_is_compared_modulo_two_pi() -> None:
+    """Finding 3 of the review: the plant reads the car's heading wrapped to (-pi, pi], so a carried
+    heading a whole turn away is the car's own (it raised a ConfigError, which the loop reported as
+    the learner's fault after the car had driven); a heading 1 mrad away is still refused."""
+    from ilc_steering.core.integrate import OK
+    from ilc_steering.errors import ConfigError
+
+    scenario = Scenario.from_config(load_config("highway_parking"))
+    plant = scenario.external
+    assert plant is not None
+    x0 = scenario.x_start + np.array([0.0, 0.0, 2 * pi, 0.0])
+    _, status, _, log = plant.trial(scenario.profile, x0, scenario.nominal.solve(), 1)  # type: ignore[attr-defined]
+    assert status == OK and len(log["actions"]) == 1
+    x0[2] += 1e-3
+    with pytest.raises(ConfigError, match="is not parking-v0 seed 4's start"):
+        plant.trial(scenario.profile, x0, scenario.nominal.solve(), 1)  # type: ignore[attr-defined]

@@ -247,3 +247,47 @@ def test_run_json_keeps_the_manoeuvres_trajectory_for_plot(tmp_path):
     np.testing.assert_allclose(trajectory.q[0], config.task.start, atol=1e-12)
     assert trajectory.t[-1] == pytest.approx(sum(sum(c.task.pieces) for c in config.segment_configs()))
     assert main(["plot", str(path), "--out", str(tmp_path / "plots")]) == 0
+
+
+def test_a_segment_that_would_start_off_its_chart_is_not_run():
+    """Finding 3 of the review: segment 1's frame puts the via point 1.45 rad from its axis, and
+    segment 0 overshoots to a heading past segment 1's chart. Segment 1 is not run (it ran before,
+    and ended 13 m away with a folded heading, ``left_chart=False``): ``ran=False``, ``left_chart``,
+    its ``refused`` says why, every error finite, the trial counted once, failed."""
+    data = packaged()
+    data["plant"].update(true_wheelbase=0.2, true_wheel_radius=0.02)
+    data["task"]["segments"][1]["frame"] = 0.3 - 1.45
+    env = gym.make(ENV_ID, config=load_config(data))
+    env.reset(seed=0)
+    c = [view.nominal_model.solve() for view in env.unwrapped.segment_views()]
+    _, _, _, _, info = env.step(np.concatenate(c))
+    assert info["cartesian_error"] < 1e-9 and not info["left_chart"]  # the nominal car: both segments run
+    c[0][1:] *= 1.6  # segment 0 ends with a heading past segment 1's chart
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert first["ran"] and not first["left_chart"]
+    assert not second["ran"] and second["left_chart"] and "would start off its chart" in second["refused"]
+    assert info["left_chart"] and np.all(np.isfinite(info["error"]))
+
+
+def test_a_segment_the_plant_refuses_after_the_car_drove_counts_the_trial(monkeypatch):
+    """Finding 3: once segment 0 has driven the plant, a ``ValueError`` from segment 1's run (an
+    external plant's refusal) fails the trial, counted, never a ``LearnerError``; segment 1's
+    learner does not learn from it."""
+    env = gym.make(ENV_ID, config="segmented_parking")
+    scenario = env.unwrapped._segments[1]
+    ran = []
+
+    def refuse(*args, **kwargs):
+        ran.append(1)
+        raise ValueError("task.start is not where the last segment left the car")
+
+    monkeypatch.setattr(scenario, "run", refuse)
+    views = env.unwrapped.segment_views()
+    rollout = run_trials(env, segmented_learner(lambda c: lookup("newton_ilc").make(c, 3), views, seed=1), 3, seed=1)
+    assert len(ran) == 3 and len(rollout) == 3
+    for info in rollout.infos:
+        assert info["left_chart"] and not info["segments"][1]["ran"]
+        assert "segment 1 refused: ValueError: task.start is not" in info["segments"][1]["refused"]
+    actions = [info["segments"][1]["action"] for info in rollout.infos]
+    np.testing.assert_array_equal(actions[0], actions[-1])
