@@ -218,29 +218,76 @@ def test_the_outline_is_highway_envs_polygon() -> None:
         assert max(abs(float(o.position[axis])) for o in walls) - 0.5 == highway_plant.WALLS[axis]
 
 
-def test_a_trial_into_a_wall_is_a_failed_trial_counted() -> None:
-    """Three times the nominal speed drives seed 4's car into the east wall: the trial fails
-    (``left_chart``, the plant's ``left_lot``), scores the off-chart penalty, and counts as one."""
+class Fixed:
+    """A learner that asks for the same coefficients every trial."""
+
+    def __init__(self, c: Any) -> None:
+        self.c = c
+
+    def act(self, observation: Any) -> Any:
+        return self.c
+
+    def learn(self, info: Any) -> None:
+        pass
+
+    def reset(self) -> None:
+        pass
+
+
+@pytest.fixture
+def drives(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Counts every drive of a parking-v0 car (``_simulate``, one per action step) and every seeded
+    reset (highway-env's constructor resets once, unseeded)."""
+    from highway_env.envs.common.abstract import AbstractEnv
+
+    counts = [0, 0]
+    simulate, reset = AbstractEnv._simulate, AbstractEnv.reset
+
+    def counting_simulate(self: Any, *args: Any, **kwargs: Any) -> Any:
+        counts[0] += 1
+        return simulate(self, *args, **kwargs)
+
+    def counting_reset(self: Any, *args: Any, **kwargs: Any) -> Any:
+        counts[1] += kwargs.get("seed") is not None
+        return reset(self, *args, **kwargs)
+
+    monkeypatch.setattr(AbstractEnv, "_simulate", counting_simulate)
+    monkeypatch.setattr(AbstractEnv, "reset", counting_reset)
+    return counts
+
+
+def test_a_command_into_a_wall_is_never_sent(drives: list[int]) -> None:
+    """Review finding 5, the pre-send check: a learner that asks for three times the nominal speed
+    (seed 4's car would drive into the east wall) is refused before anything is sent: the car is
+    never driven (no action step, nothing logged), each trial fails where the car stands
+    (``left_chart``, ``refused``, not ``left_lot``) and counts once; the nominal solution is sent."""
+    from ilc_steering.core.score import OFF_CHART_PENALTY
+    from ilc_steering.loop import run_trials
+
+    env = gym.make(ENV, config="highway_parking")
+    nominal = env.unwrapped.nominal_model.solve()
+    rollout = run_trials(env, Fixed(nominal * np.array([3.0, 1.0, 1.0, 1.0, 1.0])), 2, seed=0)
+    assert len(rollout) == 2 and drives == [0, 2]
+    start = load_config("highway_parking").task.start
+    for info, reward in zip(rollout.infos, rollout.rewards):
+        assert info["plant"]["refused"] and info["plant"]["actions"] == [] and not info["plant"]["left_lot"]
+        assert info["left_chart"] and reward < -OFF_CHART_PENALTY
+        np.testing.assert_allclose(info["q_final"], start, atol=1e-9)
+    rollout = run_trials(env, Fixed(nominal), 1, seed=0)
+    assert not rollout.infos[0]["plant"]["refused"] and drives == [75, 3]
+
+
+def test_a_trial_into_a_wall_is_a_failed_trial_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past the pre-send check (switched off here: the real car strays from its prediction), three
+    times the nominal speed drives seed 4's car into the east wall: the trial fails (``left_chart``,
+    the plant's ``left_lot``), scores the off-chart penalty, and counts as one."""
     from ilc_steering.core.score import OFF_CHART_PENALTY, within_tolerance
     from ilc_steering.loop import run_trials
 
-    class Fast:
-        def __init__(self, c: Any) -> None:
-            self.c = c
-
-        def act(self, observation: Any) -> Any:
-            return self.c
-
-        def learn(self, info: Any) -> None:
-            pass
-
-        def reset(self) -> None:
-            pass
-
+    monkeypatch.setattr(highway_plant.HighwayParkingPlant, "keeps_inside", lambda *args: True)
     env = gym.make(ENV, config="highway_parking")
     c = env.unwrapped.nominal_model.solve() * np.array([3.0, 1.0, 1.0, 1.0, 1.0])
-    rollout = run_trials(env, Fast(c), 2, seed=0)
-    assert len(rollout) == 2
+    rollout = run_trials(env, Fixed(c), 2, seed=0)
     for info, reward in zip(rollout.infos, rollout.rewards):
         assert info["left_chart"] and info["plant"]["left_lot"] and reward < -OFF_CHART_PENALTY
         assert not within_tolerance(load_config("highway_parking").learning.tolerance, info)

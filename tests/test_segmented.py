@@ -210,15 +210,25 @@ def seed_12():
 
 
 @pytest.mark.extra("highway")
-def test_a_crash_past_the_chart_is_a_failed_trial_counted(seed_12):
-    """The paper's law from its fictitious zero iteration drives seed 12's car off its charts and into
-    the lot's walls (trials 1-5): each trial counts, failed, a halted segment read at its chart's edge
-    (trial 5's heading lay past it: the chained map's ValueError was reported as the learner's fault)."""
+def test_a_manoeuvre_into_the_walls_is_never_sent(seed_12):
+    """Review finding 5 on a manoeuvre: the paper's law from its fictitious zero iteration asks seed
+    12's car to drive into the lot's walls (it did, in 7 of 8 trials): every trial is refused before
+    anything is sent (no action step logged), counts, failed, every error finite. A segment 1 three
+    times too fast is refused after segment 0 drove: only segment 0's actions were sent."""
     env = gym.make(ENV_ID, config=seed_12)
     views = env.unwrapped.segment_views()
-    rollout = run_trials(env, segmented_learner(lambda c: lookup("ilc_paper").make(c, 5), views, seed=1), 5, seed=1)
-    assert all(info["left_chart"] and np.all(np.isfinite(info["error"])) for info in rollout.infos)
-    assert any(info["plant"]["left_lot"] or info["plant"]["crashed"] for info in rollout.infos)
+    rollout = run_trials(env, segmented_learner(lambda c: lookup("ilc_paper").make(c, 3), views, seed=1), 3, seed=1)
+    assert len(rollout) == 3
+    for info in rollout.infos:
+        assert info["left_chart"] and np.all(np.isfinite(info["error"])) and info["plant"]["refused"]
+        assert info["plant"]["actions"] == [] and not info["plant"]["left_lot"] and not info["plant"]["crashed"]
+    c = [view.nominal_model.solve() for view in views]
+    c[1][0] *= 3.0
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert not first["left_chart"] and second["ran"] and second["left_chart"] and info["plant"]["refused"]
+    assert len(info["plant"]["actions"]) == round(sum(views[0].config.task.pieces) / 0.2)
 
 
 @pytest.mark.extra("highway")
