@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import LearningConfig, SteeringConfig, load_config
 from ilc_steering.core.external import ExternalTrials, is_external
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
@@ -58,7 +58,7 @@ from ilc_steering.envs.steering_env import (
     trial_info,
 )
 
-__all__ = ["Carried", "SegmentView", "SegmentedSteeringEnv"]
+__all__ = ["Carried", "SegmentTask", "SegmentView", "SegmentedSteeringEnv"]
 
 Array = npt.NDArray[np.float64]
 
@@ -75,12 +75,21 @@ class Carried(Protocol):
 
 
 @dataclass(frozen=True)
+class SegmentTask:
+    """What a learner may read of its segment's config: its name and ``learning`` (the gains, the
+    cost, the tolerance), never the plant's true parameters."""
+
+    name: str
+    learning: LearningConfig
+
+
+@dataclass(frozen=True)
 class SegmentView:
     """What a learner of one segment may see, shaped as a one-trial env's ``unwrapped`` (so that
-    ``LearnerContext.from_env(view)`` builds its context): the segment's config, nominal model,
-    action box and observation space."""
+    ``LearnerContext.from_env(view)`` builds its context): the segment's name and learning keys
+    (``config``), nominal model, action box and observation space."""
 
-    config: SteeringConfig
+    config: SegmentTask
     nominal_model: NominalModel
     action_space: gym.spaces.Box
     observation_space: gym.spaces.Box
@@ -232,7 +241,8 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         self._views = []
         for c, scenario in zip(self.config.segment_configs(), self._segments):
             action_space, observation_space, observation = task_spaces(scenario)
-            self._views.append(SegmentView(c, scenario.nominal, action_space, observation_space, observation))
+            task = SegmentTask(c.name, c.learning)
+            self._views.append(SegmentView(task, scenario.nominal, action_space, observation_space, observation))
         self._sizes = [view.action_space.shape[0] for view in self._views]
         self._split = np.cumsum(self._sizes)[:-1]
         low = np.concatenate([view.action_space.low for view in self._views])
@@ -262,6 +272,9 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         super().reset(seed=seed)
         if options:
             raise ValueError(f"options: the segmented env takes none, got {sorted(map(str, options))}")
+        if seed is not None:  # an external plant's own scatter (each segment's frame of the one car)
+            for scenario in self._segments:
+                scenario.reseed(seed)
         return self._observation.copy(), {"q_start": self._segments[0].start.copy(), "q_goal": self._view_goal()}
 
     def _view_goal(self) -> Array:

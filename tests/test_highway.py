@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from math import pi
 from typing import Any
@@ -211,7 +212,8 @@ def test_the_outline_is_highway_envs_polygon() -> None:
         vehicle = env.unwrapped.vehicle
         theirs = np.array(vehicle.polygon())[:4]
         mine = highway_plant.outline(highway_plant._pose(vehicle))
-        np.testing.assert_allclose(np.sort(mine, axis=0), np.sort(theirs, axis=0), atol=1e-12)
+        rows = [corners[np.lexsort(np.round(corners, 9).T[::-1])] for corners in (mine, theirs)]
+        np.testing.assert_allclose(*rows, atol=1e-12)  # each corner's (x, y) kept together
     walls = [o for o in env.unwrapped.road.objects if o.LENGTH in (70, 42)]
     assert len(walls) == 4 and all(o.WIDTH == 1 for o in walls)
     for axis in (0, 1):  # the inner face: the wall's centre line less half its thickness
@@ -325,3 +327,57 @@ def test_the_start_heading_is_compared_modulo_two_pi() -> None:
     x0[2] += 1e-3
     with pytest.raises(ConfigError, match="is not parking-v0 seed 4's start"):
         plant.trial(scenario.profile, x0, scenario.nominal.solve(), 1)  # type: ignore[attr-defined]
+
+
+@pytest.fixture(scope="module")
+def seed_12() -> Any:
+    """parking-v0 seed 12 (a car facing away from its spot: two segments), as the generator writes it."""
+    return load_config(highway.highway_config(12))
+
+
+def test_a_manoeuvre_drives_the_car_as_often_as_it_counts(
+    seed_12: Any, drives: list[int], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Review finding 9: one parking-v0 reset per trial, one drive of the plant per segment run, one
+    action step per logged action, over 2 trials of ``newton_ilc`` on seed 12's manoeuvre."""
+    from ilc_steering.agents.registry import lookup
+    from ilc_steering.loop import run_trials
+    from ilc_steering.segmented import segmented_learner
+
+    calls = []
+    trial = highway_plant.HighwayParkingPlant.trial
+    monkeypatch.setattr(highway_plant.HighwayParkingPlant, "trial", lambda self, *a: calls.append(1) or trial(self, *a))
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=seed_12)
+    views = env.unwrapped.segment_views()
+    rollout = run_trials(env, segmented_learner(lambda c: lookup("newton_ilc").make(c, 2), views, seed=1), 2, seed=1)
+    assert drives[1] == 2 == len(rollout)
+    assert len(calls) == sum(segment["ran"] for info in rollout.infos for segment in info["segments"]) == 4
+    assert drives[0] == sum(len(info["plant"]["actions"]) for info in rollout.infos)
+
+
+def test_a_wall_hit_in_segment_0_ends_the_manoeuvre(seed_12: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Review finding 9: past the pre-send check (off here), segment 0 three times too fast hits a
+    wall: the trial's log says ``left_lot``, segment 1 is not run, only segment 0's actions were sent."""
+    monkeypatch.setattr(highway_plant.HighwayParkingPlant, "keeps_inside", lambda *args: True)
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=seed_12)
+    env.reset(seed=0)
+    c = [view.nominal_model.solve() for view in env.unwrapped.segment_views()]
+    c[0][0] *= 3.0
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert first["ran"] and first["left_chart"] and first["plant"]["left_lot"]
+    assert not second["ran"] and info["plant"]["left_lot"] and info["left_chart"]
+    assert info["plant"]["actions"] == first["plant"]["actions"]
+
+
+def test_run_a_highway_manoeuvre_through_the_cli(tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    """The issue's command line: the generator's config for seed 12, then ``ilc-steering run`` on it."""
+    from ilc_steering.cli import main
+
+    assert highway.main(["--seed", "12"]) == 0
+    path = tmp_path / "seed12.yaml"
+    path.write_text(capsys.readouterr().out)
+    out = str(tmp_path / "r.json")
+    assert main(["run", str(path), "--learner", "newton_ilc", "--trials", "4", "--json", out]) == 0  # converged
+    trials = json.loads((tmp_path / "r.json").read_text())["trials"]
+    assert len(trials) == 4 and trials[-1]["cartesian_error"] < 0.01 and trials[-1]["orientation_error"] < 0.01

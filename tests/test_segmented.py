@@ -57,12 +57,17 @@ def test_config_refusals_name_the_key():
         load_config(data)
 
 
-def test_each_segment_is_its_one_trial_task():
+def test_each_segment_is_its_one_trial_task(monkeypatch):
     """Segment 0 of the manoeuvre, learned by the paper's law, is trial for trial bit for bit the
-    one-trial task from the start to the via point: nothing of the later segments leaks into it."""
+    one-trial task from the start to the via point: nothing of the later segments leaks into it.
+    Each trial drives each segment once: the plant runs as often as the segments run."""
     config = load_config("segmented_parking")
     spec = lookup("ilc_paper")
     env = gym.make(ENV_ID, config=config)
+    runs = []
+    for k, scenario in enumerate(env.unwrapped._segments):
+        run = scenario.run
+        monkeypatch.setattr(scenario, "run", lambda *a, k=k, run=run, **kw: runs.append(k) or run(*a, **kw))
     learner = segmented_learner(lambda context: spec.make(context, 6), env.unwrapped.segment_views(), seed=1)
     rollout = run_trials(env, learner, 6, seed=1)
     alone = gym.make("ilc_steering/ChainedSteering-v0", config=config.segment_configs()[0])
@@ -70,7 +75,8 @@ def test_each_segment_is_its_one_trial_task():
     for mine, its in zip(rollout.infos, one.infos):
         np.testing.assert_array_equal(mine["segments"][0]["action"], its["action"])
         np.testing.assert_array_equal(mine["segments"][0]["q_final"], its["q_final"])
-    assert len(rollout) == 6  # every trial counts once, whatever its segments
+    assert runs == [k for info in rollout.infos for k, segment in enumerate(info["segments"]) if segment["ran"]]
+    assert runs.count(0) == 6
 
 
 def test_nominal_plant_reaches_every_waypoint_in_one_trial():
@@ -85,7 +91,7 @@ def test_nominal_plant_reaches_every_waypoint_in_one_trial():
     env = gym.make(ENV_ID, config=config)
     env.reset(seed=0)
     views = env.unwrapped.segment_views()
-    assert views[0].config.frame() != views[1].config.frame()
+    assert config.segment_configs()[0].frame() != config.segment_configs()[1].frame()
     _, _, _, _, info = env.step(np.concatenate([view.nominal_model.solve() for view in views]))
     assert info["cartesian_error"] < 1e-9 and info["orientation_error"] < 1e-9
     for segment in info["segments"]:
@@ -228,7 +234,7 @@ def test_a_manoeuvre_into_the_walls_is_never_sent(seed_12):
     _, _, _, _, info = env.step(np.concatenate(c))
     first, second = info["segments"]
     assert not first["left_chart"] and second["ran"] and second["left_chart"] and info["plant"]["refused"]
-    assert len(info["plant"]["actions"]) == round(sum(views[0].config.task.pieces) / 0.2)
+    assert len(info["plant"]["actions"]) == round(sum(seed_12.segment_configs()[0].task.pieces) / 0.2)
 
 
 @pytest.mark.extra("highway")
@@ -301,3 +307,41 @@ def test_a_segment_the_plant_refuses_after_the_car_drove_counts_the_trial(monkey
         assert "segment 1 refused: ValueError: task.start is not" in info["segments"][1]["refused"]
     actions = [info["segments"][1]["action"] for info in rollout.infos]
     np.testing.assert_array_equal(actions[0], actions[-1])
+
+
+def test_a_segments_learner_sees_no_plant_and_reset_reseeds_it(monkeypatch):
+    """Finding 10 of the review: a segment's view holds its name and ``learning`` only (it held the
+    whole config, the true wheelbase included), and ``reset(seed=...)`` reseeds the one plant's
+    scatter in every segment (an external plant's own draws follow ``run --seed``)."""
+    from ilc_steering.envs.scenario import Scenario
+
+    env = gym.make(ENV_ID, config="segmented_parking")
+    views = env.unwrapped.segment_views()
+    assert all(not hasattr(view.config, "plant") and not hasattr(view.config, "task") for view in views)
+    context = LearnerContext.from_env(views[1], seed=3)
+    assert context.task == "segmented_parking.1" and context.nu_a == load_config("segmented_parking").learning.nu_a
+    seeds = []
+    monkeypatch.setattr(Scenario, "reseed", lambda self, seed: seeds.append((id(self), seed)))
+    env.reset(seed=7)
+    env.reset()
+    assert sorted(seeds) == sorted((id(scenario), 7) for scenario in env.unwrapped._segments)
+
+
+def test_measurement_noise_reaches_every_segment():
+    """``measurement_noise`` in the segmented env: each segment's end is measured with noise (its
+    measured error differs from its true one, which is the noiseless env's), drawn from the env's
+    seed (the same seed, the same trial)."""
+    c = None
+    infos = []
+    for noise, seed in ((None, 0), (0.01, 0), (0.01, 0), (0.01, 1)):
+        env = gym.make(ENV_ID, config="segmented_parking", measurement_noise=noise)
+        env.reset(seed=seed)
+        if c is None:
+            c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+        infos.append(env.step(c)[4])
+    exact, noisy, again, other = infos
+    for k in range(2):
+        assert noisy["segments"][k]["cartesian_error"] != exact["segments"][k]["cartesian_error"]
+        np.testing.assert_array_equal(noisy["segments"][k]["q_final"], again["segments"][k]["q_final"])
+        assert not np.array_equal(noisy["segments"][k]["q_final"], other["segments"][k]["q_final"])
+    assert noisy["true_cartesian_error"] == exact["true_cartesian_error"] == exact["cartesian_error"]
