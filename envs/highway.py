@@ -138,8 +138,7 @@ def _task(seed: int) -> tuple[Array, list[Array], list[tuple[float, int, float]]
 def _direction(a: Array, b: Array, frame: float, index: int) -> str:
     """``forward`` or ``reverse``: the sign of ``v1`` on the learned piece of the segment ``a -> b``
     in ``frame`` with profile ``index`` (eq. 12: ``z1`` is ``x`` in the task frame)."""
-    pieces, v1_fixed = PROFILES[index]
-    travel = rotate(b, frame)[0] - rotate(a, frame)[0] - sum(v * (d - RAMP) for v, d in zip(v1_fixed, pieces[1:]))
+    travel = rotate(b, frame)[0] - rotate(a, frame)[0] - _profile(*PROFILES[index]).fixed_displacement
     return "forward" if travel > 0 else "reverse"
 
 
@@ -187,7 +186,7 @@ _KEYS = (
     ("v1_shape", "the speed rises from rest and falls back to it"),
     ("ramp", "[s]"),
     ("frame", "[rad] the task frame with the least steering (choose_frame)"),
-    ("direction", "the sign of v1: forward or reverse (checked against the nominal solution)"),
+    ("direction", "of the learned (first) piece, the sign of c11; the fixed pieces keep theirs"),
 )
 
 

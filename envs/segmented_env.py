@@ -141,8 +141,11 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     ## Action Space
 
     The segments' coefficient vectors ``(c11, c21..c2q)`` concatenated, each in its segment's box
-    (10 times its nominal model's ``action_scale()``): ``Box(-b, b, (sum_k (1 + q_k),), float32)``.
-    Out-of-bound values are clipped; a wrong shape or a non-finite value raises ``ValueError``.
+    (10 times its nominal model's ``action_scale()``): ``Box(-b, b, (sum_k (1 + q_k),), float32)``,
+    but a segment's ``c11`` keeps the sign of its ``direction`` (the learned piece's: ``[0, b]``
+    forward, ``[-b, 0]`` reverse; a segment's view keeps the one-trial env's symmetric box, where its
+    nominal solution is checked). Out-of-bound values are clipped; a wrong shape or a non-finite
+    value raises ``ValueError``.
 
     ## Observation Space
 
@@ -238,15 +241,19 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 f"{self.config.name}: segments in different frames need a plant whose state turns with the frame "
                 "(x, y, theta first); a lab robot's dead-reckoned estimate does not: give every segment one frame"
             )
-        self._views = []
-        for c, scenario in zip(self.config.segment_configs(), self._segments):
+        self._views, self._boxes = [], []
+        legs = self.config.task.segments  # type: ignore[union-attr]
+        for c, scenario, leg in zip(self.config.segment_configs(), self._segments, legs):
             action_space, observation_space, observation = task_spaces(scenario)
+            low, high = action_space.low.copy(), action_space.high.copy()
+            if leg.direction is not None:  # the learned piece's direction: c11 keeps its sign (eq. 12)
+                (low if leg.direction == "forward" else high)[0] = 0.0
+            self._boxes.append((low, high))
             task = SegmentTask(c.name, c.learning)
             self._views.append(SegmentView(task, scenario.nominal, action_space, observation_space, observation))
         self._sizes = [view.action_space.shape[0] for view in self._views]
         self._split = np.cumsum(self._sizes)[:-1]
-        low = np.concatenate([view.action_space.low for view in self._views])
-        high = np.concatenate([view.action_space.high for view in self._views])
+        low, high = (np.concatenate(bounds) for bounds in zip(*self._boxes))
         self.action_space = gym.spaces.Box(low, high, dtype=np.float32)
         self._observation = np.concatenate([view.observation for view in self._views])
         bound = np.concatenate([view.observation_space.high for view in self._views])
@@ -313,7 +320,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         x: Array | None = None
         halted = False
         for k, (scenario, view, requested) in enumerate(zip(self._segments, self._views, pieces)):
-            applied = np.clip(requested, view.action_space.low, view.action_space.high)
+            applied = np.clip(requested, *self._boxes[k])
             x0 = None if x is None else self._carry(x, k)[None]
             noise = scenario.draw_noise(self.np_random, 1)
             z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])

@@ -57,6 +57,36 @@ def test_config_refusals_name_the_key():
         load_config(data)
 
 
+def test_a_via_points_fault_names_its_own_key():
+    """Finding 8 of the review: a bad via point is named ``task.via[0]`` (it was named
+    ``task.segments[0].goal``, a key the file does not have), in the frame of the segment that met it."""
+    data = packaged()
+    data["task"]["via"][0][3] = 1.6
+    with pytest.raises(ConfigError, match=r"task\.via\[0\] \(in task\.segments\[0\]'s frame\): phi = 1\.6 rad"):
+        load_config(data)
+    data = packaged()
+    data["task"]["segments"][1]["frame"] = 2.0
+    with pytest.raises(ConfigError, match=r"task\.via\[0\] \(in task\.segments\[1\]'s frame\): theta = -1\.7"):
+        load_config(data)
+
+
+def test_a_segments_direction_is_kept():
+    """Finding 7 of the review: ``direction`` is the learned piece's, and the env keeps ``c11`` to
+    its sign (segment 0 forward: ``[0, b]``; segment 1 reverse: ``[-b, 0]``; it was a label only); a
+    learner that asks for the other sign is clipped to 0, ``clipped``."""
+    env = gym.make(ENV_ID, config="segmented_parking")
+    env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    n0 = views[0].action_space.shape[0]
+    box = env.action_space
+    assert box.low[0] == 0 < box.high[0] and box.low[n0] < 0 == box.high[n0]
+    c = [view.nominal_model.solve() for view in views]
+    c[1][0] = -c[1][0]
+    _, _, _, _, info = env.step(np.concatenate(c))
+    assert info["segments"][1]["action"][0] == 0 and info["segments"][1]["clipped"]
+    assert info["segments"][0]["action"][0] > 0 and not info["segments"][0]["clipped"]
+
+
 def test_each_segment_is_its_one_trial_task(monkeypatch):
     """Segment 0 of the manoeuvre, learned by the paper's law, is trial for trial bit for bit the
     one-trial task from the start to the via point: nothing of the later segments leaks into it.
@@ -201,7 +231,7 @@ def test_a_segment_not_run_is_measured_at_its_charts_edge():
     views = env.unwrapped.segment_views()
     n0 = views[0].action_space.shape[0]
     action = np.concatenate([view.nominal_model.solve() for view in views])
-    action[:n0] = views[0].action_space.high * np.array([-1, 1, 0, 0])
+    action[:n0] = views[0].action_space.high * np.array([1, -1, 0, 0])
     _, _, _, _, info = env.step(action)
     assert [s["ran"] for s in info["segments"]] == [True, False]
     assert all(s["left_chart"] for s in info["segments"]) and np.all(np.isfinite(info["error"]))
@@ -218,23 +248,20 @@ def seed_12():
 @pytest.mark.extra("highway")
 def test_a_manoeuvre_into_the_walls_is_never_sent(seed_12):
     """Review finding 5 on a manoeuvre: the paper's law from its fictitious zero iteration asks seed
-    12's car to drive into the lot's walls (it did, in 7 of 8 trials): every trial is refused before
-    anything is sent (no action step logged), counts, failed, every error finite. A segment 1 three
-    times too fast is refused after segment 0 drove: only segment 0's actions were sent."""
+    12's car to drive into the lot's walls in segment 1 (it did, in 7 of 8 trials): segment 1 is
+    refused after segment 0 drove, before anything of it is sent (only segment 0's actions are
+    logged); every trial counts, failed, every error finite."""
     env = gym.make(ENV_ID, config=seed_12)
     views = env.unwrapped.segment_views()
     rollout = run_trials(env, segmented_learner(lambda c: lookup("ilc_paper").make(c, 3), views, seed=1), 3, seed=1)
+    steps = round(sum(seed_12.segment_configs()[0].task.pieces) / 0.2)
     assert len(rollout) == 3
     for info in rollout.infos:
+        first, second = info["segments"]
         assert info["left_chart"] and np.all(np.isfinite(info["error"])) and info["plant"]["refused"]
-        assert info["plant"]["actions"] == [] and not info["plant"]["left_lot"] and not info["plant"]["crashed"]
-    c = [view.nominal_model.solve() for view in views]
-    c[1][0] *= 3.0
-    env.reset(seed=0)
-    _, _, _, _, info = env.step(np.concatenate(c))
-    first, second = info["segments"]
-    assert not first["left_chart"] and second["ran"] and second["left_chart"] and info["plant"]["refused"]
-    assert len(info["plant"]["actions"]) == round(sum(seed_12.segment_configs()[0].task.pieces) / 0.2)
+        assert not info["plant"]["left_lot"] and not info["plant"]["crashed"]
+        assert not first["plant"]["refused"] and second["plant"]["refused"] and second["plant"]["actions"] == []
+        assert len(info["plant"]["actions"]) == steps
 
 
 @pytest.mark.extra("highway")

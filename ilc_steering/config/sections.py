@@ -130,7 +130,8 @@ class LegConfig(SegmentConfig):
     """A segment of a manoeuvre (:class:`SegmentedTaskConfig`): a segment's profile, its chart and its direction."""
 
     frame: float | None = None  # [rad] this segment's task frame; None: frame_angle of its two ends
-    # the sign of v1 on the learned piece: forward (> 0), reverse (< 0); None: whichever the nominal solution takes
+    # the sign of v1 on the learned piece (of c11): forward (> 0), reverse (< 0), checked against the nominal
+    # solution and kept by the env's box; None: whichever the nominal solution takes, either sign learned
     direction: Literal["forward", "reverse"] | None = None
 
     def __post_init__(self) -> None:
