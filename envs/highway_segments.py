@@ -44,8 +44,7 @@ SIDE = (-6.0, 0.0, 6.0)
 """[m] how far to the side of the spot's axis."""
 ANGLES = tuple(np.radians([-45.0, 0.0, 45.0]))
 """[rad] the via heading's turn from the spot's (back up, then in) or from halfway round (a turn first).
-A coarse family: 54-72 candidates, about 7 CPU-s a goal; a finer one (4 x 5 x 5) served the same
-goals of seeds 0-19 at three times the cost."""
+A coarse family: 54-72 candidates a goal."""
 COARSE_GRID = np.radians(6.0)
 """[rad] the frame spacing of the coarse pass."""
 REFINE = 6

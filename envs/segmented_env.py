@@ -384,6 +384,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 "crashed": any(log.get("crashed", False) for log in logs),
                 "left_lot": any(log.get("left_lot", False) for log in logs),
                 "refused": any(log.get("refused", False) for log in logs),
+                "segments_driven": sum(bool(log["actions"]) for log in logs),
             }
         return info
 

@@ -381,3 +381,35 @@ def test_run_a_highway_manoeuvre_through_the_cli(tmp_path: Any, capsys: pytest.C
     assert main(["run", str(path), "--learner", "newton_ilc", "--trials", "4", "--json", out]) == 0  # converged
     trials = json.loads((tmp_path / "r.json").read_text())["trials"]
     assert len(trials) == 4 and trials[-1]["cartesian_error"] < 0.01 and trials[-1]["orientation_error"] < 0.01
+
+
+def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Review finding 6: a cell on disk carries the fingerprint of its goal's config, the code and the
+    packages; a resumed run reuses a cell of the same fingerprint and refuses one of another (a
+    changed generator made other configs under the same file names), in one line, never mixed in."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "highway_parking.py"
+    spec = importlib.util.spec_from_file_location("highway_parking_benchmark", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, bench)  # its dataclass looks itself up there
+    spec.loader.exec_module(bench)
+    ran: list[int] = []
+
+    def cell(learner: str, seed: int, task: Any) -> dict[str, Any]:
+        ran.append(seed)
+        return {"learner": learner, "seed": seed, "refused": "not run here"}
+
+    monkeypatch.setattr(bench, "_cell", cell)
+    args = bench.Args(seeds=(13,), learners=("robust_ilc",), trials=2, out=tmp_path)
+    bench.main(args)
+    bench.main(args)  # resumed: the cell on disk is the same computation
+    assert ran == [13]
+    task = highway.highway_config(13, trials=2)
+    monkeypatch.setattr(bench, "_task", lambda seed, trials: {**task, "name": "another"})
+    with pytest.raises(ValueError, match=r"robust_ilc_seed13_trials2\.json: a cell of another computation"):
+        bench.main(args)
+    assert ran == [13]
