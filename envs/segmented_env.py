@@ -21,23 +21,21 @@ segments would have needed a stacked nominal model (``K n`` errors, a block ``W`
 knows. Segment ``k + 1`` starts where segment ``k`` really ended, which moves while segment ``k``
 learns; its ``info`` says where (``z_start``, measured, in its own chart), and the learner re-bases
 the error to the via point on the nominal model (:func:`~ilc_steering.segmented.rebased`, eq. 23,
-the cyclic law's eq. 39 moved to the error). Learning from the raw error instead cost
-``segmented_parking`` 5-6 trials to 5e-4 at segment 1 where it alone takes 2-4: each learner took
-segment ``k``'s miss for its own.
+the cyclic law's eq. 39 moved to the error; from the raw error, segment ``k + 1`` took segment
+``k``'s miss for its own: 5-6 trials to 5e-4 on ``segmented_parking``, 2-4 alone).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.config import LearningConfig, SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import ExternalTrials, is_external
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
@@ -47,6 +45,7 @@ from ilc_steering.core.score import TRUE_KEYS
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.segment_views import Carried, SegmentTask, SegmentView
 from ilc_steering.envs.steering_env import (
     TrialView,
     action_names,
@@ -64,40 +63,6 @@ Array = npt.NDArray[np.float64]
 
 WORST = ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS)
 """The errors of a trial that are the worst over its segments' ends (every waypoint counted)."""
-
-
-@runtime_checkable
-class Carried(Protocol):
-    """An external plant's optional part for a manoeuvre: ``carry_on()``, after which its next trial
-    (the next segment) goes on from where the car stands instead of resetting it."""
-
-    def carry_on(self) -> None: ...
-
-
-@dataclass(frozen=True)
-class SegmentTask:
-    """What a learner may read of its segment's config: its name and ``learning`` (the gains, the
-    cost, the tolerance), never the plant's true parameters."""
-
-    name: str
-    learning: LearningConfig
-
-
-@dataclass(frozen=True)
-class SegmentView:
-    """What a learner of one segment may see, shaped as a one-trial env's ``unwrapped`` (so that
-    ``LearnerContext.from_env(view)`` builds its context): the segment's name and learning keys
-    (``config``), nominal model, action box and observation space."""
-
-    config: SegmentTask
-    nominal_model: NominalModel
-    action_space: gym.spaces.Box
-    observation_space: gym.spaces.Box
-    observation: npt.NDArray[np.float32]
-
-    @property
-    def unwrapped(self) -> SegmentView:
-        return self
 
 
 def _at_edge(scenario: Scenario, q_task: Array) -> Array:
@@ -282,10 +247,10 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         if seed is not None:  # an external plant's own scatter (each segment's frame of the one car)
             for scenario in self._segments:
                 scenario.reseed(seed)
-        return self._observation.copy(), {"q_start": self._segments[0].start.copy(), "q_goal": self._view_goal()}
-
-    def _view_goal(self) -> Array:
-        return self._segments[-1].goal.copy()
+        return self._observation.copy(), {
+            "q_start": self._segments[0].start.copy(),
+            "q_goal": self._segments[-1].goal.copy(),
+        }
 
     def _carry(self, x: Array, k: int) -> Array:
         """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame, its heading
@@ -326,23 +291,22 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])
             refused = None if halted or x0 is None else self._refusal(k, x0)
             trials = None
-            if k and not (halted or refused):
-                if isinstance(scenario.external, Carried):  # the same car goes on, no reset
+            if not (halted or refused):
+                if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
                     scenario.external.carry_on()
-                try:  # the car has driven: whatever refuses this segment fails the trial, counted
+                try:  # once the car has driven, whatever refuses a segment fails the trial, counted
                     trials = scenario.run(applied[None], x0, record)
                 except ValueError as error:
+                    if not k:
+                        raise
                     refused = f"segment {k} refused: {type(error).__name__}: {error}"
-            if halted or refused:  # not run: measured where the robot halted, off its chart (at the edge if past it)
+            if trials is None:  # not run: measured where the robot halted, off its chart (at the edge if past it)
                 q = _at_edge(scenario, scenario.plant.configuration(x0))  # type: ignore[arg-type]
                 measured = scenario.measure_configurations(q, np.ones(1, dtype=np.int64), noise=noise)
                 infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": False})
-                if refused:
-                    infos[-1]["refused"] = refused
+                infos[-1].update({"refused": refused} if refused else {})
                 x, halted = x0[0], True  # type: ignore[index]
                 continue
-            if trials is None:
-                trials = scenario.run(applied[None], x0, record)
             q = scenario.plant.configuration(trials.final)
             if trials.status[0] != OK:  # halted (its chart, a wall): read at the chart's edge if past it
                 q = _at_edge(scenario, q)
