@@ -229,7 +229,7 @@ class HighwayParkingPlant(ExternalPlantBase):
             env.reset(seed=self.seed)
             self.frames.clear()
         vehicle = env.unwrapped.vehicle
-        q = self._measure(vehicle)
+        q, start_speed = self._measure(vehicle), float(vehicle.speed)
         gap = q - x0
         gap[2] = np.angle(np.exp(1j * gap[2]))  # headings compared modulo 2 pi: the measured one is wrapped
         if float(np.max(np.abs(gap))) > 1e-6:  # the config's task.start or start_error: bad input
@@ -241,6 +241,7 @@ class HighwayParkingPlant(ExternalPlantBase):
             )
         if not self.keeps_inside(profile, c, q, steps):  # refused before anything is sent: a failed trial
             log = {"seed": self.seed, "actions": [], "crashed": False, "left_lot": False, "refused": True}
+            log["start_speed"] = start_speed
             return q, LEFT_CHART, np.repeat(q[None], steps + 1, axis=0), {**log, "is_success": _success(env)}
         states, actions = [q], []
         status, halted, left_lot = OK, q, False
@@ -273,6 +274,7 @@ class HighwayParkingPlant(ExternalPlantBase):
             "crashed": bool(vehicle.crashed),
             "left_lot": left_lot,
             "refused": False,
+            "start_speed": start_speed,  # [m/s] the nominal model assumes rest: a segment's car may roll in
             "is_success": _success(env),
         }
         return final, status, np.array(states), log

@@ -328,15 +328,17 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         return self._observation.copy(), float(reward(info)), True, False, info
 
     def _summary(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """The trial's ``info``: the worst waypoint's errors, the goal's configuration, and each segment's own."""
+        """The trial's ``info``: the worst waypoint's errors (NaN if any is, and then ``left_chart``: a
+        NaN never hides behind a finite error), the goal's configuration, and each segment's own."""
         last = infos[-1]
-        info: dict[str, Any] = {key: max(i[key] for i in infos) for key in WORST if key in last}
+        worst = {key: np.array([i[key] for i in infos], dtype=np.float64) for key in WORST if key in last}
+        info: dict[str, Any] = {key: float(np.max(values)) for key, values in worst.items()}
         info.update(
             q_final=last["q_final"],
             z_final=last["z_final"],
             error=np.concatenate([i["error"] for i in infos]),
             action=np.concatenate([i["action"] for i in infos]),
-            left_chart=any(i["left_chart"] for i in infos),
+            left_chart=any(i["left_chart"] for i in infos) or not all(np.isfinite(v).all() for v in worst.values()),
             clipped=any(i["clipped"] for i in infos),
             segments=[{k: v for k, v in i.items() if k not in TRUE_KEYS} for i in infos],
         )

@@ -353,6 +353,9 @@ def test_a_manoeuvre_drives_the_car_as_often_as_it_counts(
     assert drives[1] == 2 == len(rollout)
     assert len(calls) == sum(segment["ran"] for info in rollout.infos for segment in info["segments"]) == 4
     assert drives[0] == sum(len(info["plant"]["actions"]) for info in rollout.infos)
+    # review finding 12: each segment's car starts at rest (the nominal model's assumption), logged
+    speeds = [s["plant"]["start_speed"] for info in rollout.infos for s in info["segments"] if "plant" in s]
+    assert len(speeds) == 4 and max(map(abs, speeds)) < 1e-9
 
 
 def test_a_wall_hit_in_segment_0_ends_the_manoeuvre(seed_12: Any, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -372,3 +372,54 @@ def test_measurement_noise_reaches_every_segment():
         np.testing.assert_array_equal(noisy["segments"][k]["q_final"], again["segments"][k]["q_final"])
         assert not np.array_equal(noisy["segments"][k]["q_final"], other["segments"][k]["q_final"])
     assert noisy["true_cartesian_error"] == exact["true_cartesian_error"] == exact["cartesian_error"]
+
+
+def test_a_nan_at_a_later_waypoint_is_not_hidden():
+    """Finding 11 of the review: the worst error over the waypoints is NaN when any is (Python's
+    ``max(0.005, nan)`` was 0.005: a trial within tolerance), and the trial is ``left_chart``."""
+    from ilc_steering.core.score import within_tolerance
+
+    env = gym.make(ENV_ID, config="segmented_parking")
+    env.reset(seed=0)
+    c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+    _, _, _, _, info = env.step(c)
+    infos = [dict(segment) for segment in info["segments"]]
+    for segment in infos:
+        segment.update({key: 1e-6 for key in segmented_env.WORST if key in info})
+    assert not env.unwrapped._summary(infos)["left_chart"]
+    infos[1]["cartesian_error"] = float("nan")
+    summary = env.unwrapped._summary(infos)
+    assert np.isnan(summary["cartesian_error"]) and summary["left_chart"]
+    assert not within_tolerance(load_config("segmented_parking").learning.tolerance, summary)
+
+
+def test_every_segments_learner_is_closed_when_one_raises():
+    """Finding 16 of the review: ``close()`` closes every segment's learner, then raises the first
+    error (it stopped at the first learner that raised, the others left open)."""
+    from ilc_steering.segmented import SegmentedLearner
+
+    closed = []
+
+    class Learner:
+        def __init__(self, k):
+            self.k = k
+
+        def act(self, observation):
+            return np.zeros(1)
+
+        def learn(self, info):
+            pass
+
+        def reset(self):
+            pass
+
+        def close(self):
+            closed.append(self.k)
+            if self.k < 2:
+                raise RuntimeError(f"learner {self.k} failed to close")
+
+    views = gym.make(ENV_ID, config="segmented_parking").unwrapped.segment_views()
+    learner = SegmentedLearner([Learner(k) for k in range(3)], [views[0]] * 3)
+    with pytest.raises(RuntimeError, match="learner 0 failed"):
+        learner.close()
+    assert closed == [0, 1, 2]
