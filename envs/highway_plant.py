@@ -52,6 +52,7 @@ from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
+from ilc_steering.envs.highway_lot import LENGTH, WALL_MARGIN, WALLS, WIDTH, inside_lot, outline
 from ilc_steering.errors import ConfigError
 
 __all__ = [
@@ -77,15 +78,6 @@ Array = npt.NDArray[np.float64]
 ENV_ID = "parking-v0"
 HIGHWAY = PlantKind("highway_parking", True, CAR.coordinates, CAR.inputs)
 """A car (the library's configuration, rear axle first), stepped by highway-env."""
-LENGTH = 5.0
-"""[m] highway-env's ``Vehicle.LENGTH``: the nominal wheelbase (``tests/test_highway.py`` checks it)."""
-WIDTH = 2.0
-"""[m] highway-env's ``Vehicle.WIDTH``: the car's outline is ``LENGTH`` x ``WIDTH`` about its centre."""
-WALLS = (34.5, 20.5)
-"""[m] the inner faces of parking-v0's walls (a 70 m x 42 m lot, walls 1 m thick, ``add_walls``):
-``|x| <= 34.5``, ``|y| <= 20.5`` in the world frame."""
-WALL_MARGIN = 0.5
-"""[m] how far inside the walls the car's outline must stay in every trial: one action step at 2.5 m/s."""
 ACCELERATION = 5.0
 """[m/s²] ``ContinuousAction.ACCELERATION_RANGE``: an action of 1 is this acceleration."""
 STEERING = pi / 4
@@ -122,25 +114,6 @@ def _pose(vehicle: Any) -> Array:
     x, y = (float(p) for p in vehicle.position)
     steering = float(np.clip(vehicle.action["steering"], -STEERING, STEERING))
     return np.array([x - 0.5 * LENGTH * np.cos(heading), y - 0.5 * LENGTH * np.sin(heading), heading, steering])
-
-
-def outline(q: Array) -> Array:
-    """The corners ``(..., 4, 2)`` [m] of the car's ``LENGTH`` x ``WIDTH`` outline at world
-    configurations ``q`` ``(..., 4)`` (rear axle, heading): highway-env's centre is ``L/2`` ahead."""
-    q = np.asarray(q, dtype=np.float64)
-    c, s = np.cos(q[..., 2])[..., None], np.sin(q[..., 2])[..., None]
-    along = np.array([0.0, LENGTH, LENGTH, 0.0])  # from the rear axle, the car's centre L/2 ahead of it
-    across = 0.5 * WIDTH * np.array([-1.0, -1.0, 1.0, 1.0])
-    x = q[..., 0:1] + c * along - s * across
-    y = q[..., 1:2] + s * along + c * across
-    return np.stack([x, y], axis=-1)
-
-
-def inside_lot(q: Array, margin: float = WALL_MARGIN) -> Any:
-    """Whether the car's outline at world configurations ``q`` ``(..., 4)`` is ``margin`` [m]
-    inside the lot's walls (:data:`WALLS`), for each configuration."""
-    corners = np.abs(outline(q))
-    return np.all((corners[..., 0] <= WALLS[0] - margin) & (corners[..., 1] <= WALLS[1] - margin), axis=-1)
 
 
 def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:

@@ -107,7 +107,7 @@ def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
     assert len(task["via"]) == 1 and len(task["segments"]) == 2
     points = [np.array(q) for q in (task["start"], *task["via"], task["goal"])]
     for a, b, segment in zip(points, points[1:], task["segments"]):
-        profile = highway._profile(tuple(segment["pieces"]), tuple(segment["v1_fixed"]))
+        profile = highway.task_profile(tuple(segment["pieces"]), tuple(segment["v1_fixed"]))
         path = highway.nominal_path(a, b, segment["frame"], profile)
         assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
         assert np.max(np.abs(path[:, 3])) <= STEERING and np.max(np.abs(path[:, 2] - segment["frame"])) < pi / 2
@@ -302,7 +302,7 @@ def test_seed_2_keeps_inside_the_walls() -> None:
     PATH_MARGIN inside, and its first trial on highway-env's car neither crashes nor leaves the lot."""
     config = highway.highway_config(2)
     task = config["task"]
-    profile = highway._profile(tuple(task["pieces"]), tuple(task["v1_fixed"]))
+    profile = highway.task_profile(tuple(task["pieces"]), tuple(task["v1_fixed"]))
     path = highway.nominal_path(np.array(task["start"]), np.array(task["goal"]), task["frame"], profile)
     assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
     env = gym.make(ENV, config=load_config(config))
