@@ -423,3 +423,17 @@ def test_every_segments_learner_is_closed_when_one_raises():
     with pytest.raises(RuntimeError, match="learner 0 failed"):
         learner.close()
     assert closed == [0, 1, 2]
+
+
+def test_a_segment_may_have_its_own_action_bound():
+    """Finding 17 of the review: ``task.segments[k].action_bound`` is a segment's box (it was refused
+    as an unknown key), checked as a one-trial task's, its fault named by the segment's key."""
+    data = packaged()
+    data["task"]["segments"][1]["action_bound"] = [0.5, 9.0, 9.0, 9.0]
+    env = gym.make(ENV_ID, config=load_config(data))
+    views = env.unwrapped.segment_views()
+    np.testing.assert_allclose(views[1].action_space.high, [0.5, 9.0, 9.0, 9.0])
+    assert not np.allclose(views[0].action_space.high[0], 0.5)
+    data["task"]["segments"][1]["action_bound"] = [0.5, 9.0]
+    with pytest.raises(ConfigError, match=r"task\.segments\[1\]\.action_bound"):
+        load_config(data)

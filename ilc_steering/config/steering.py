@@ -189,6 +189,7 @@ class SteeringConfig:
                 pieces=leg.pieces,
                 v1_fixed=leg.v1_fixed,
                 v2_terms=leg.v2_terms,
+                action_bound=leg.action_bound,
                 v1_shape=leg.v1_shape,
                 ramp=leg.ramp,
                 frame=leg.frame,
