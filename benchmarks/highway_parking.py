@@ -190,7 +190,19 @@ def main(args: Args) -> list[dict[str, Any]]:
     ]
     table = markdown_table(header, [_summary(rows, name, trials) for name in learners], [False] + [True] * 9)
     per_seed = markdown_table(
-        ["learner", "seed", "to success", "to 1 cm", "crashes", "first error [m]", "refused"],
+        [
+            "learner",
+            "seed",
+            "to success",
+            "to 1 cm",
+            "crashes",
+            "first error [m]",
+            "segments",
+            "drives",
+            "env steps",
+            "refused trials",
+            "refused",
+        ],
         [
             [
                 r["learner"],
@@ -199,6 +211,7 @@ def main(args: Args) -> list[dict[str, Any]]:
                 str(r.get("trials_to_1cm") or "-"),
                 str(r.get("crashes", "-")),
                 f"{r['first_error_m']:.3g}" if "first_error_m" in r else "-",
+                *(str(r.get(key, "-")) for key in ("segments", "segment_drives", "env_steps", "refused_trials")),
                 r["refused"][:80],
             ]
             for r in rows
@@ -206,7 +219,9 @@ def main(args: Args) -> list[dict[str, Any]]:
     )
     markdown = (
         f"# ILC on highway-env's parking car: parking-v0 seeds {seeds[0]}-{seeds[-1]}, {trials} trials per goal\n\n"
-        "Trials counted from 1 (the first trial included); a goal not reached counts as more than the budget.\n\n"
+        "Trials counted from 1 (the first trial included); a goal not reached counts as more than the budget. "
+        "A trial is one parking-v0 reset, whatever its segments; drives counts the segments that drove the car, "
+        "env steps the action steps sent (HER's unit), refused trials those the pre-send check kept from a wall.\n\n"
         f"{table}\n{per_seed}"
     )
     keys = list(dict.fromkeys(key for row in rows for key in row))  # a refused goal's row has fewer
