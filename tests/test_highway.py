@@ -416,3 +416,23 @@ def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monk
     with pytest.raises(ValueError, match=r"robust_ilc_seed13_trials2\.json: a cell of another computation"):
         bench.main(args)
     assert ran == [13]
+
+
+def test_a_segment_that_would_start_off_its_chart_is_not_sent() -> None:
+    """Review finding 3 on highway-env's car: segment 1's frame turned to put seed 12's via point
+    1.45 rad from its axis, and segment 0 steered short (0.7 of its nominal c2), ending 9.5° off:
+    segment 1 would start past its chart; it is not sent (``ran`` false, ``refused``, only segment
+    0's actions logged), the trial counts, failed, every error finite (it was a chart exit at step 0
+    on this plant and an ordinary trial on the simulated car)."""
+    raw = highway.highway_config(12)
+    raw["task"]["segments"][1]["frame"] = raw["task"]["via"][0][2] - 1.45
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=load_config(raw))
+    env.reset(seed=0)
+    c = [view.nominal_model.solve() for view in env.unwrapped.segment_views()]
+    c[0][1:] *= 0.7
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert first["ran"] and not first["left_chart"] and "plant" not in second
+    assert not second["ran"] and second["left_chart"] and "would start off its chart" in second["refused"]
+    assert info["plant"]["actions"] == first["plant"]["actions"] and info["plant"]["segments_driven"] == 1
+    assert info["left_chart"] and np.all(np.isfinite(info["error"]))
