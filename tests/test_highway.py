@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from math import pi
@@ -389,7 +390,8 @@ def test_run_a_highway_manoeuvre_through_the_cli(tmp_path: Any, capsys: pytest.C
 def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
     """Review finding 6: a cell on disk carries the fingerprint of its goal's config, the code and the
     packages; a resumed run reuses a cell of the same fingerprint and refuses one of another (a
-    changed generator made other configs under the same file names), in one line, never mixed in."""
+    changed generator made other configs under the same file names), in one line, never mixed in;
+    ``--quick`` (CI's smoke test, whose folder outlives the code) makes it again."""
     import importlib.util
     import sys
     from pathlib import Path
@@ -416,6 +418,13 @@ def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monk
     with pytest.raises(ValueError, match=r"robust_ilc_seed13_trials2\.json: a cell of another computation"):
         bench.main(args)
     assert ran == [13]
+    cells = tmp_path / "cells"  # --quick, CI's smoke test, makes a stale cell again
+    (cells / "robust_ilc_seed4_trials4.json").write_text(json.dumps({"fingerprint": "stale"}))
+    bench.main(dataclasses.replace(args, quick=True))
+    assert (
+        ran[1:] == [4, 12]
+        and json.loads((cells / "robust_ilc_seed4_trials4.json").read_text())["fingerprint"] != "stale"
+    )
 
 
 def test_a_segment_that_would_start_off_its_chart_is_not_sent() -> None:
