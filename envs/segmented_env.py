@@ -76,6 +76,19 @@ def _at_edge(scenario: Scenario, q_task: Array) -> Array:
     return q
 
 
+def _turns_with_frame(scenario: Scenario, angle: float = 0.5) -> bool:
+    """Whether the plant's state turns with the task frame as ``rotate`` turns it (``x, y, theta``
+    first): its configuration and the controller's estimate of a turned state are the turned ones.
+    A lab robot's dead-reckoned estimate, further along its state, does not turn."""
+    q = scenario.to_task(scenario.start)
+    x, plant = scenario.plant.initial_state(q), scenario.plant
+    turned = rotate(x, angle)
+    return bool(
+        np.allclose(plant.configuration(turned), rotate(plant.configuration(x), angle))
+        and np.allclose(plant.estimate(turned), rotate(plant.estimate(x), angle))
+    )
+
+
 def _wrapped(x: Array) -> Array:
     """A state with a pose (``x, y, theta`` first) with ``theta`` wrapped to ``(-pi, pi]``."""
     out = np.array(x, dtype=np.float64)
@@ -201,7 +214,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         for scenario in self._segments:
             scenario.refuse_disturbances("the segmented env")
         frames = {s.frame for s in self._segments}
-        if len(frames) > 1 and self._segments[0].plant.state_dim > 6:
+        if len(frames) > 1 and not _turns_with_frame(self._segments[0]):
             raise ValueError(
                 f"{self.config.name}: segments in different frames need a plant whose state turns with the frame "
                 "(x, y, theta first); a lab robot's dead-reckoned estimate does not: give every segment one frame"

@@ -437,3 +437,22 @@ def test_a_segment_may_have_its_own_action_bound():
     data["task"]["segments"][1]["action_bound"] = [0.5, 9.0]
     with pytest.raises(ConfigError, match=r"task\.segments\[1\]\.action_bound"):
         load_config(data)
+
+
+def test_a_lab_robot_takes_a_manoeuvre_in_one_frame_only():
+    """Finding 15 of the review: the env asks whether the plant's state turns with the frame (its
+    configuration and the controller's estimate of a turned state are the turned ones), not whether
+    the state has more than 6 entries: the lab robot's dead-reckoned estimate does not turn, so its
+    segments must share one frame; the car's do turn."""
+    lab = yaml.safe_load((resources.files("ilc_steering.configs") / "experiment_forward.yaml").read_text())
+    data = packaged()
+    data["plant"] = lab["plant"]
+    for segment in data["task"]["segments"]:
+        segment["frame"] = 0.15
+    assert gym.make(ENV_ID, config=load_config(data)).unwrapped._segments[0].plant.state_dim == 12
+    data["task"]["segments"][1]["frame"] = 0.7
+    with pytest.raises(ValueError, match="segments in different frames need a plant whose state turns with the frame"):
+        gym.make(ENV_ID, config=load_config(data))
+    car = packaged()
+    car["task"]["segments"][1]["frame"] = 0.7
+    assert segmented_env._turns_with_frame(gym.make(ENV_ID, config=load_config(car)).unwrapped._segments[0])
