@@ -13,7 +13,8 @@ heading, as ILC is scored), at the episode's last step: success against environm
     python benchmarks/highway_her.py --zoo-cost 300     # CPU per step of RL Zoo's TQC setting, measured
 
 **Resumable, and a resume is the same computation.** Each chunk of ``--every`` steps starts from
-the last checkpoint on disk (the model, its optimizers and the replay buffer, under ``--models``),
+the last checkpoint on disk (the model, its optimizers and the replay buffer, under ``--models``,
+in a folder named by the fingerprint below, its step count checked),
 its random generators seeded from (seed, chunk), and its incomplete last episode cut
 (``truncate_last_trajectory``), in one process or after a restart alike; a chunk's point of the
 curve is written (``OUT/her_curve/seed{S}_{steps}.json``) with its settings' fingerprint, and a
@@ -188,12 +189,12 @@ def fingerprint(settings: dict[str, Any], every: int, goals: tuple[int, ...]) ->
     return hashlib.sha256(data.encode()).hexdigest()[:16]
 
 
-def _chunk(seed: int, chunk: int, args: Args, settings: dict[str, Any]) -> dict[str, Any]:
+def _chunk(seed: int, chunk: int, args: Args, settings: dict[str, Any], mark: str) -> dict[str, Any]:
     """Train seed ``seed``'s chunk ``chunk`` (from 1) from its last checkpoint; save, evaluate."""
     from stable_baselines3.common.utils import set_random_seed
 
     env = _env()
-    stem = args.models / f"seed{seed}"
+    stem = args.models / mark / f"seed{seed}"  # a checkpoint of these settings and versions only
     chunk_seed = seed * 100_003 + chunk
     set_random_seed(chunk_seed)
     if chunk == 1:
@@ -203,11 +204,16 @@ def _chunk(seed: int, chunk: int, args: Args, settings: dict[str, Any]) -> dict[
         with warnings.catch_warnings():  # "the last trajectory will be truncated": the chunk before ended mid-episode
             warnings.simplefilter("ignore")
             model.load_replay_buffer(stem.with_suffix(".buffer.pkl"), truncate_last_traj=True)
+    if model.num_timesteps != (chunk - 1) * args.every:
+        _refuse(
+            f"{stem}.zip holds {model.num_timesteps} steps, not the {(chunk - 1) * args.every} its curve's last "
+            "point was made after: it is another run's checkpoint"
+        )
     model.set_random_seed(chunk_seed)
     start = time.process_time()
     model.learn(total_timesteps=args.every, reset_num_timesteps=False)
     cpu = time.process_time() - start
-    args.models.mkdir(parents=True, exist_ok=True)
+    stem.parent.mkdir(parents=True, exist_ok=True)
     model.save(stem.with_suffix(".zip"))
     model.save_replay_buffer(stem.with_suffix(".buffer.pkl"))
     rows = evaluate(model, args.goals)
@@ -333,12 +339,12 @@ def main(args: Args) -> list[dict[str, Any]]:
         for chunk in range(1, args.steps // args.every + 1):
             if (seed, chunk * args.every) in done:
                 continue
-            if chunk > 1 and not (args.models / f"seed{seed}.zip").is_file():
+            if chunk > 1 and not (args.models / mark / f"seed{seed}.zip").is_file():
                 _refuse(
                     f"seed {seed}'s checkpoint after {(chunk - 1) * args.every} steps is missing under "
-                    f"{args.models}: its curve cannot be continued as the same computation"
+                    f"{args.models / mark}: its curve cannot be continued as the same computation"
                 )
-            point = {**_chunk(seed, chunk, args, settings), "fingerprint": mark}
+            point = {**_chunk(seed, chunk, args, settings, mark), "fingerprint": mark}
             write_atomic(curve / f"seed{seed}_{chunk * args.every:07d}.json", json.dumps(point))
             points = _points(curve, mark)
             print(_write(points, args, name, settings), flush=True)

@@ -15,12 +15,20 @@ next: see ``docs/highway.md``).
     python benchmarks/highway_parking.py [--quick] [--out DIR]
 
 writes ``highway_parking.{csv,json,md}`` (committed in ``docs/highway``), one JSON per (learner,
-seed) under ``OUT/cells`` as it finishes: a second call resumes from them.
+seed) under ``OUT/cells`` as it finishes: a second call resumes from them. Each cell carries the
+fingerprint of what made it (:func:`fingerprint`: the goal's generated config, the library's code,
+the packages' versions); a cell of another fingerprint is refused (exit 2, one line), never mixed in
+(with ``--quick``, CI's smoke test, it is made again).
+One trial is one parking-v0 reset, whatever its segments (``segment_drives`` counts the segments
+that drove the car, ``env_steps`` the action steps sent, as HER counts its environment steps;
+``refused_trials`` the trials the pre-send check kept from the walls).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,8 +36,10 @@ from statistics import median
 from typing import Any
 
 import ilc_steering  # noqa: F401  (registers the envs)
+from ilc_steering import segmented
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
+from ilc_steering.engine.provenance import code_files, code_hash, packages
 from ilc_steering.envs.highway import highway_config
 from ilc_steering.errors import ConfigError
 from ilc_steering.output import write_atomic
@@ -45,7 +55,7 @@ CM, RAD = 0.01, 0.01
 @dataclass(frozen=True)
 class Args:
     quick: bool = False
-    """Two seeds, one learner, four trials: checks that the script runs (CI)."""
+    """Two seeds (a one-segment goal and a manoeuvre), one learner, four trials: checks that the script runs (CI)."""
     seeds: tuple[int, ...] = tuple(range(20))
     """parking-v0's reset seeds: the goals."""
     learners: tuple[str, ...] = ("robust_ilc", "newton_ilc", "ilc")
@@ -60,10 +70,34 @@ def _first(flags: list[bool]) -> int | None:
     return next((i + 1 for i, flag in enumerate(flags) if flag), None)
 
 
-def _cell(learner: str, seed: int, trials: int) -> dict[str, Any]:
+def _task(seed: int, trials: int) -> dict[str, Any] | str:
+    """The goal's generated config, or why the generator refuses it."""
+    try:
+        return highway_config(seed, trials=trials)
+    except ValueError as error:
+        return str(error)
+
+
+def fingerprint(learner: str, task: dict[str, Any] | str, code: str) -> str:
+    """What makes two cells the same computation: the learner, the goal's config (or its refusal),
+    the code's hash and the packages' versions."""
+    data = json.dumps({"learner": learner, "task": task, "code": code, "packages": packages()}, sort_keys=True)
+    return hashlib.sha256(data.encode()).hexdigest()[:16]
+
+
+def _code() -> str:
+    """The hash of the code that makes a cell (the engine's files, and the manoeuvre's learner)."""
+    files = code_files()
+    files["ilc_steering/segmented.py"] = hashlib.sha256(Path(segmented.__file__).read_bytes()).hexdigest()[:16]
+    return code_hash(files)
+
+
+def _cell(learner: str, seed: int, task: dict[str, Any] | str) -> dict[str, Any]:
     row: dict[str, Any] = {"learner": learner, "seed": seed}
     try:
-        config = load_config(highway_config(seed, trials=trials))
+        if isinstance(task, str):
+            raise ValueError(task)
+        config = load_config(task)
     except (ConfigError, ValueError) as error:
         return {**row, "refused": str(error)}
     start = time.perf_counter()
@@ -77,7 +111,9 @@ def _cell(learner: str, seed: int, trials: int) -> dict[str, Any]:
         "trials_to_success": _first(success),
         "trials_to_1cm": _first(tight),
         "segments": len(config.segment_configs()),
+        "segment_drives": sum(r["plant"].get("segments_driven", bool(r["plant"]["actions"])) for r in records),
         "crashes": sum(bool(r["plant"]["crashed"] or r["plant"].get("left_lot")) for r in records),
+        "refused_trials": sum(bool(r["plant"].get("refused")) for r in records),
         "first_error_m": records[0]["cartesian_error"],
         "last_error_m": records[-1]["cartesian_error"],
         "last_error_rad": records[-1]["orientation_error"],
@@ -114,19 +150,31 @@ def _summary(rows: list[dict[str, Any]], learner: str, trials: int) -> list[str]
 
 
 def main(args: Args) -> list[dict[str, Any]]:
+    """The table; ``ValueError`` naming the cell when a cell on disk has another fingerprint."""
     seeds, learners, trials = args.seeds, args.learners, args.trials
     if args.quick:
-        seeds, learners, trials = (4, 13), ("robust_ilc",), 4
+        seeds, learners, trials = (4, 12), ("robust_ilc",), 4
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
+    code = _code()
     for learner in learners:
         for seed in seeds:
             path = cells / f"{learner}_seed{seed}_trials{trials}.json"
+            task = _task(seed, trials)
+            mark = fingerprint(learner, task, code)
             if path.is_file():
-                rows.append(json.loads(path.read_text()))
-                continue
-            row = _cell(learner, seed, trials)
+                row = json.loads(path.read_text())
+                theirs = row.get("fingerprint") if isinstance(row, dict) else None
+                if theirs == mark:
+                    rows.append(row)
+                    continue
+                if not args.quick:  # a smoke test's cell of older code is made again; never mixed in
+                    raise ValueError(
+                        f"{path}: a cell of another computation (fingerprint {theirs} != {mark}: other code, "
+                        "config or packages); give another --out or remove it"
+                    )
+            row = {**_cell(learner, seed, task), "fingerprint": mark}
             write_atomic(path, json.dumps(row))
             rows.append(row)
             print(json.dumps(row), flush=True)
@@ -144,7 +192,19 @@ def main(args: Args) -> list[dict[str, Any]]:
     ]
     table = markdown_table(header, [_summary(rows, name, trials) for name in learners], [False] + [True] * 9)
     per_seed = markdown_table(
-        ["learner", "seed", "to success", "to 1 cm", "crashes", "first error [m]", "refused"],
+        [
+            "learner",
+            "seed",
+            "to success",
+            "to 1 cm",
+            "crashes",
+            "first error [m]",
+            "segments",
+            "drives",
+            "env steps",
+            "refused trials",
+            "refused",
+        ],
         [
             [
                 r["learner"],
@@ -153,6 +213,7 @@ def main(args: Args) -> list[dict[str, Any]]:
                 str(r.get("trials_to_1cm") or "-"),
                 str(r.get("crashes", "-")),
                 f"{r['first_error_m']:.3g}" if "first_error_m" in r else "-",
+                *(str(r.get(key, "-")) for key in ("segments", "segment_drives", "env_steps", "refused_trials")),
                 r["refused"][:80],
             ]
             for r in rows
@@ -160,7 +221,9 @@ def main(args: Args) -> list[dict[str, Any]]:
     )
     markdown = (
         f"# ILC on highway-env's parking car: parking-v0 seeds {seeds[0]}-{seeds[-1]}, {trials} trials per goal\n\n"
-        "Trials counted from 1 (the first trial included); a goal not reached counts as more than the budget.\n\n"
+        "Trials counted from 1 (the first trial included); a goal not reached counts as more than the budget. "
+        "A trial is one parking-v0 reset, whatever its segments; drives counts the segments that drove the car, "
+        "env steps the action steps sent (HER's unit), refused trials those the pre-send check kept from a wall.\n\n"
         f"{table}\n{per_seed}"
     )
     keys = list(dict.fromkeys(key for row in rows for key in row))  # a refused goal's row has fewer
@@ -177,4 +240,8 @@ if __name__ == "__main__":
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--learners", default=",".join(Args.learners))
     cli = parser.parse_args()
-    main(Args(cli.quick, Args.seeds, tuple(cli.learners.split(",")), cli.trials, cli.out))
+    try:
+        main(Args(cli.quick, Args.seeds, tuple(cli.learners.split(",")), cli.trials, cli.out))
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -1,11 +1,15 @@
 r"""parking-v0's tasks as the library's configs, for its car as an external plant
 (:mod:`~ilc_steering.envs.highway_plant`).
 
-**Tasks** (:func:`parking_task`, :func:`highway_config`): parking-v0's start and goal for a seed,
-as the library's configurations; the goal's heading is written the way nearer the start's, and
-the task frame is the one :func:`~ilc_steering.core.robots.car.frame_angle` puts both in. A goal
-whose heading differs from the start's by more than :data:`MAX_TURN` cannot be served by one
-chart and is refused by name. ``python -m ilc_steering.envs.highway --seed 7`` writes a config.
+**Tasks** (:func:`highway_config`): parking-v0's start and goal for a seed
+(:func:`~ilc_steering.envs.highway_plant.parking_task`), as the library's configurations. A goal
+one chart serves within :data:`~ilc_steering.envs.highway_paths.STEERING_USE` of the stop is one
+segment in the frame and profile :func:`~ilc_steering.envs.highway_paths.choose_frame` picks from
+its nominal path; any other goal (one facing more than
+:data:`~ilc_steering.envs.highway_plant.MAX_TURN` away, or whose one-chart path steers too far or
+leaves the lot) is a manoeuvre of two segments through the via point
+:func:`~ilc_steering.envs.highway_segments.choose_via` finds, and is refused by name only when it
+finds none. ``python -m ilc_steering.envs.highway --seed 7`` writes a config.
 """
 
 from __future__ import annotations
@@ -14,101 +18,29 @@ import argparse
 import json
 import sys
 from functools import lru_cache
-from math import pi
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config.steering import check_name
-from ilc_steering.core.integrate import OK
-from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import rotate
-from ilc_steering.envs.highway_plant import MAX_TURN, STEERING, inside_lot, nominal_map, parking_task
+from ilc_steering.envs.highway_paths import (
+    PATH_MARGIN,
+    PROFILES,
+    RAMP,
+    STEERING_USE,
+    V2_TERMS,
+    choose_frame,
+    nominal_path,
+    task_profile,
+)
+from ilc_steering.envs.highway_plant import MAX_TURN, STEERING, parking_task
+from ilc_steering.envs.highway_segments import choose_via
 
-__all__ = ["PROFILES", "choose_frame", "highway_config", "main", "nominal_path"]
+__all__ = ["PATH_MARGIN", "PROFILES", "choose_frame", "highway_config", "main", "nominal_path", "task_profile"]
 
 Array = npt.NDArray[np.float64]
-
-PROFILES: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = (
-    ((15.0,), ()),
-    ((10.0, 10.0), (2.0,)),
-    ((10.0, 15.0), (2.0,)),
-    ((10.0, 10.0), (4.0,)),
-    ((8.0, 8.0, 8.0), (-2.0, 2.0)),
-)
-"""The input profiles a task may take, as ``(pieces [s], v1_fixed [m/s])`` (whole 0.2 s action steps):
-one stroke whose speed is learned, or that stroke followed by fixed ones (forward at 2 or 4 m/s, or
-back and forth at 2 m/s); :func:`choose_frame` takes the one whose nominal path steers least."""
-RAMP = 3.0
-"""[s] the trapezoid's ramp: the speed rises from rest and falls back to it at both ends of each piece."""
-V2_TERMS = 4
-"""``q``: one spare coefficient of ``v2`` beyond ``n - 1 = 3``."""
-FRAME_GRID = np.radians(1.0)
-"""[rad] the spacing of the task frames :func:`choose_frame` tries."""
-CHART_SLACK = np.radians(10.0)
-"""[rad] how far inside the chart's edge (``|theta| = pi/2``, task frame) the nominal path must stay."""
-STEERING_USE = 1.0
-"""The largest fraction of the ±45° stop the nominal path may use."""
-STEERING_SPARE = 0.1
-"""The fraction of the stop a profile's path leaves spare for :func:`choose_frame` to take it before
-the later (longer) profiles."""
-PATH_MARGIN = 1.5
-"""[m] how far inside the lot's walls the car's outline must stay along a task's nominal path: the
-learned paths stray from it, and a trial whose outline comes within
-:data:`~ilc_steering.envs.highway_plant.WALL_MARGIN` of a wall is a failed one."""
-
-
-def _profile(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> Any:
-    from ilc_steering.core.trapezoid import TrapezoidProfile
-
-    return TrapezoidProfile(pieces, v1_fixed, V2_TERMS, RAMP)
-
-
-def nominal_path(start: Array, goal: Array, frame: float, profile: InputProfile) -> Array:
-    """The nominal car's path (world configurations ``(S, 4)``) of the nominal solution from ``start`` to
-    ``goal`` with ``profile`` in the task frame rotated by ``frame`` [rad], without a steering stop."""
-    from ilc_steering.core.nominal import NominalModel
-    from ilc_steering.core.robots.car import CarPlant
-    from ilc_steering.core.simulate import simulate
-
-    model = nominal_map()
-    q0, q1 = rotate(start, frame), rotate(goal, frame)
-    nominal = NominalModel(4, profile, model.to_chained(q0), model.to_chained(q1), model, STEERING)
-    trials = simulate(CarPlant(model, model), profile, q0[None], nominal.solve()[None], 1 / 32, record=True)
-    if trials.states is None or trials.status[0] != OK:
-        return np.full((1, 4), np.inf)
-    return rotate(trials.states[0], -frame)
-
-
-def choose_frame(
-    start: Array, goal: Array, grid: float = FRAME_GRID, profiles: int = len(PROFILES)
-) -> tuple[float, int, float]:
-    """The task frame [rad] and the profile (an index of :data:`PROFILES`) for a task, and the
-    steering angle [rad] its nominal path (:func:`nominal_path`) needs: for each profile in turn,
-    the frame whose path needs the least steering while it stays :data:`CHART_SLACK` inside the
-    chart and the car's outline :data:`PATH_MARGIN` inside the lot's walls; the first profile whose path keeps
-    :data:`STEERING_SPARE` of the stop spare, else the one that steers least (``inf``: no frame
-    keeps any path in). ``grid`` [rad] spaces the frames tried, ``profiles`` tries the first few only."""
-    edge = pi / 2 - CHART_SLACK
-    low, high = max(start[2], goal[2]) - edge, min(start[2], goal[2]) + edge
-    best = (0.5 * (start[2] + goal[2]), 0, np.inf)
-    with np.errstate(all="ignore"):  # a path that blows up is left out below
-        for index, (pieces, v1_fixed) in enumerate(PROFILES[:profiles]):
-            profile = _profile(pieces, v1_fixed)
-            mine = (best[0], index, np.inf)
-            for frame in np.arange(low, high + 1e-12, grid):
-                path = nominal_path(start, goal, float(frame), profile)
-                theta = path[:, 2] - frame
-                inside = bool(np.all(np.abs(theta) < edge) and np.all(inside_lot(path, PATH_MARGIN)))
-                steering = float(np.max(np.abs(path[:, 3])))
-                if inside and steering < mine[2]:
-                    mine = (float(frame), index, steering)
-            if mine[2] <= (1 - STEERING_SPARE) * STEERING:
-                return mine  # the simplest profile that steers well inside the stop
-            if mine[2] < best[2]:
-                best = mine
-    return best
 
 
 @lru_cache(maxsize=64)
@@ -118,8 +50,6 @@ def _task(seed: int) -> tuple[Array, list[Array], list[tuple[float, int, float]]
     when one chart serves the goal within :data:`STEERING_USE` of the stop, else the two segments
     :func:`~ilc_steering.envs.highway_segments.choose_via` finds (``ValueError`` naming the seed
     when it finds none)."""
-    from ilc_steering.envs.highway_segments import choose_via
-
     start, goal = parking_task(seed, one_chart=False)
     one = None
     if abs(goal[2] - start[2]) <= MAX_TURN:
@@ -138,8 +68,7 @@ def _task(seed: int) -> tuple[Array, list[Array], list[tuple[float, int, float]]
 def _direction(a: Array, b: Array, frame: float, index: int) -> str:
     """``forward`` or ``reverse``: the sign of ``v1`` on the learned piece of the segment ``a -> b``
     in ``frame`` with profile ``index`` (eq. 12: ``z1`` is ``x`` in the task frame)."""
-    pieces, v1_fixed = PROFILES[index]
-    travel = rotate(b, frame)[0] - rotate(a, frame)[0] - sum(v * (d - RAMP) for v, d in zip(v1_fixed, pieces[1:]))
+    travel = rotate(b, frame)[0] - rotate(a, frame)[0] - task_profile(*PROFILES[index]).fixed_displacement
     return "forward" if travel > 0 else "reverse"
 
 
@@ -187,7 +116,7 @@ _KEYS = (
     ("v1_shape", "the speed rises from rest and falls back to it"),
     ("ramp", "[s]"),
     ("frame", "[rad] the task frame with the least steering (choose_frame)"),
-    ("direction", "the sign of v1: forward or reverse (checked against the nominal solution)"),
+    ("direction", "of the learned (first) piece, the sign of c11; the fixed pieces keep theirs"),
 )
 
 

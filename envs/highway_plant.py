@@ -23,11 +23,16 @@ geometry: Euler integration at 1/15 s, the steering angle set (not integrated) a
 the speed reached through a clipped acceleration (one action step of lag), the ±45° stop, and
 the walls (a crash stops the car; ``info["plant"]["crashed"]``).
 
-**The walls.** A trial whose car outline (``LENGTH`` x ``WIDTH``, :func:`outline`) comes within
-:data:`WALL_MARGIN` of a wall at an action step (:func:`inside_lot`), or that crashes, is a failed
-trial: from there the car brakes to a stop, wheels straight, and the trial reports the
-configuration where it failed with the status ``LEFT_CHART`` (``info["left_chart"]``: the off-chart
-penalty, never within the tolerance) and ``info["plant"]["left_lot"]``. It is counted like any trial.
+**The walls.** Before a trial is sent, the adapter predicts it on the nominal closed loop it
+follows, from the measured start (:meth:`HighwayParkingPlant.keeps_inside`); a trial whose
+predicted outline (``LENGTH`` x ``WIDTH``, :func:`outline`) comes within :data:`WALL_MARGIN` of a
+wall (:func:`inside_lot`) is never sent: it fails where the car stands, ``info["plant"]["refused"]``
+(the pre-send check of a command against the robot's workspace; the learner sees a failed trial and
+steps back). A trial sent whose outline still comes within :data:`WALL_MARGIN` of a wall at an
+action step, or that crashes, is a failed trial too: from there the car brakes to a stop, wheels
+straight, ``info["plant"]["left_lot"]``. Either reports the configuration where it failed with the
+status ``LEFT_CHART`` (``info["left_chart"]``: the off-chart penalty, never within the tolerance)
+and is counted like any trial.
 
 The tasks (parking-v0's start and goal for a seed, as a config) are :mod:`~ilc_steering.envs.highway`'s.
 """
@@ -47,6 +52,7 @@ from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
+from ilc_steering.envs.highway_lot import LENGTH, WALL_MARGIN, WALLS, WIDTH, inside_lot, outline
 from ilc_steering.errors import ConfigError
 
 __all__ = [
@@ -72,15 +78,6 @@ Array = npt.NDArray[np.float64]
 ENV_ID = "parking-v0"
 HIGHWAY = PlantKind("highway_parking", True, CAR.coordinates, CAR.inputs)
 """A car (the library's configuration, rear axle first), stepped by highway-env."""
-LENGTH = 5.0
-"""[m] highway-env's ``Vehicle.LENGTH``: the nominal wheelbase (``tests/test_highway.py`` checks it)."""
-WIDTH = 2.0
-"""[m] highway-env's ``Vehicle.WIDTH``: the car's outline is ``LENGTH`` x ``WIDTH`` about its centre."""
-WALLS = (34.5, 20.5)
-"""[m] the inner faces of parking-v0's walls (a 70 m x 42 m lot, walls 1 m thick, ``add_walls``):
-``|x| <= 34.5``, ``|y| <= 20.5`` in the world frame."""
-WALL_MARGIN = 0.5
-"""[m] how far inside the walls the car's outline must stay in every trial: one action step at 2.5 m/s."""
 ACCELERATION = 5.0
 """[m/s²] ``ContinuousAction.ACCELERATION_RANGE``: an action of 1 is this acceleration."""
 STEERING = pi / 4
@@ -117,25 +114,6 @@ def _pose(vehicle: Any) -> Array:
     x, y = (float(p) for p in vehicle.position)
     steering = float(np.clip(vehicle.action["steering"], -STEERING, STEERING))
     return np.array([x - 0.5 * LENGTH * np.cos(heading), y - 0.5 * LENGTH * np.sin(heading), heading, steering])
-
-
-def outline(q: Array) -> Array:
-    """The corners ``(..., 4, 2)`` [m] of the car's ``LENGTH`` x ``WIDTH`` outline at world
-    configurations ``q`` ``(..., 4)`` (rear axle, heading): highway-env's centre is ``L/2`` ahead."""
-    q = np.asarray(q, dtype=np.float64)
-    c, s = np.cos(q[..., 2])[..., None], np.sin(q[..., 2])[..., None]
-    along = np.array([0.0, LENGTH, LENGTH, 0.0])  # from the rear axle, the car's centre L/2 ahead of it
-    across = 0.5 * WIDTH * np.array([-1.0, -1.0, 1.0, 1.0])
-    x = q[..., 0:1] + c * along - s * across
-    y = q[..., 1:2] + s * along + c * across
-    return np.stack([x, y], axis=-1)
-
-
-def inside_lot(q: Array, margin: float = WALL_MARGIN) -> Any:
-    """Whether the car's outline at world configurations ``q`` ``(..., 4)`` is ``margin`` [m]
-    inside the lot's walls (:data:`WALLS`), for each configuration."""
-    corners = np.abs(outline(q))
-    return np.all((corners[..., 0] <= WALLS[0] - margin) & (corners[..., 1] <= WALLS[1] - margin), axis=-1)
 
 
 def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:
@@ -224,14 +202,20 @@ class HighwayParkingPlant(ExternalPlantBase):
             env.reset(seed=self.seed)
             self.frames.clear()
         vehicle = env.unwrapped.vehicle
-        q = self._measure(vehicle)
-        if float(np.max(np.abs(q - x0))) > 1e-6:  # the config's task.start or start_error: bad input
+        q, start_speed = self._measure(vehicle), float(vehicle.speed)
+        gap = q - x0
+        gap[2] = np.angle(np.exp(1j * gap[2]))  # headings compared modulo 2 pi: the measured one is wrapped
+        if float(np.max(np.abs(gap))) > 1e-6:  # the config's task.start or start_error: bad input
             where = "where the last segment left the car" if carried else f"parking-v0 seed {self.seed}'s start"
             raise ConfigError(
                 f"task.start {rotate(x0, -self.frame).tolist()} is not {where} "
                 f"{_pose(vehicle).tolist()}: a highway-env trial starts where parking-v0 puts the car "
                 "(no simulation.start_error)"
             )
+        if not self.keeps_inside(profile, c, q, steps):  # refused before anything is sent: a failed trial
+            log = {"seed": self.seed, "actions": [], "crashed": False, "left_lot": False, "refused": True}
+            log["start_speed"] = start_speed
+            return q, LEFT_CHART, np.repeat(q[None], steps + 1, axis=0), {**log, "is_success": _success(env)}
         states, actions = [q], []
         status, halted, left_lot = OK, q, False
         command = float(q[3])  # the steering command the adapter integrates from u2 (the servo's state)
@@ -240,7 +224,7 @@ class HighwayParkingPlant(ExternalPlantBase):
                 status, halted = LEFT_CHART, states[-2] if len(states) > 1 else q
             if status == OK:
                 acted_on = np.array([q[0], q[1], q[2], command])
-                phi_mid, command, speed_end = self._follow(profile, c, acted_on, k * ACTION_STEP)
+                phi_mid, command, speed_end = self._follow(profile, c, acted_on, k * ACTION_STEP)[:3]
                 beta = np.arctan(0.5 * np.tan(np.clip(phi_mid, -STEERING, STEERING)))
                 accel = (speed_end / np.cos(beta) - vehicle.speed) / ACTION_STEP
                 action = np.array([accel / ACCELERATION, phi_mid / STEERING])
@@ -262,16 +246,33 @@ class HighwayParkingPlant(ExternalPlantBase):
             "actions": actions,
             "crashed": bool(vehicle.crashed),
             "left_lot": left_lot,
+            "refused": False,
+            "start_speed": start_speed,  # [m/s] the nominal model assumes rest: a segment's car may roll in
             "is_success": _success(env),
         }
         return final, status, np.array(states), log
 
+    def keeps_inside(self, profile: InputProfile, c: Array, q: Array, steps: int) -> bool:
+        """Whether the trial of ``c`` from the measured configuration ``q`` (task frame), predicted
+        on the nominal closed loop the adapter follows (:meth:`_follow`, every RK4 substep of
+        ``steps`` action steps), keeps the car's outline :data:`WALL_MARGIN` inside the lot's
+        walls: the pre-send check. A trial whose prediction does not is never sent (``refused``)."""
+        x, path = np.array(q, dtype=np.float64), [q[None]]
+        with np.errstate(all="ignore"):  # a path that blows up is not finite, and refused below
+            for k in range(steps):
+                if not abs(x[2]) < pi / 2 - CHART_MARGIN:  # where the trial halts and brakes to a stop
+                    break
+                x, substeps = self._follow(profile, c, x, k * ACTION_STEP)[3:]
+                path.append(substeps)
+            return bool(np.all(inside_lot(rotate(np.concatenate(path), -self.frame))))
+
     @staticmethod
-    def _follow(profile: InputProfile, c: Array, q: Array, t0: float) -> tuple[float, float, float]:
+    def _follow(profile: InputProfile, c: Array, q: Array, t0: float) -> tuple[float, float, float, Array, Array]:
         """The nominal closed loop (eqs. 3-5, nominal geometry, the wheel at the stop beyond
         ``STEERING`` while the command winds on) from ``q`` (its ``phi`` the adapter's steering
         command) at ``t0`` over one action step by RK4: the steering command at mid-step and at the
-        end [rad], and the rear axle's speed at the end [m/s]."""
+        end [rad], the rear axle's speed at the end [m/s], the state at the end and at each
+        substep's end ``(SUBSTEPS, 4)`` (task frame)."""
         model = nominal_map()
         h = ACTION_STEP / SUBSTEPS
         # every RK4 stage falls on a half step: the inputs of the whole step in one call
@@ -283,17 +284,17 @@ class HighwayParkingPlant(ExternalPlantBase):
             u1, u2 = chained_inputs(x[2], phi, float(v1s[i]), float(v2s[i]), ell, rho)
             return np.array(car_velocity(x[2], phi, u1, u2, ell, rho))
 
-        x, phi_mid = q.copy(), float(q[3])
+        x, phi_mid, substeps = q.copy(), float(q[3]), np.empty((SUBSTEPS, 4))
         for i in range(SUBSTEPS):
             k1 = field_(2 * i, x)
             k2 = field_(2 * i + 1, x + h / 2 * k1)
             k3 = field_(2 * i + 1, x + h / 2 * k2)
             k4 = field_(2 * i + 2, x + h * k3)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            x = substeps[i] = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             if i == SUBSTEPS // 2 - 1:
                 phi_mid = float(x[3])
         speed = float(v1s[-1]) / np.cos(x[2]) * rho
-        return phi_mid, float(x[3]), speed
+        return phi_mid, float(x[3]), speed, x, substeps
 
 
 def _success(env: Any) -> bool:

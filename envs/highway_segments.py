@@ -13,11 +13,11 @@ waypoints a driver would take:
 - *a turn first* (a three-point turn for a car facing away from the spot): the same points, the via
   heading halfway round from the start's to the goal's;
 
-and keeps the one whose two nominal paths (:func:`~ilc_steering.envs.highway.choose_frame`, each
+and keeps the one whose two nominal paths (:func:`~ilc_steering.envs.highway_paths.choose_frame`, each
 segment its frame and profile) steer least, each within the stop and with the car's outline
-:data:`~ilc_steering.envs.highway.PATH_MARGIN` inside the lot's walls. A coarse pass (frames every
+:data:`~ilc_steering.envs.highway_paths.PATH_MARGIN` inside the lot's walls. A coarse pass (frames every
 :data:`COARSE_GRID`, the first profiles) ranks the candidates; the best :data:`REFINE` are then
-chosen by :func:`~ilc_steering.envs.highway.choose_frame` in full.
+chosen by :func:`~ilc_steering.envs.highway_paths.choose_frame` in full.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from math import pi
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.envs.highway_paths import STEERING_USE, choose_frame
 from ilc_steering.envs.highway_plant import MAX_TURN, STEERING
 
 __all__ = ["ANGLES", "BACK", "SIDE", "Leg", "choose_via", "via_candidates"]
@@ -35,7 +36,7 @@ __all__ = ["ANGLES", "BACK", "SIDE", "Leg", "choose_via", "via_candidates"]
 Array = npt.NDArray[np.float64]
 Leg = tuple[float, int, float]
 """A segment's ``(frame [rad], profile index, steering [rad])``, as
-:func:`~ilc_steering.envs.highway.choose_frame` gives."""
+:func:`~ilc_steering.envs.highway_paths.choose_frame` gives."""
 
 BACK = (6.0, 10.0, 14.0)
 """[m] how far back from the spot, into the aisle, the via points lie (parking-v0's spots face the
@@ -44,10 +45,11 @@ SIDE = (-6.0, 0.0, 6.0)
 """[m] how far to the side of the spot's axis."""
 ANGLES = tuple(np.radians([-45.0, 0.0, 45.0]))
 """[rad] the via heading's turn from the spot's (back up, then in) or from halfway round (a turn first).
-A coarse family: 54-72 candidates, about 7 CPU-s a goal; a finer one (4 x 5 x 5) served the same
-goals of seeds 0-19 at three times the cost."""
+A coarse family: 54-72 candidates a goal."""
 COARSE_GRID = np.radians(6.0)
 """[rad] the frame spacing of the coarse pass."""
+COARSE_PROFILES = 3
+"""The coarse pass tries the first few profiles of :data:`~ilc_steering.envs.highway_paths.PROFILES` only."""
 REFINE = 6
 """Candidates the coarse pass hands to the full search."""
 
@@ -78,23 +80,21 @@ def choose_via(start: Array, goal: Array) -> tuple[Array, Array, list[Leg]]:
     """The via point (world), the goal (its heading the way nearer the via's) and each segment's
     frame, profile and steering for a two-segment manoeuvre; ``ValueError`` when no candidate keeps
     both nominal paths within the stop and the lot."""
-    from ilc_steering.envs import highway
-
     scored: list[tuple[float, int, Array, Array]] = []
     for via in via_candidates(start, goal):
         end = goal.copy()
         end[2] = _near(goal[2], via[2])
-        legs = [highway.choose_frame(a, b, COARSE_GRID, 3) for a, b in ((start, via), (via, end))]
+        legs = [choose_frame(a, b, COARSE_GRID, COARSE_PROFILES) for a, b in ((start, via), (via, end))]
         worst = max(leg[2] for leg in legs)
         if np.isfinite(worst):
             scored.append((worst, len(scored), via, end))
     scored.sort(key=lambda row: (row[0], row[1]))
     best: tuple[float, Array, Array, list[Leg]] | None = None
     for _, _, via, end in scored[:REFINE]:
-        legs = [highway.choose_frame(start, via), highway.choose_frame(via, end)]
+        legs = [choose_frame(start, via), choose_frame(via, end)]
         worst = max(leg[2] for leg in legs)
         if best is None or worst < best[0]:
             best = (worst, via, end, legs)
-    if best is None or best[0] > highway.STEERING_USE * STEERING:
+    if best is None or best[0] > STEERING_USE * STEERING:
         raise ValueError("no via point of the search keeps both segments within the ±45° stop and inside the lot")
     return best[1], best[2], best[3]

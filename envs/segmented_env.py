@@ -21,17 +21,15 @@ segments would have needed a stacked nominal model (``K n`` errors, a block ``W`
 knows. Segment ``k + 1`` starts where segment ``k`` really ended, which moves while segment ``k``
 learns; its ``info`` says where (``z_start``, measured, in its own chart), and the learner re-bases
 the error to the via point on the nominal model (:func:`~ilc_steering.segmented.rebased`, eq. 23,
-the cyclic law's eq. 39 moved to the error). Learning from the raw error instead cost
-``segmented_parking`` 5-6 trials to 5e-4 at segment 1 where it alone takes 2-4: each learner took
-segment ``k``'s miss for its own.
+the cyclic law's eq. 39 moved to the error; from the raw error, segment ``k + 1`` took segment
+``k``'s miss for its own: 5-6 trials to 5e-4 on ``segmented_parking``, 2-4 alone).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -47,6 +45,7 @@ from ilc_steering.core.score import TRUE_KEYS
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.segment_views import Carried, SegmentTask, SegmentView
 from ilc_steering.envs.steering_env import (
     TrialView,
     action_names,
@@ -58,7 +57,7 @@ from ilc_steering.envs.steering_env import (
     trial_info,
 )
 
-__all__ = ["Carried", "SegmentView", "SegmentedSteeringEnv"]
+__all__ = ["Carried", "SegmentTask", "SegmentView", "SegmentedSteeringEnv"]
 
 Array = npt.NDArray[np.float64]
 
@@ -66,39 +65,35 @@ WORST = ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS)
 """The errors of a trial that are the worst over its segments' ends (every waypoint counted)."""
 
 
-@runtime_checkable
-class Carried(Protocol):
-    """An external plant's optional part for a manoeuvre: ``carry_on()``, after which its next trial
-    (the next segment) goes on from where the car stands instead of resetting it."""
-
-    def carry_on(self) -> None: ...
-
-
-@dataclass(frozen=True)
-class SegmentView:
-    """What a learner of one segment may see, shaped as a one-trial env's ``unwrapped`` (so that
-    ``LearnerContext.from_env(view)`` builds its context): the segment's config, nominal model,
-    action box and observation space."""
-
-    config: SteeringConfig
-    nominal_model: NominalModel
-    action_space: gym.spaces.Box
-    observation_space: gym.spaces.Box
-    observation: npt.NDArray[np.float32]
-
-    @property
-    def unwrapped(self) -> SegmentView:
-        return self
-
-
 def _at_edge(scenario: Scenario, q_task: Array) -> Array:
     """Configurations in a segment's task frame, a heading past its chart read at the chart's edge
     (as ``Scenario.measure`` reads a noisy one), where the chained map is defined."""
     q = np.array(q_task, dtype=np.float64)
     if scenario.kind.has_pose:
+        q = _wrapped(q)
         edge = np.pi / 2 - CHART_MARGIN
         q[..., 2:] = np.clip(q[..., 2:], -edge, edge)
     return q
+
+
+def _turns_with_frame(scenario: Scenario, angle: float = 0.5) -> bool:
+    """Whether the plant's state turns with the task frame as ``rotate`` turns it (``x, y, theta``
+    first): its configuration and the controller's estimate of a turned state are the turned ones.
+    A lab robot's dead-reckoned estimate, further along its state, does not turn."""
+    q = scenario.to_task(scenario.start)
+    x, plant = scenario.plant.initial_state(q), scenario.plant
+    turned = rotate(x, angle)
+    return bool(
+        np.allclose(plant.configuration(turned), rotate(plant.configuration(x), angle))
+        and np.allclose(plant.estimate(turned), rotate(plant.estimate(x), angle))
+    )
+
+
+def _wrapped(x: Array) -> Array:
+    """A state with a pose (``x, y, theta`` first) with ``theta`` wrapped to ``(-pi, pi]``."""
+    out = np.array(x, dtype=np.float64)
+    out[..., 2] = np.angle(np.exp(1j * out[..., 2]))
+    return out
 
 
 def _joined(trajectories: Sequence[Trajectory]) -> Trajectory:
@@ -124,8 +119,11 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     ## Action Space
 
     The segments' coefficient vectors ``(c11, c21..c2q)`` concatenated, each in its segment's box
-    (10 times its nominal model's ``action_scale()``): ``Box(-b, b, (sum_k (1 + q_k),), float32)``.
-    Out-of-bound values are clipped; a wrong shape or a non-finite value raises ``ValueError``.
+    (10 times its nominal model's ``action_scale()``): ``Box(-b, b, (sum_k (1 + q_k),), float32)``,
+    but a segment's ``c11`` keeps the sign of its ``direction`` (the learned piece's: ``[0, b]``
+    forward, ``[-b, 0]`` reverse; a segment's view keeps the one-trial env's symmetric box, where its
+    nominal solution is checked). Out-of-bound values are clipped; a wrong shape or a non-finite
+    value raises ``ValueError``.
 
     ## Observation Space
 
@@ -144,7 +142,10 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
 
     After its one step: ``terminated=True``. A segment that leaves its chart ends the trial there;
     the later segments are not run (``ran=False``) and each is measured where the robot halted,
-    ``left_chart``. The trial counts once, failed.
+    ``left_chart``. The trial counts once, failed. So does a segment that would start off its own
+    chart (the carried heading, wrapped to ``(-pi, pi]``, refused by the plant's
+    ``check_configuration``) or that the plant refuses after an earlier one drove it (a
+    ``ValueError``): it is not run, and its ``info`` says why (``refused``).
 
     ## Info
 
@@ -213,19 +214,24 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         for scenario in self._segments:
             scenario.refuse_disturbances("the segmented env")
         frames = {s.frame for s in self._segments}
-        if len(frames) > 1 and self._segments[0].plant.state_dim > 6:
+        if len(frames) > 1 and not _turns_with_frame(self._segments[0]):
             raise ValueError(
                 f"{self.config.name}: segments in different frames need a plant whose state turns with the frame "
                 "(x, y, theta first); a lab robot's dead-reckoned estimate does not: give every segment one frame"
             )
-        self._views = []
-        for c, scenario in zip(self.config.segment_configs(), self._segments):
+        self._views, self._boxes = [], []
+        legs = self.config.task.segments  # type: ignore[union-attr]
+        for c, scenario, leg in zip(self.config.segment_configs(), self._segments, legs):
             action_space, observation_space, observation = task_spaces(scenario)
-            self._views.append(SegmentView(c, scenario.nominal, action_space, observation_space, observation))
+            low, high = action_space.low.copy(), action_space.high.copy()
+            if leg.direction is not None:  # the learned piece's direction: c11 keeps its sign (eq. 12)
+                (low if leg.direction == "forward" else high)[0] = 0.0
+            self._boxes.append((low, high))
+            task = SegmentTask(c.name, c.learning)
+            self._views.append(SegmentView(task, scenario.nominal, action_space, observation_space, observation))
         self._sizes = [view.action_space.shape[0] for view in self._views]
         self._split = np.cumsum(self._sizes)[:-1]
-        low = np.concatenate([view.action_space.low for view in self._views])
-        high = np.concatenate([view.action_space.high for view in self._views])
+        low, high = (np.concatenate(bounds) for bounds in zip(*self._boxes))
         self.action_space = gym.spaces.Box(low, high, dtype=np.float32)
         self._observation = np.concatenate([view.observation for view in self._views])
         bound = np.concatenate([view.observation_space.high for view in self._views])
@@ -251,15 +257,30 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         super().reset(seed=seed)
         if options:
             raise ValueError(f"options: the segmented env takes none, got {sorted(map(str, options))}")
-        return self._observation.copy(), {"q_start": self._segments[0].start.copy(), "q_goal": self._view_goal()}
-
-    def _view_goal(self) -> Array:
-        return self._segments[-1].goal.copy()
+        if seed is not None:  # an external plant's own scatter (each segment's frame of the one car)
+            for scenario in self._segments:
+                scenario.reseed(seed)
+        return self._observation.copy(), {
+            "q_start": self._segments[0].start.copy(),
+            "q_goal": self._segments[-1].goal.copy(),
+        }
 
     def _carry(self, x: Array, k: int) -> Array:
-        """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame."""
+        """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame, its heading
+        wrapped to ``(-pi, pi]`` (a turn of the frame may carry it past ``pi``, where an external
+        plant reads it wrapped)."""
         turn = self._segments[k].frame - self._segments[k - 1].frame
-        return rotate(x, turn) if turn else x
+        return _wrapped(rotate(x, turn)) if turn else x
+
+    def _refusal(self, k: int, x0: Array) -> str | None:
+        """Why segment ``k`` cannot start from plant state ``x0`` ``(1, nx)`` (its frame), or ``None``:
+        a start off its chart or past the plant's limits (``check_configuration``) is not run."""
+        plant = self._segments[k].plant
+        try:
+            plant.check_configuration(plant.configuration(x0))
+        except ValueError as error:
+            return f"segment {k} would start off its chart: {error}"
+        return None
 
     @staticmethod
     def _measured_start(scenario: Scenario, q_world: Array) -> Array:
@@ -277,19 +298,28 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         x: Array | None = None
         halted = False
         for k, (scenario, view, requested) in enumerate(zip(self._segments, self._views, pieces)):
-            applied = np.clip(requested, view.action_space.low, view.action_space.high)
+            applied = np.clip(requested, *self._boxes[k])
             x0 = None if x is None else self._carry(x, k)[None]
             noise = scenario.draw_noise(self.np_random, 1)
             z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])
-            if halted:  # not run: measured where the robot halted, off its chart (at the edge if past it)
+            refused = None if halted or x0 is None else self._refusal(k, x0)
+            trials = None
+            if not (halted or refused):
+                if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
+                    scenario.external.carry_on()
+                try:  # once the car has driven, whatever refuses a segment fails the trial, counted
+                    trials = scenario.run(applied[None], x0, record)
+                except ValueError as error:
+                    if not k:
+                        raise
+                    refused = f"segment {k} refused: {type(error).__name__}: {error}"
+            if trials is None:  # not run: measured where the robot halted, off its chart (at the edge if past it)
                 q = _at_edge(scenario, scenario.plant.configuration(x0))  # type: ignore[arg-type]
                 measured = scenario.measure_configurations(q, np.ones(1, dtype=np.int64), noise=noise)
                 infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": False})
-                x = x0[0]  # type: ignore[index]
+                infos[-1].update({"refused": refused} if refused else {})
+                x, halted = x0[0], True  # type: ignore[index]
                 continue
-            if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
-                scenario.external.carry_on()
-            trials = scenario.run(applied[None], x0, record)
             q = scenario.plant.configuration(trials.final)
             if trials.status[0] != OK:  # halted (its chart, a wall): read at the chart's edge if past it
                 q = _at_edge(scenario, q)
@@ -311,15 +341,17 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         return self._observation.copy(), float(reward(info)), True, False, info
 
     def _summary(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """The trial's ``info``: the worst waypoint's errors, the goal's configuration, and each segment's own."""
+        """The trial's ``info``: the worst waypoint's errors (NaN if any is, and then ``left_chart``: a
+        NaN never hides behind a finite error), the goal's configuration, and each segment's own."""
         last = infos[-1]
-        info: dict[str, Any] = {key: max(i[key] for i in infos) for key in WORST if key in last}
+        worst = {key: np.array([i[key] for i in infos], dtype=np.float64) for key in WORST if key in last}
+        info: dict[str, Any] = {key: float(np.max(values)) for key, values in worst.items()}
         info.update(
             q_final=last["q_final"],
             z_final=last["z_final"],
             error=np.concatenate([i["error"] for i in infos]),
             action=np.concatenate([i["action"] for i in infos]),
-            left_chart=any(i["left_chart"] for i in infos),
+            left_chart=any(i["left_chart"] for i in infos) or not all(np.isfinite(v).all() for v in worst.values()),
             clipped=any(i["clipped"] for i in infos),
             segments=[{k: v for k, v in i.items() if k not in TRUE_KEYS} for i in infos],
         )
@@ -330,6 +362,8 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 "actions": [a for log in logs for a in log["actions"]],
                 "crashed": any(log.get("crashed", False) for log in logs),
                 "left_lot": any(log.get("left_lot", False) for log in logs),
+                "refused": any(log.get("refused", False) for log in logs),
+                "segments_driven": sum(bool(log["actions"]) for log in logs),
             }
         return info
 

@@ -2,6 +2,9 @@
 
 Each segment's learner is made by the usual factory from its segment's view, exactly the context it
 would get on the one-trial env of that segment, so every learner of the registry runs unchanged.
+Its task is named ``NAME.k`` (segment ``k`` of config ``NAME``): an RL learner's hyperparameters
+(``configs/rl``) are looked up under that name and, as for any config the table does not name,
+fall back to the prior's ``default``.
 """
 
 from __future__ import annotations
@@ -51,10 +54,17 @@ class SegmentedLearner:
             learner.reset()
 
     def close(self) -> None:
-        """Close every learner that declares ``close()`` (:class:`~ilc_steering.agents.base.Closable`)."""
+        """Close every learner that declares ``close()`` (:class:`~ilc_steering.agents.base.Closable`),
+        each even when an earlier one raised; then raise the first error."""
+        errors = []
         for learner in self.learners:
             if isinstance(learner, Closable):
-                learner.close()
+                try:
+                    learner.close()
+                except Exception as error:
+                    errors.append(error)
+        if errors:
+            raise errors[0]
 
 
 def rebased(segment: Mapping[str, Any], model: NominalModel) -> dict[str, Any]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import os
 from math import pi
 from typing import Any
@@ -106,7 +108,7 @@ def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
     assert len(task["via"]) == 1 and len(task["segments"]) == 2
     points = [np.array(q) for q in (task["start"], *task["via"], task["goal"])]
     for a, b, segment in zip(points, points[1:], task["segments"]):
-        profile = highway._profile(tuple(segment["pieces"]), tuple(segment["v1_fixed"]))
+        profile = highway.task_profile(tuple(segment["pieces"]), tuple(segment["v1_fixed"]))
         path = highway.nominal_path(a, b, segment["frame"], profile)
         assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
         assert np.max(np.abs(path[:, 3])) <= STEERING and np.max(np.abs(path[:, 2] - segment["frame"])) < pi / 2
@@ -211,36 +213,84 @@ def test_the_outline_is_highway_envs_polygon() -> None:
         vehicle = env.unwrapped.vehicle
         theirs = np.array(vehicle.polygon())[:4]
         mine = highway_plant.outline(highway_plant._pose(vehicle))
-        np.testing.assert_allclose(np.sort(mine, axis=0), np.sort(theirs, axis=0), atol=1e-12)
+        rows = [corners[np.lexsort(np.round(corners, 9).T[::-1])] for corners in (mine, theirs)]
+        np.testing.assert_allclose(*rows, atol=1e-12)  # each corner's (x, y) kept together
     walls = [o for o in env.unwrapped.road.objects if o.LENGTH in (70, 42)]
     assert len(walls) == 4 and all(o.WIDTH == 1 for o in walls)
     for axis in (0, 1):  # the inner face: the wall's centre line less half its thickness
         assert max(abs(float(o.position[axis])) for o in walls) - 0.5 == highway_plant.WALLS[axis]
 
 
-def test_a_trial_into_a_wall_is_a_failed_trial_counted() -> None:
-    """Three times the nominal speed drives seed 4's car into the east wall: the trial fails
-    (``left_chart``, the plant's ``left_lot``), scores the off-chart penalty, and counts as one."""
+class Fixed:
+    """A learner that asks for the same coefficients every trial."""
+
+    def __init__(self, c: Any) -> None:
+        self.c = c
+
+    def act(self, observation: Any) -> Any:
+        return self.c
+
+    def learn(self, info: Any) -> None:
+        pass
+
+    def reset(self) -> None:
+        pass
+
+
+@pytest.fixture
+def drives(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Counts every drive of a parking-v0 car (``_simulate``, one per action step) and every seeded
+    reset (highway-env's constructor resets once, unseeded)."""
+    from highway_env.envs.common.abstract import AbstractEnv
+
+    counts = [0, 0]
+    simulate, reset = AbstractEnv._simulate, AbstractEnv.reset
+
+    def counting_simulate(self: Any, *args: Any, **kwargs: Any) -> Any:
+        counts[0] += 1
+        return simulate(self, *args, **kwargs)
+
+    def counting_reset(self: Any, *args: Any, **kwargs: Any) -> Any:
+        counts[1] += kwargs.get("seed") is not None
+        return reset(self, *args, **kwargs)
+
+    monkeypatch.setattr(AbstractEnv, "_simulate", counting_simulate)
+    monkeypatch.setattr(AbstractEnv, "reset", counting_reset)
+    return counts
+
+
+def test_a_command_into_a_wall_is_never_sent(drives: list[int]) -> None:
+    """Review finding 5, the pre-send check: a learner that asks for three times the nominal speed
+    (seed 4's car would drive into the east wall) is refused before anything is sent: the car is
+    never driven (no action step, nothing logged), each trial fails where the car stands
+    (``left_chart``, ``refused``, not ``left_lot``) and counts once; the nominal solution is sent."""
+    from ilc_steering.core.score import OFF_CHART_PENALTY
+    from ilc_steering.loop import run_trials
+
+    env = gym.make(ENV, config="highway_parking")
+    nominal = env.unwrapped.nominal_model.solve()
+    rollout = run_trials(env, Fixed(nominal * np.array([3.0, 1.0, 1.0, 1.0, 1.0])), 2, seed=0)
+    assert len(rollout) == 2 and drives == [0, 2]
+    start = load_config("highway_parking").task.start
+    for info, reward in zip(rollout.infos, rollout.rewards):
+        assert info["plant"]["refused"] and info["plant"]["actions"] == [] and not info["plant"]["left_lot"]
+        assert info["left_chart"] and reward < -OFF_CHART_PENALTY
+        np.testing.assert_allclose(info["q_final"], start, atol=1e-9)
+    rollout = run_trials(env, Fixed(nominal), 1, seed=0)
+    assert not rollout.infos[0]["plant"]["refused"] and drives == [75, 3]
+
+
+def test_a_trial_into_a_wall_is_a_failed_trial_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past the pre-send check (switched off here: the real car strays from its prediction), three
+    times the nominal speed drives seed 4's car into the east wall: the trial fails (``left_chart``,
+    the plant's ``left_lot``), scores the off-chart penalty, and counts as one."""
     from ilc_steering.core.score import OFF_CHART_PENALTY, within_tolerance
     from ilc_steering.loop import run_trials
 
-    class Fast:
-        def __init__(self, c: Any) -> None:
-            self.c = c
-
-        def act(self, observation: Any) -> Any:
-            return self.c
-
-        def learn(self, info: Any) -> None:
-            pass
-
-        def reset(self) -> None:
-            pass
-
+    monkeypatch.setattr(highway_plant.HighwayParkingPlant, "keeps_inside", lambda *args: True)
     env = gym.make(ENV, config="highway_parking")
     c = env.unwrapped.nominal_model.solve() * np.array([3.0, 1.0, 1.0, 1.0, 1.0])
-    rollout = run_trials(env, Fast(c), 2, seed=0)
-    assert len(rollout) == 2
+    rollout = run_trials(env, Fixed(c), 2, seed=0)
     for info, reward in zip(rollout.infos, rollout.rewards):
         assert info["left_chart"] and info["plant"]["left_lot"] and reward < -OFF_CHART_PENALTY
         assert not within_tolerance(load_config("highway_parking").learning.tolerance, info)
@@ -253,10 +303,145 @@ def test_seed_2_keeps_inside_the_walls() -> None:
     PATH_MARGIN inside, and its first trial on highway-env's car neither crashes nor leaves the lot."""
     config = highway.highway_config(2)
     task = config["task"]
-    profile = highway._profile(tuple(task["pieces"]), tuple(task["v1_fixed"]))
+    profile = highway.task_profile(tuple(task["pieces"]), tuple(task["v1_fixed"]))
     path = highway.nominal_path(np.array(task["start"]), np.array(task["goal"]), task["frame"], profile)
     assert np.all(highway_plant.inside_lot(path, highway.PATH_MARGIN))
     env = gym.make(ENV, config=load_config(config))
     env.reset(seed=0)
     _, _, _, _, info = env.step(env.unwrapped.nominal_model.solve())
     assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and info["cartesian_error"] < 0.5
+
+
+def test_the_start_heading_is_compared_modulo_two_pi() -> None:
+    """Finding 3 of the review: the plant reads the car's heading wrapped to (-pi, pi], so a carried
+    heading a whole turn away is the car's own (it raised a ConfigError, which the loop reported as
+    the learner's fault after the car had driven); a heading 1 mrad away is still refused."""
+    from ilc_steering.core.integrate import OK
+    from ilc_steering.errors import ConfigError
+
+    scenario = Scenario.from_config(load_config("highway_parking"))
+    plant = scenario.external
+    assert plant is not None
+    x0 = scenario.x_start + np.array([0.0, 0.0, 2 * pi, 0.0])
+    _, status, _, log = plant.trial(scenario.profile, x0, scenario.nominal.solve(), 1)  # type: ignore[attr-defined]
+    assert status == OK and len(log["actions"]) == 1
+    x0[2] += 1e-3
+    with pytest.raises(ConfigError, match="is not parking-v0 seed 4's start"):
+        plant.trial(scenario.profile, x0, scenario.nominal.solve(), 1)  # type: ignore[attr-defined]
+
+
+@pytest.fixture(scope="module")
+def seed_12() -> Any:
+    """parking-v0 seed 12 (a car facing away from its spot: two segments), as the generator writes it."""
+    return load_config(highway.highway_config(12))
+
+
+def test_a_manoeuvre_drives_the_car_as_often_as_it_counts(
+    seed_12: Any, drives: list[int], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Review finding 9: one parking-v0 reset per trial, one drive of the plant per segment run, one
+    action step per logged action, over 2 trials of ``newton_ilc`` on seed 12's manoeuvre."""
+    from ilc_steering.agents.registry import lookup
+    from ilc_steering.loop import run_trials
+    from ilc_steering.segmented import segmented_learner
+
+    calls = []
+    trial = highway_plant.HighwayParkingPlant.trial
+    monkeypatch.setattr(highway_plant.HighwayParkingPlant, "trial", lambda self, *a: calls.append(1) or trial(self, *a))
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=seed_12)
+    views = env.unwrapped.segment_views()
+    rollout = run_trials(env, segmented_learner(lambda c: lookup("newton_ilc").make(c, 2), views, seed=1), 2, seed=1)
+    assert drives[1] == 2 == len(rollout)
+    assert len(calls) == sum(segment["ran"] for info in rollout.infos for segment in info["segments"]) == 4
+    assert drives[0] == sum(len(info["plant"]["actions"]) for info in rollout.infos)
+    # review finding 12: each segment's car starts at rest (the nominal model's assumption), logged
+    speeds = [s["plant"]["start_speed"] for info in rollout.infos for s in info["segments"] if "plant" in s]
+    assert len(speeds) == 4 and max(map(abs, speeds)) < 1e-9
+
+
+def test_a_wall_hit_in_segment_0_ends_the_manoeuvre(seed_12: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Review finding 9: past the pre-send check (off here), segment 0 three times too fast hits a
+    wall: the trial's log says ``left_lot``, segment 1 is not run, only segment 0's actions were sent."""
+    monkeypatch.setattr(highway_plant.HighwayParkingPlant, "keeps_inside", lambda *args: True)
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=seed_12)
+    env.reset(seed=0)
+    c = [view.nominal_model.solve() for view in env.unwrapped.segment_views()]
+    c[0][0] *= 3.0
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert first["ran"] and first["left_chart"] and first["plant"]["left_lot"]
+    assert not second["ran"] and info["plant"]["left_lot"] and info["left_chart"]
+    assert info["plant"]["actions"] == first["plant"]["actions"]
+
+
+def test_run_a_highway_manoeuvre_through_the_cli(tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    """The issue's command line: the generator's config for seed 12, then ``ilc-steering run`` on it."""
+    from ilc_steering.cli import main
+
+    assert highway.main(["--seed", "12"]) == 0
+    path = tmp_path / "seed12.yaml"
+    path.write_text(capsys.readouterr().out)
+    out = str(tmp_path / "r.json")
+    assert main(["run", str(path), "--learner", "newton_ilc", "--trials", "4", "--json", out]) == 0  # converged
+    trials = json.loads((tmp_path / "r.json").read_text())["trials"]
+    assert len(trials) == 4 and trials[-1]["cartesian_error"] < 0.01 and trials[-1]["orientation_error"] < 0.01
+
+
+def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Review finding 6: a cell on disk carries the fingerprint of its goal's config, the code and the
+    packages; a resumed run reuses a cell of the same fingerprint and refuses one of another (a
+    changed generator made other configs under the same file names), in one line, never mixed in;
+    ``--quick`` (CI's smoke test, whose folder outlives the code) makes it again."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "highway_parking.py"
+    spec = importlib.util.spec_from_file_location("highway_parking_benchmark", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, bench)  # its dataclass looks itself up there
+    spec.loader.exec_module(bench)
+    ran: list[int] = []
+
+    def cell(learner: str, seed: int, task: Any) -> dict[str, Any]:
+        ran.append(seed)
+        return {"learner": learner, "seed": seed, "refused": "not run here"}
+
+    monkeypatch.setattr(bench, "_cell", cell)
+    args = bench.Args(seeds=(13,), learners=("robust_ilc",), trials=2, out=tmp_path)
+    bench.main(args)
+    bench.main(args)  # resumed: the cell on disk is the same computation
+    assert ran == [13]
+    task = highway.highway_config(13, trials=2)
+    monkeypatch.setattr(bench, "_task", lambda seed, trials: {**task, "name": "another"})
+    with pytest.raises(ValueError, match=r"robust_ilc_seed13_trials2\.json: a cell of another computation"):
+        bench.main(args)
+    assert ran == [13]
+    cells = tmp_path / "cells"  # --quick, CI's smoke test, makes a stale cell again
+    (cells / "robust_ilc_seed4_trials4.json").write_text(json.dumps({"fingerprint": "stale"}))
+    bench.main(dataclasses.replace(args, quick=True))
+    assert (
+        ran[1:] == [4, 12]
+        and json.loads((cells / "robust_ilc_seed4_trials4.json").read_text())["fingerprint"] != "stale"
+    )
+
+
+def test_a_segment_that_would_start_off_its_chart_is_not_sent() -> None:
+    """Review finding 3 on highway-env's car: segment 1's frame turned to put seed 12's via point
+    1.45 rad from its axis, and segment 0 steered short (0.7 of its nominal c2), ending 9.5° off:
+    segment 1 would start past its chart; it is not sent (``ran`` false, ``refused``, only segment
+    0's actions logged), the trial counts, failed, every error finite (it was a chart exit at step 0
+    on this plant and an ordinary trial on the simulated car)."""
+    raw = highway.highway_config(12)
+    raw["task"]["segments"][1]["frame"] = raw["task"]["via"][0][2] - 1.45
+    env = gym.make("ilc_steering/SegmentedSteering-v0", config=load_config(raw))
+    env.reset(seed=0)
+    c = [view.nominal_model.solve() for view in env.unwrapped.segment_views()]
+    c[0][1:] *= 0.7
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert first["ran"] and not first["left_chart"] and "plant" not in second
+    assert not second["ran"] and second["left_chart"] and "would start off its chart" in second["refused"]
+    assert info["plant"]["actions"] == first["plant"]["actions"] and info["plant"]["segments_driven"] == 1
+    assert info["left_chart"] and np.all(np.isfinite(info["error"]))

@@ -57,12 +57,47 @@ def test_config_refusals_name_the_key():
         load_config(data)
 
 
-def test_each_segment_is_its_one_trial_task():
+def test_a_via_points_fault_names_its_own_key():
+    """Finding 8 of the review: a bad via point is named ``task.via[0]`` (it was named
+    ``task.segments[0].goal``, a key the file does not have), in the frame of the segment that met it."""
+    data = packaged()
+    data["task"]["via"][0][3] = 1.6
+    with pytest.raises(ConfigError, match=r"task\.via\[0\] \(in task\.segments\[0\]'s frame\): phi = 1\.6 rad"):
+        load_config(data)
+    data = packaged()
+    data["task"]["segments"][1]["frame"] = 2.0
+    with pytest.raises(ConfigError, match=r"task\.via\[0\] \(in task\.segments\[1\]'s frame\): theta = -1\.7"):
+        load_config(data)
+
+
+def test_a_segments_direction_is_kept():
+    """Finding 7 of the review: ``direction`` is the learned piece's, and the env keeps ``c11`` to
+    its sign (segment 0 forward: ``[0, b]``; segment 1 reverse: ``[-b, 0]``; it was a label only); a
+    learner that asks for the other sign is clipped to 0, ``clipped``."""
+    env = gym.make(ENV_ID, config="segmented_parking")
+    env.reset(seed=0)
+    views = env.unwrapped.segment_views()
+    n0 = views[0].action_space.shape[0]
+    box = env.action_space
+    assert box.low[0] == 0 < box.high[0] and box.low[n0] < 0 == box.high[n0]
+    c = [view.nominal_model.solve() for view in views]
+    c[1][0] = -c[1][0]
+    _, _, _, _, info = env.step(np.concatenate(c))
+    assert info["segments"][1]["action"][0] == 0 and info["segments"][1]["clipped"]
+    assert info["segments"][0]["action"][0] > 0 and not info["segments"][0]["clipped"]
+
+
+def test_each_segment_is_its_one_trial_task(monkeypatch):
     """Segment 0 of the manoeuvre, learned by the paper's law, is trial for trial bit for bit the
-    one-trial task from the start to the via point: nothing of the later segments leaks into it."""
+    one-trial task from the start to the via point: nothing of the later segments leaks into it.
+    Each trial drives each segment once: the plant runs as often as the segments run."""
     config = load_config("segmented_parking")
     spec = lookup("ilc_paper")
     env = gym.make(ENV_ID, config=config)
+    runs = []
+    for k, scenario in enumerate(env.unwrapped._segments):
+        run = scenario.run
+        monkeypatch.setattr(scenario, "run", lambda *a, k=k, run=run, **kw: runs.append(k) or run(*a, **kw))
     learner = segmented_learner(lambda context: spec.make(context, 6), env.unwrapped.segment_views(), seed=1)
     rollout = run_trials(env, learner, 6, seed=1)
     alone = gym.make("ilc_steering/ChainedSteering-v0", config=config.segment_configs()[0])
@@ -70,7 +105,8 @@ def test_each_segment_is_its_one_trial_task():
     for mine, its in zip(rollout.infos, one.infos):
         np.testing.assert_array_equal(mine["segments"][0]["action"], its["action"])
         np.testing.assert_array_equal(mine["segments"][0]["q_final"], its["q_final"])
-    assert len(rollout) == 6  # every trial counts once, whatever its segments
+    assert runs == [k for info in rollout.infos for k, segment in enumerate(info["segments"]) if segment["ran"]]
+    assert runs.count(0) == 6
 
 
 def test_nominal_plant_reaches_every_waypoint_in_one_trial():
@@ -85,7 +121,7 @@ def test_nominal_plant_reaches_every_waypoint_in_one_trial():
     env = gym.make(ENV_ID, config=config)
     env.reset(seed=0)
     views = env.unwrapped.segment_views()
-    assert views[0].config.frame() != views[1].config.frame()
+    assert config.segment_configs()[0].frame() != config.segment_configs()[1].frame()
     _, _, _, _, info = env.step(np.concatenate([view.nominal_model.solve() for view in views]))
     assert info["cartesian_error"] < 1e-9 and info["orientation_error"] < 1e-9
     for segment in info["segments"]:
@@ -195,7 +231,7 @@ def test_a_segment_not_run_is_measured_at_its_charts_edge():
     views = env.unwrapped.segment_views()
     n0 = views[0].action_space.shape[0]
     action = np.concatenate([view.nominal_model.solve() for view in views])
-    action[:n0] = views[0].action_space.high * np.array([-1, 1, 0, 0])
+    action[:n0] = views[0].action_space.high * np.array([1, -1, 0, 0])
     _, _, _, _, info = env.step(action)
     assert [s["ran"] for s in info["segments"]] == [True, False]
     assert all(s["left_chart"] for s in info["segments"]) and np.all(np.isfinite(info["error"]))
@@ -210,15 +246,22 @@ def seed_12():
 
 
 @pytest.mark.extra("highway")
-def test_a_crash_past_the_chart_is_a_failed_trial_counted(seed_12):
-    """The paper's law from its fictitious zero iteration drives seed 12's car off its charts and into
-    the lot's walls (trials 1-5): each trial counts, failed, a halted segment read at its chart's edge
-    (trial 5's heading lay past it: the chained map's ValueError was reported as the learner's fault)."""
+def test_a_manoeuvre_into_the_walls_is_never_sent(seed_12):
+    """Review finding 5 on a manoeuvre: the paper's law from its fictitious zero iteration asks seed
+    12's car to drive into the lot's walls in segment 1 (it did, in 7 of 8 trials): segment 1 is
+    refused after segment 0 drove, before anything of it is sent (only segment 0's actions are
+    logged); every trial counts, failed, every error finite."""
     env = gym.make(ENV_ID, config=seed_12)
     views = env.unwrapped.segment_views()
-    rollout = run_trials(env, segmented_learner(lambda c: lookup("ilc_paper").make(c, 5), views, seed=1), 5, seed=1)
-    assert all(info["left_chart"] and np.all(np.isfinite(info["error"])) for info in rollout.infos)
-    assert any(info["plant"]["left_lot"] or info["plant"]["crashed"] for info in rollout.infos)
+    rollout = run_trials(env, segmented_learner(lambda c: lookup("ilc_paper").make(c, 3), views, seed=1), 3, seed=1)
+    steps = round(sum(seed_12.segment_configs()[0].task.pieces) / 0.2)
+    assert len(rollout) == 3
+    for info in rollout.infos:
+        first, second = info["segments"]
+        assert info["left_chart"] and np.all(np.isfinite(info["error"])) and info["plant"]["refused"]
+        assert not info["plant"]["left_lot"] and not info["plant"]["crashed"]
+        assert not first["plant"]["refused"] and second["plant"]["refused"] and second["plant"]["actions"] == []
+        assert len(info["plant"]["actions"]) == steps
 
 
 @pytest.mark.extra("highway")
@@ -247,3 +290,169 @@ def test_run_json_keeps_the_manoeuvres_trajectory_for_plot(tmp_path):
     np.testing.assert_allclose(trajectory.q[0], config.task.start, atol=1e-12)
     assert trajectory.t[-1] == pytest.approx(sum(sum(c.task.pieces) for c in config.segment_configs()))
     assert main(["plot", str(path), "--out", str(tmp_path / "plots")]) == 0
+
+
+def test_a_segment_that_would_start_off_its_chart_is_not_run():
+    """Finding 3 of the review: segment 1's frame puts the via point 1.45 rad from its axis, and
+    segment 0 overshoots to a heading past segment 1's chart. Segment 1 is not run (it ran before,
+    and ended 13 m away with a folded heading, ``left_chart=False``): ``ran=False``, ``left_chart``,
+    its ``refused`` says why, every error finite, the trial counted once, failed."""
+    data = packaged()
+    data["plant"].update(true_wheelbase=0.2, true_wheel_radius=0.02)
+    data["task"]["segments"][1]["frame"] = 0.3 - 1.45
+    env = gym.make(ENV_ID, config=load_config(data))
+    env.reset(seed=0)
+    c = [view.nominal_model.solve() for view in env.unwrapped.segment_views()]
+    _, _, _, _, info = env.step(np.concatenate(c))
+    assert info["cartesian_error"] < 1e-9 and not info["left_chart"]  # the nominal car: both segments run
+    c[0][1:] *= 1.6  # segment 0 ends with a heading past segment 1's chart
+    _, _, _, _, info = env.step(np.concatenate(c))
+    first, second = info["segments"]
+    assert first["ran"] and not first["left_chart"]
+    assert not second["ran"] and second["left_chart"] and "would start off its chart" in second["refused"]
+    assert info["left_chart"] and np.all(np.isfinite(info["error"]))
+
+
+def test_a_segment_the_plant_refuses_after_the_car_drove_counts_the_trial(monkeypatch):
+    """Finding 3: once segment 0 has driven the plant, a ``ValueError`` from segment 1's run (an
+    external plant's refusal) fails the trial, counted, never a ``LearnerError``; segment 1's
+    learner does not learn from it."""
+    env = gym.make(ENV_ID, config="segmented_parking")
+    scenario = env.unwrapped._segments[1]
+    ran = []
+
+    def refuse(*args, **kwargs):
+        ran.append(1)
+        raise ValueError("task.start is not where the last segment left the car")
+
+    monkeypatch.setattr(scenario, "run", refuse)
+    views = env.unwrapped.segment_views()
+    rollout = run_trials(env, segmented_learner(lambda c: lookup("newton_ilc").make(c, 3), views, seed=1), 3, seed=1)
+    assert len(ran) == 3 and len(rollout) == 3
+    for info in rollout.infos:
+        assert info["left_chart"] and not info["segments"][1]["ran"]
+        assert "segment 1 refused: ValueError: task.start is not" in info["segments"][1]["refused"]
+    actions = [info["segments"][1]["action"] for info in rollout.infos]
+    np.testing.assert_array_equal(actions[0], actions[-1])
+
+
+def test_a_segments_learner_sees_no_plant_and_reset_reseeds_it(monkeypatch):
+    """Finding 10 of the review: a segment's view holds its name and ``learning`` only (it held the
+    whole config, the true wheelbase included), and ``reset(seed=...)`` reseeds the one plant's
+    scatter in every segment (an external plant's own draws follow ``run --seed``)."""
+    from ilc_steering.envs.scenario import Scenario
+
+    env = gym.make(ENV_ID, config="segmented_parking")
+    views = env.unwrapped.segment_views()
+    assert all(not hasattr(view.config, "plant") and not hasattr(view.config, "task") for view in views)
+    context = LearnerContext.from_env(views[1], seed=3)
+    assert context.task == "segmented_parking.1" and context.nu_a == load_config("segmented_parking").learning.nu_a
+    seeds = []
+    monkeypatch.setattr(Scenario, "reseed", lambda self, seed: seeds.append((id(self), seed)))
+    env.reset(seed=7)
+    env.reset()
+    assert sorted(seeds) == sorted((id(scenario), 7) for scenario in env.unwrapped._segments)
+
+
+def test_measurement_noise_reaches_every_segment():
+    """``measurement_noise`` in the segmented env: each segment's end is measured with noise (its
+    measured error differs from its true one, which is the noiseless env's), drawn from the env's
+    seed (the same seed, the same trial)."""
+    c = None
+    infos = []
+    for noise, seed in ((None, 0), (0.01, 0), (0.01, 0), (0.01, 1)):
+        env = gym.make(ENV_ID, config="segmented_parking", measurement_noise=noise)
+        env.reset(seed=seed)
+        if c is None:
+            c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+        infos.append(env.step(c)[4])
+    exact, noisy, again, other = infos
+    for k in range(2):
+        assert noisy["segments"][k]["cartesian_error"] != exact["segments"][k]["cartesian_error"]
+        np.testing.assert_array_equal(noisy["segments"][k]["q_final"], again["segments"][k]["q_final"])
+        assert not np.array_equal(noisy["segments"][k]["q_final"], other["segments"][k]["q_final"])
+    assert noisy["true_cartesian_error"] == exact["true_cartesian_error"] == exact["cartesian_error"]
+
+
+def test_a_nan_at_a_later_waypoint_is_not_hidden():
+    """Finding 11 of the review: the worst error over the waypoints is NaN when any is (Python's
+    ``max(0.005, nan)`` was 0.005: a trial within tolerance), and the trial is ``left_chart``."""
+    from ilc_steering.core.score import within_tolerance
+
+    env = gym.make(ENV_ID, config="segmented_parking")
+    env.reset(seed=0)
+    c = np.concatenate([view.nominal_model.solve() for view in env.unwrapped.segment_views()])
+    _, _, _, _, info = env.step(c)
+    infos = [dict(segment) for segment in info["segments"]]
+    for segment in infos:
+        segment.update({key: 1e-6 for key in segmented_env.WORST if key in info})
+    assert not env.unwrapped._summary(infos)["left_chart"]
+    infos[1]["cartesian_error"] = float("nan")
+    summary = env.unwrapped._summary(infos)
+    assert np.isnan(summary["cartesian_error"]) and summary["left_chart"]
+    assert not within_tolerance(load_config("segmented_parking").learning.tolerance, summary)
+
+
+def test_every_segments_learner_is_closed_when_one_raises():
+    """Finding 16 of the review: ``close()`` closes every segment's learner, then raises the first
+    error (it stopped at the first learner that raised, the others left open)."""
+    from ilc_steering.segmented import SegmentedLearner
+
+    closed = []
+
+    class Learner:
+        def __init__(self, k):
+            self.k = k
+
+        def act(self, observation):
+            return np.zeros(1)
+
+        def learn(self, info):
+            pass
+
+        def reset(self):
+            pass
+
+        def close(self):
+            closed.append(self.k)
+            if self.k < 2:
+                raise RuntimeError(f"learner {self.k} failed to close")
+
+    views = gym.make(ENV_ID, config="segmented_parking").unwrapped.segment_views()
+    learner = SegmentedLearner([Learner(k) for k in range(3)], [views[0]] * 3)
+    with pytest.raises(RuntimeError, match="learner 0 failed"):
+        learner.close()
+    assert closed == [0, 1, 2]
+
+
+def test_a_segment_may_have_its_own_action_bound():
+    """Finding 17 of the review: ``task.segments[k].action_bound`` is a segment's box (it was refused
+    as an unknown key), checked as a one-trial task's, its fault named by the segment's key."""
+    data = packaged()
+    data["task"]["segments"][1]["action_bound"] = [0.5, 9.0, 9.0, 9.0]
+    env = gym.make(ENV_ID, config=load_config(data))
+    views = env.unwrapped.segment_views()
+    np.testing.assert_allclose(views[1].action_space.high, [0.5, 9.0, 9.0, 9.0])
+    assert not np.allclose(views[0].action_space.high[0], 0.5)
+    data["task"]["segments"][1]["action_bound"] = [0.5, 9.0]
+    with pytest.raises(ConfigError, match=r"task\.segments\[1\]\.action_bound"):
+        load_config(data)
+
+
+def test_a_lab_robot_takes_a_manoeuvre_in_one_frame_only():
+    """Finding 15 of the review: the env asks whether the plant's state turns with the frame (its
+    configuration and the controller's estimate of a turned state are the turned ones), not whether
+    the state has more than 6 entries: the lab robot's dead-reckoned estimate does not turn, so its
+    segments must share one frame; the car's do turn."""
+    lab = yaml.safe_load((resources.files("ilc_steering.configs") / "experiment_forward.yaml").read_text())
+    data = packaged()
+    data["plant"] = lab["plant"]
+    for segment in data["task"]["segments"]:
+        segment["frame"] = 0.15
+    assert gym.make(ENV_ID, config=load_config(data)).unwrapped._segments[0].plant.state_dim == 12
+    data["task"]["segments"][1]["frame"] = 0.7
+    with pytest.raises(ValueError, match="segments in different frames need a plant whose state turns with the frame"):
+        gym.make(ENV_ID, config=load_config(data))
+    car = packaged()
+    car["task"]["segments"][1]["frame"] = 0.7
+    assert segmented_env._turns_with_frame(gym.make(ENV_ID, config=load_config(car)).unwrapped._segments[0])

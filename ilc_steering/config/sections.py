@@ -130,16 +130,24 @@ class LegConfig(SegmentConfig):
     """A segment of a manoeuvre (:class:`SegmentedTaskConfig`): a segment's profile, its chart and its direction."""
 
     frame: float | None = None  # [rad] this segment's task frame; None: frame_angle of its two ends
-    # the sign of v1 on the learned piece: forward (> 0), reverse (< 0); None: whichever the nominal solution takes
+    action_bound: tuple[float, ...] | None = None  # |c_i| bounds of this segment; None: 10x its action_scale()
+    # the sign of v1 on the learned piece (of c11): forward (> 0), reverse (< 0), checked against the nominal
+    # solution and kept by the env's box; None: whichever the nominal solution takes, either sign learned
     direction: Literal["forward", "reverse"] | None = None
 
     def __post_init__(self) -> None:
         require(self.frame is None or isfinite(self.frame), "frame", f"must be a finite angle [rad], got {self.frame}")
         super().__post_init__()
+        _check_bound(self.action_bound, 1 + self.v2_terms)
 
 
 @dataclass(frozen=True)
 class SegmentedTaskConfig:
+    """A manoeuvre: ``start -> via[0] -> ... -> goal``, one :class:`LegConfig` per segment, each
+    checked as the one-trial task from its waypoint to the next (``SteeringConfig.segment_configs``).
+    Each segment's action box is its own (``segments[k].action_bound``, else 10 times its own
+    nominal scale); there is no ``task.action_bound`` for the whole."""
+
     start: tuple[float, ...]  # as task.start of a one-trial task
     goal: tuple[float, ...]  # as task.goal
     via: tuple[tuple[float, ...], ...]  # the waypoints between, in order, as start and goal
@@ -156,7 +164,7 @@ class SegmentedTaskConfig:
 
     @property
     def action_bound(self) -> None:
-        """None: each segment's box is 10x its own ``NominalModel.action_scale()``."""
+        """None: each segment has its own box (``segments[k].action_bound``, else 10x its ``action_scale()``)."""
         return None
 
     @property

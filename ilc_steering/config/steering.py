@@ -176,41 +176,45 @@ class SteeringConfig:
             )
 
     def _check_segments(self, task: SegmentedTaskConfig) -> None:
-        """Each segment checked as the one-trial task it is (its keys named ``task.segments[k]``), and
+        """Each segment checked as the one-trial task it is (a waypoint's fault named by its own key,
+        ``task.start``, ``task.via[i]`` or ``task.goal``; the segment's by ``task.segments[k]``), and
         its direction against the nominal solution's: the sign of ``c11`` (eq. 12)."""
-        waypoints, segments = task.waypoints, []
+        points, segments = self.points(), []
         for k, leg in enumerate(task.segments):
             key = f"task.segments[{k}]"
+            (start_key, start), (goal_key, goal) = points[k], points[k + 1]
             one = TaskConfig(
-                waypoints[k],
-                waypoints[k + 1],
-                leg.pieces,
-                leg.v1_fixed,
-                leg.v2_terms,
-                None,
-                leg.v1_shape,
-                leg.ramp,
-                leg.frame,
+                start=start,
+                goal=goal,
+                pieces=leg.pieces,
+                v1_fixed=leg.v1_fixed,
+                v2_terms=leg.v2_terms,
+                action_bound=leg.action_bound,
+                v1_shape=leg.v1_shape,
+                ramp=leg.ramp,
+                frame=leg.frame,
             )
             try:
                 segment = SteeringConfig(f"{self.name[:96]}.{k}", self.plant, one, self.learning, self.simulation)
             except ConfigError as error:
-                raise ConfigError(f"{key}: {error}".replace(f"{key}: task.", f"{key}.")) from None
+                message = str(error).replace("task.", "task.segments[#].")  # the segment's own keys
+                for end, name in (("start", start_key), ("goal", goal_key)):  # a waypoint's, by its own key
+                    message = re.sub(rf"task\.segments\[#\]\.{end}\b", f"{name} (in {key}'s frame)", message)
+                raise ConfigError(message.replace("task.segments[#]", key)) from None
             if leg.direction is not None:
-                ramp, chained_map = leg.ramp or 0.0, self.plant.nominal_map()
                 ends = [
-                    rotate(np.array(q), segment.frame()) if self.plant.kind.has_pose else q
-                    for q in (one.start, one.goal)
+                    rotate(np.array(q), segment.frame()) if self.plant.kind.has_pose else np.array(q)
+                    for q in (start, goal)
                 ]
-                z1 = [float(np.asarray(chained_map.to_chained(np.array(q)), dtype=np.float64)[..., 0]) for q in ends]
-                fixed = sum(v * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+                chained_map = self.plant.nominal_map()
+                z1 = [float(np.asarray(chained_map.to_chained(q), dtype=np.float64)[..., 0]) for q in ends]
+                learned = z1[1] - z1[0] - leg.profile().fixed_displacement  # eq. 12: learned_area * c11
                 sign = 1.0 if leg.direction == "forward" else -1.0
                 require(
-                    sign * (z1[1] - z1[0] - fixed) > 0,
+                    sign * learned > 0,
                     f"{key}.direction",
                     f"{leg.direction} disagrees with the segment's nominal c11 (eq. 12: it moves "
-                    f"{z1[1] - z1[0] - fixed:+.3g} along z1 on the learned piece, x in frame "
-                    f"{segment.frame():.4g} rad)",
+                    f"{learned:+.3g} along z1 on the learned piece, x in frame {segment.frame():.4g} rad)",
                 )
             segments.append(segment)
         object.__setattr__(self, "_segments", segments)  # derived, not a field: asdict and == ignore it
