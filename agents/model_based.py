@@ -309,17 +309,31 @@ def in_scatter_band(
     goal_q: Array,
     band: list[Trial],
     trial: Trial,
+    last: Array | None = None,
 ) -> tuple[Array | None, bool]:
     """The scatter estimated from ``trials`` on the refit model (None: no estimate yet), and
     whether ``trial`` is (still) in its band: within :data:`BAND` times it, or within twice that
     once the band has begun. ``band`` holds the band's trials: ``trial`` is appended, or the band
-    is emptied."""
+    is emptied. A band begins with the trials just before ``trial`` (the last of ``trials``) that
+    were within twice :data:`BAND` too: the scatter is estimated only from the fourth trial near
+    the goal on, and the trials before it are draws of it as well, so that the band's first mean
+    is not a single draw (a learner that stepped to correct one draw in full left a tolerance of
+    four times the scatter on the MuJoCo car). Once the band has begun, ``last`` (the estimate the
+    learner last had) stands in when the trials give none: a few lucky draws in a row read as
+    errors that still fall, and a band ended by them sent the learner to chase the next draw."""
     groups = scatter_groups(model)
     scatter = trial_scatter(family, theta, trials, groups)
+    if scatter is None and band:
+        scatter = last
     inside = scatter is not None and (
         within_scatter(trial.q, goal_q, scatter, groups, BAND)
         or (bool(band) and within_scatter(trial.q, goal_q, scatter, groups, 2 * BAND))
     )
+    if inside and not band and scatter is not None:
+        for earlier in reversed([t for t in trials if t is not trial]):
+            if not earlier.ok or not within_scatter(earlier.q, goal_q, scatter, groups, 2 * BAND):
+                break
+            band.insert(0, earlier)
     if inside:
         band.append(trial)
     else:

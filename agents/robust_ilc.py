@@ -68,7 +68,9 @@ each trial's measured final error, never the plant) and globalizes each of the t
    the last one, with no trust region on the measured error (in the band it is mostly the
    scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
    but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
-   band ends the averaging. A plant that repeats itself never enters it.
+   band ends the averaging; the band begins with the trials before it within twice it, and keeps
+   the last estimate while the trials give none (as ``newton_ilc``'s). A plant that repeats
+   itself never enters it.
 
 **Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0`, the
 trials' residuals are 0, so :math:`A = 1`, :math:`D = 0` and the offset is 0: one update lands on
@@ -200,8 +202,9 @@ class RobustILC(GlobalIdentification):
             self._best, self._next = trial, c.copy()
             self.update_seconds.append(time.perf_counter() - began)
             return
+        entering = not self._band
         if ok and self._averaging(trial):
-            self._average(trial)
+            self._average(trial, entering)
             self.update_seconds.append(time.perf_counter() - began)
             return
         improved = self._best is None or trial.error < 0.5 * self._best.error
@@ -240,16 +243,16 @@ class RobustILC(GlobalIdentification):
     def _averaging(self, trial: Trial) -> bool:
         """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4)."""
         self.scatter, inside = in_scatter_band(
-            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial
+            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
         )
         return inside
 
-    def _average(self, trial: Trial) -> None:
+    def _average(self, trial: Trial, entering: bool) -> None:
         """The next trial from the mean offset of the band's trials, on the refit model (step 4)."""
         self._thorough = False  # a local refit: the scatter, not the family, is what is left
         self.family, self.theta = self._refit()
         self._best = trial
-        if len(self._band) == 1 or self._D.z is None:
+        if entering or self._D.z is None:
             # Entering the band: the secant as the trials before it taught it, kept while in the band
             # (steps of the scatter's size would fit only the scatter's draws).
             self._D = self._secant(trial)
