@@ -50,9 +50,10 @@ after each one:
    the offset :math:`d` of step 3 is the mean of :math:`d_j` over the band's trials, so the
    :math:`N`-th trial there moves by :math:`1/N` of a new draw (the shrinking gain of
    stochastic-approximation ILC, Saab 2001; Butcher, Karimi, Longchamp 2008), :math:`D = 0`, and
-   no trial in the band is a failure to fall back from. The band counts the trials just before
-   its entry that were within twice it (the estimate needs four trials near the goal, and those
-   before it are draws too: a first mean of one draw chased it whole), and keeps the last
+   no trial in the band is a failure to fall back from. The band counts the (at most four)
+   trials just before its entry that were within twice it at about the same action (the model
+   moves them by less than the scatter): the estimate needs four trials near the goal, those
+   before it are draws too, and a first mean of one draw chased it whole. It keeps the last
    estimate while the trials give none. A trial beyond twice the band (a change of the plant,
    not a draw) ends the averaging. It assumes the model's error is constant over the band's
    trials (their steps are of the scatter's size); it cannot hold a tolerance that single draws

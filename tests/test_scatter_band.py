@@ -68,3 +68,18 @@ def test_the_last_estimate_stands_in_while_the_band_lasts(plant):
     band = []
     scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[1], last)
     assert scatter is None and not inside and band == []
+
+
+def test_a_trial_at_another_action_is_not_counted_into_it(plant):
+    """A trial whose action the model says lands far from the entry trial's (outside the family its
+    offset is another one) does not begin the band, though it measured near the goal."""
+    model, family, goal_q, c = plant
+    rng = np.random.default_rng(3)
+    trials = draws(plant, rng.normal(0.0, SIGMA, (6, goal_q.size)))
+    moved = c + 0.05 * model.action_scale()
+    q_moved, ok = family.configurations(np.zeros(family.size), np.array([c, moved]))
+    assert ok.all() and np.linalg.norm(q_moved[1] - q_moved[0]) > 50 * SIGMA  # the model moves it far
+    trials[3] = trial(model, family, moved, trials[3].q)
+    band: list[Trial] = []
+    scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[-1])
+    assert inside and [id(t) for t in band] == [id(t) for t in trials[4:]]

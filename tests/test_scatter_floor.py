@@ -34,7 +34,9 @@ def tolerance() -> tuple[float, float]:
 @pytest.mark.parametrize("learner", ["robust_ilc", "newton_ilc"])
 def test_the_learners_hold_four_times_the_scatter_from_trial_six(learner, tolerance) -> None:
     """Env seeds 1-5 (the benchmark's). Before the band counted the trials before its entry, seeds
-    2 and 5 relapsed at trials 6-7 for both learners: the band's first mean was one draw, chased whole."""
+    2 and 5 relapsed at trials 6-7 for both learners: the band's first mean was one draw, chased whole.
+    The margins are thin (the worst of trials 6-15: 0.98 of the tolerance for robust_ilc's seed 1,
+    0.99 for newton_ilc's seed 5): a change of the learners' steps may move a run across it."""
     cartesian, orientation = tolerance
     loaded = load_config(SCATTER)
     config = replace(
