@@ -11,7 +11,6 @@ docstring (its step 1).
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -20,17 +19,7 @@ from ilc_steering.agents.model_based import Trial, levenberg_marquardt_many
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = [
-    "CHART_PENALTY",
-    "FIT_TOLERANCE",
-    "GRID",
-    "HALVINGS",
-    "SECANT_TRIALS",
-    "GlobalIdentification",
-    "Secant",
-    "chained_scatter",
-    "fit_secant",
-]
+__all__ = ["CHART_PENALTY", "FIT_TOLERANCE", "GRID", "HALVINGS", "GlobalIdentification"]
 
 Array = npt.NDArray[np.float64]
 
@@ -65,21 +54,6 @@ ACTUATOR_STARTS = 3
 """Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
 HALVINGS = 8
 """Step halvings of a Levenberg-Marquardt or Newton step before it is given up."""
-SECANT_TRIALS = 6
-"""The trials beside the anchor that the secant correction is fitted to."""
-SECANT_SCATTER = (2e-3, 4e-3)
-"""[m, rad] the scatter of a measured final configuration the secant assumes: a pose's x and y, its
-angles (for a robot without a pose, the first for every coordinate)."""
-SECANT_CURVATURE = 1.0
-"""[chained units per action scale squared] a step's linearization error over its length squared."""
-SECANT_PRIOR = 3.0
-"""[chained units per action scale] the prior size of an entry of the Jacobian's correction ``D``."""
-GAIN_PRIOR = 1.0
-"""The prior size of ``A - 1``, the correction of the refit model's gain per chained coordinate."""
-MAX_GAIN = 4.0
-"""The gains ``A`` stay within this factor of 1."""
-REFIT_GAIN = 0.5
-"""A new estimate of ``theta`` is taken only if its squared misfit is below this times the old one's."""
 _FIT_ITERATIONS = 20
 
 
@@ -197,21 +171,6 @@ class GlobalIdentification:
             self._escalations += 1
         return best[0], best[1]
 
-    def _refit(self) -> tuple[ModelFamily, Array]:
-        """The identification's new estimate, kept only if it explains the trials clearly better
-        (its squared misfit below :data:`REFIT_GAIN` times the old one's): a model outside every
-        family has fits of about equal misfit far apart, and a jump between them changes the
-        Jacobian the secant was learned against for nothing."""
-        family, theta = self._identify()
-        if family is self.family and np.array_equal(theta, self.theta):
-            return family, theta
-        trials = self._fit_trials()  # a halted trial counts by its chart penalty
-        old, new = (
-            float(np.sum(self._residuals(th[None], trials, fam)[0][: -fam.size] ** 2))
-            for fam, th in ((self.family, self.theta), (family, theta))
-        )
-        return (family, theta) if new < REFIT_GAIN * old else (self.family, self.theta)
-
     def _grid_starts(self, trials: list[Trial]) -> Array:
         """The :data:`GRID_STARTS` points of the geometry's grid that explain ``trials`` best."""
         values = self._residuals(self._grid, trials)
@@ -237,63 +196,3 @@ class GlobalIdentification:
             lambda r: float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE,
         )
         return [(family, theta, residual) for theta, residual in zip(thetas, r)]
-
-
-@dataclass(frozen=True)
-class Secant:
-    """What the trials teach about the refit model ``F`` near a trial ``c_a``: the measured outcome
-    is ``z_a + A * (F(c) - F(c_a)) + D (c - c_a)``, ``A`` a gain per chained coordinate, ``D`` a
-    correction of the Jacobian, ``z_a`` the anchor's outcome as the fit smooths it (None: as
-    measured)."""
-
-    A: Array
-    D: Array
-    z: Array | None = None
-
-    @staticmethod
-    def none(n: int, p: int, z: Array | None = None) -> Secant:
-        """No correction (``n`` chained coordinates, ``p`` coefficients)."""
-        return Secant(np.ones(n), np.zeros((n, p)), z)
-
-    def part(self, s: float) -> Secant:
-        """The fraction ``s`` of the correction (the homotopy's)."""
-        return Secant(1.0 + s * (self.A - 1.0), s * self.D, self.z)
-
-
-def fit_secant(F: Array, z: Array, S: Array, sigma: Array) -> Secant:
-    """The :class:`Secant` about trial 0 from trials ``(m,)``: the refit model's outcomes ``F`` and
-    the measured ones ``z`` ``(m, n)``, the steps ``S`` ``(m, p)`` from trial 0 (in action scales,
-    ``S[0] = 0``) and the assumed scatter ``sigma`` ``(n,)`` of each chained coordinate. ``D`` is in
-    chained units per action scale.
-
-    Per chained coordinate ``j``, a weighted ridge regression of what the model leaves,
-    ``z - F = b + (A - 1) (F - F_0) + D s``: ``b`` free (it smooths the anchor's scatter: every
-    trial near it counts), ``A - 1`` and ``D`` pulled to 0 by :data:`GAIN_PRIOR` and
-    :data:`SECANT_PRIOR`. A trial's equation has the scatter's error and the linearization's,
-    which grows as the step's square: weight ``1 / sqrt(sigma^2 + (SECANT_CURVATURE |s|^2)^2)``, so
-    the near trials set the Jacobian the next step needs and steps within the scatter set nothing.
-    """
-    m, n = F.shape
-    p = S.shape[1]
-    curvature = SECANT_CURVATURE * np.sum(S**2, axis=1)
-    weights = 1.0 / np.hypot(sigma[None, :], curvature[:, None])  # (m, n)
-    prior = np.diag([0.0, GAIN_PRIOR**-2, *([SECANT_PRIOR**-2] * p)])
-    A, D, b = np.ones(n), np.zeros((n, p)), np.zeros(n)
-    for j in range(n):
-        X = np.column_stack([np.ones(m), F[:, j] - F[0, j], S]) * weights[:, j : j + 1]
-        beta = np.linalg.solve(X.T @ X + prior, X.T @ ((z[:, j] - F[:, j]) * weights[:, j]))
-        b[j], A[j], D[j] = beta[0], 1.0 + beta[1], beta[2:]
-    return Secant(np.clip(A, 1.0 / MAX_GAIN, MAX_GAIN), D, F[0] + b)
-
-
-def chained_scatter(family: ModelFamily, goal_q: Array, model: NominalModel) -> Array:
-    """[chained units] the scatter of each chained coordinate that :func:`fit_secant` assumes:
-    :data:`SECANT_SCATTER` of the configuration through the nominal map's Jacobian at the goal."""
-    h = 1e-7
-    z0 = family.to_chained(goal_q)
-    J = np.array([(family.to_chained(goal_q + h * e) - z0) / h for e in np.eye(goal_q.size)]).T
-    if getattr(model.chained_map, "has_pose", False):
-        sigma_q = np.array([SECANT_SCATTER[0] if k < 2 else SECANT_SCATTER[1] for k in range(goal_q.size)])
-    else:
-        sigma_q = np.full(goal_q.size, SECANT_SCATTER[0])
-    return np.asarray(np.sqrt((J**2) @ sigma_q**2))

@@ -21,38 +21,24 @@ each trial's measured final error, never the plant) and globalizes each of the t
    otherwise the geometry's fit is (a servo family that cannot explain the trials would only
    caricature what it lacks), and after ``ESCALATIONS`` such failures the servo's families are
    no longer tried.
-   A new fit replaces the last one only if its squared misfit is below ``REFIT_GAIN`` times the
-   last one's: outside every family, fits of about equal misfit lie far apart (parallel parking on
-   the simulated lab robot: a wheelbase ratio at the bound 2 and at 0.83), and a jump between them
-   would change the Jacobian the secant below was fitted against for nothing.
-2. **Continuation on a secant-corrected model.** The next coefficients solve the refit model
-   corrected by what the trials teach near the best trial :math:`c_b`,
+2. **Continuation.** The next coefficients solve the refit model plus what it does not explain,
 
    .. math::
 
-       A \odot \bigl(F(c; \hat\theta) - F(c_b; \hat\theta)\bigr) + D (c - c_b) + \hat z_b = z^d,
+       F(c; \hat\theta) + d + D (c - c_b) = z^d, \qquad d = z_b - F(c_b; \hat\theta),
 
-   (:class:`~ilc_steering.agents.robust_identify.Secant`, fitted by
-   :func:`~ilc_steering.agents.robust_identify.fit_secant` to the best trial and the last
-   ``SECANT_TRIALS`` others): per chained coordinate a weighted ridge regression of what the model
-   leaves, :math:`z_i - F(c_i) = b + (A - 1)(F(c_i) - F(c_b)) + D (c_i - c_b)`, with :math:`A` a
-   gain (prior 1, within a factor ``MAX_GAIN``), :math:`D` a Jacobian correction (prior 0, of size
-   ``SECANT_PRIOR`` per action scale) and :math:`\hat z_b = F(c_b) + b` the best trial's outcome
-   as the nearby trials smooth it. A trial's equation is weighted by
-   :math:`1/\sqrt{\sigma^2 + (\kappa |s|^2)^2}` (``SECANT_SCATTER`` through the nominal map for
-   :math:`\sigma`, ``SECANT_CURVATURE`` for :math:`\kappa`, :math:`s` its step from :math:`c_b` in
-   action scales): far trials, where the plant is not linear, and steps within the scatter, which
-   measure only its draw, teach little. The equation is solved by Newton's method from the best
-   trial; when that leaves a mismatch, by Gauss-Newton's minimum-norm steps on the configuration
-   error (the pseudo-inverse moves the spare coefficients least where ``W`` is near-singular, as
-   with parallel parking's symmetric ``v1``; :func:`~ilc_steering.agents.model_based.gauss_newton`)
-   from the best candidate and from the nominal solution, and then along a homotopy that starts
-   where the answer is known: the nominal model at its exact solution (:math:`\theta = 0`, no
-   correction), :math:`\theta`, the offset and the correction moved to their estimates in
-   :data:`HOMOTOPY_STEPS` steps, each solved from the last. The candidate nearest the goal is kept.
+   (:math:`c_b, z_b` the best trial, :math:`D` a Broyden secant of the residual, as in
+   ``newton_ilc``) by Newton's method from the best trial; when that leaves a mismatch, by
+   Gauss-Newton's minimum-norm steps on the configuration error (the pseudo-inverse moves the
+   spare coefficients least where ``W`` is near-singular, as with parallel parking's symmetric
+   ``v1``; :func:`~ilc_steering.agents.model_based.gauss_newton`) from the best candidate and from
+   the nominal solution, and then along a homotopy that starts where the answer is known: the
+   nominal model at its exact solution (:math:`\theta = 0, d = 0`), :math:`\theta` and :math:`d`
+   moved to their estimates in :data:`HOMOTOPY_STEPS` steps, each solved from the last. The
+   candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
-   one so far is not learned from as a step (it still enters the identification and the secant):
-   the next step from the best trial is no longer than the failed one (``SHRINK``). A model that explains every
+   one so far is not learned from as a step (it still enters the identification): the next trial
+   halves the step from the best trial, and the secant is reset. A model that explains every
    trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
@@ -61,42 +47,32 @@ each trial's measured final error, never the plant) and globalizes each of the t
 
 4. **The plant's scatter.** As ``newton_ilc`` (its step 5): once the scatter can be estimated
    from the trials' residuals against the refit model and a trial lands within
-   :data:`~ilc_steering.agents.model_based.BAND` times it, the learner averages. The secant is
-   the one fitted on entering the band and kept while in it (steps of the scatter's size would
-   fit only its draws); the offset is the mean over the band's trials of what the corrected model
-   leaves, no global search runs, and the next trial is the corrected model's Newton solution from
-   the last one, with no trust region on the measured error (in the band it is mostly the
-   scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
-   but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
-   band ends the averaging; the band begins with the trials before it within twice it, and keeps
-   the last estimate while the trials give none (as ``newton_ilc``'s). A plant that repeats
-   itself never enters it.
+   :data:`~ilc_steering.agents.model_based.BAND` times it, the learner averages. The offset
+   :math:`d` is the mean over the trials since it entered the band, :math:`D = 0`, no global
+   search runs, and the next trial is the refit model's Newton solution from the last one, with
+   no trust region: in the band the measured error is mostly the scatter's draw, and a trust
+   region on it would only freeze the learner at its luckiest trial. A trial beyond twice the
+   band ends the averaging; the band begins with the trials just before it at about the same
+   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). A plant
+   that repeats itself never enters it.
 
-**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0`, the
-trials' residuals are 0, so :math:`A = 1`, :math:`D = 0` and the offset is 0: one update lands on
-the goal to the integrator's accuracy, as ``newton_ilc`` does (``tests/test_robust_ilc.py``).
-Inside a family (the geometry's, or a car's with its steering offset and lag) the trials identify
-the plant once they give more equations than the family has unknowns and the grid finds the basin
-(one in-chart trial for the geometry, two or three for the servo's four parameters), the residuals
-vanish again, and the next trial solves the identified model, which is the plant: it lands on the
-goal whenever the model's solvers find a solution. Outside every family (backlash, encoder dead
-reckoning, a speed loop, measurement noise) nothing is identified exactly, and the secant is what
-learns: a multi-secant quasi-Newton iteration on the measured outcome. It assumes that the plant is
-close to affine over the last trials' steps (the curvature weight) and that the model's Jacobian is
-right up to a gain per chained coordinate and a correction of size ``SECANT_PRIOR``; each trial
-adds one equation per coordinate, so it needs about as many trials near the goal as there are
-coefficients before the correction is determined, and converges linearly until then. Where it
-cannot: far from the goal, where the plant's map is not smooth at the trials' scale (the simulated
-lab robot's dead-reckoned heading and backlash: even the plant's own local Jacobian at a trial
-40 mm off sends a Newton step to 140 mm), the first trials improve by about half each; a scatter
-larger than ``SECANT_SCATTER`` makes the correction fit its draws (a ridge prior, and the band's
-frozen secant, bound that); and it cannot converge where the true plant cannot reach the goal (the
-oracle's unsolvable region), nor where the corrected model's solvers miss a solution the plant has.
+**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0` and
+:math:`d = 0`: one update lands on the goal to the integrator's accuracy, as ``newton_ilc`` does
+(``tests/test_robust_ilc.py``). Inside a family (the geometry's, or a car's with its steering
+offset and lag) the trials identify the plant once they give more equations than the family
+has unknowns and the grid finds the basin (one in-chart trial for the geometry, two or three for
+the servo's four parameters), and the next trial solves the identified model, which is the plant:
+it lands on the goal whenever the model's solvers find a solution. Outside every family (backlash,
+encoder dead reckoning, a speed loop, measurement noise) nothing is identified exactly: the
+geometry's fit, the residual :math:`d` and the secant :math:`D` give a quasi-Newton iteration on
+the measured error, which converges locally (linearly, at the rate the secant's and the
+model's Jacobian errors allow) but is not guaranteed from far, and noise of the measured errors
+bounds how close it gets. It cannot converge where the true plant cannot reach the goal (the
+oracle's unsolvable region), nor where the refit model's solvers miss a solution the plant has.
 """
 
 from __future__ import annotations
 
-import itertools
 import time
 from collections.abc import Mapping
 from typing import Any
@@ -108,6 +84,7 @@ from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.model_based import (
     Trial,
     box,
+    broyden_update,
     final_chained,
     gauss_newton,
     in_scatter_band,
@@ -115,16 +92,7 @@ from ilc_steering.agents.model_based import (
     measure,
     newton_solve,
 )
-from ilc_steering.agents.robust_identify import (
-    CHART_PENALTY,
-    FIT_TOLERANCE,
-    HALVINGS,
-    SECANT_TRIALS,
-    GlobalIdentification,
-    Secant,
-    chained_scatter,
-    fit_secant,
-)
+from ilc_steering.agents.robust_identify import CHART_PENALTY, FIT_TOLERANCE, HALVINGS, GlobalIdentification
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -134,11 +102,9 @@ Mask = npt.NDArray[np.bool_]
 
 HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
-SHRINK = 1.0
-"""After a trial worse than the best, the next step from the best is at most this times the failed one's
-length (the failed trial has entered the secant: halving it, as before the secant, cost a trial)."""
-BAND_STEPS = 2.0
-"""A step in the scatter's band is at most this many times the longest of the last trials' steps."""
+THETA_CHANGE = 0.02
+"""A refit that moves ``theta`` more than this resets the secant (a smaller move, as measurement noise
+makes at every trial, keeps it: the secant is what learns what the family lacks)."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10
@@ -179,7 +145,8 @@ class RobustILC(GlobalIdentification):
         self.reset_identification()
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
-        self._D = Secant.none(self.model.dimension, self.start.size)
+        self._D = np.zeros((self.model.dimension, self.start.size))
+        self._previous: Trial | None = None
         self._radius = np.inf  # the trust region's half-width around the best trial [action scales]
         self._stalled = 0  # updates since the best error last halved
         self._reach = 1.0  # the fraction of the way to the goal aimed at while no trial stays in the chart
@@ -187,7 +154,6 @@ class RobustILC(GlobalIdentification):
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
         self._next = self.start.copy()
-        self._sigma_z: Array | None = None
 
     def act(self, observation: Any = None) -> Array:
         return self._next.copy()
@@ -202,9 +168,8 @@ class RobustILC(GlobalIdentification):
             self._best, self._next = trial, c.copy()
             self.update_seconds.append(time.perf_counter() - began)
             return
-        entering = not self._band
         if ok and self._averaging(trial):
-            self._average(trial, entering)
+            self._average(trial)
             self.update_seconds.append(time.perf_counter() - began)
             return
         improved = self._best is None or trial.error < 0.5 * self._best.error
@@ -212,21 +177,27 @@ class RobustILC(GlobalIdentification):
         # A learner that has stopped improving searches globally only every STALLED-th update:
         # where the true plant cannot reach the goal, that is all the search can find.
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
-        self.family, self.theta = self._refit()
+        family, theta = self._identify()
+        if family is not self.family or np.max(np.abs(theta - self.theta)) > THETA_CHANGE:
+            # The secant was learned against another model: it would only distort the new one.
+            self._D[:] = 0.0
+            self._previous = None
+        self.family, self.theta = family, theta
         # A model that explains every trial it is fitted to is trusted whole: the trust region guards
         # against a model that does not, and one learned before the model changed would only hold back
         # the new model's answer.
-        explains = self._misfit(self._residuals(self.theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
+        explains = self._misfit(self._residuals(theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
         best = self._best
         if best is None and not ok:
             # No trial has stayed in the chart yet: aim at a point nearer the start.
             self._reach *= 0.5
             self._next = self._solve(None, self._reach)
         elif best is not None and not trial.error < best.error:
-            # Outside the trust region: it shrinks to the failed step (SHRINK), and the refit model's
-            # answer from the best trial is taken within it, the secant anchored there.
-            self._D = self._secant(best)
-            self._radius = np.inf if explains else SHRINK * self._length(c - best.c)
+            # Outside the trust region: it shrinks to half the failed step, and the refit model's
+            # answer from the best trial is taken within it; the secant is forgotten.
+            self._D[:] = 0.0
+            self._previous = None
+            self._radius = np.inf if explains else 0.5 * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
             if explains:
@@ -234,7 +205,7 @@ class RobustILC(GlobalIdentification):
             elif best is not None:
                 self._radius = max(self._radius, 2.0 * self._length(c - best.c))
             self._best = trial
-            self._D = self._secant(trial)
+            self._update_secant(trial)
             self._next = self._within(c, self._solve(trial, 1.0))
         self.update_seconds.append(time.perf_counter() - began)
 
@@ -247,53 +218,33 @@ class RobustILC(GlobalIdentification):
         )
         return inside
 
-    def _average(self, trial: Trial, entering: bool) -> None:
+    def _average(self, trial: Trial) -> None:
         """The next trial from the mean offset of the band's trials, on the refit model (step 4)."""
         self._thorough = False  # a local refit: the scatter, not the family, is what is left
-        self.family, self.theta = self._refit()
+        self.family, self.theta = self._identify()
+        self._D[:] = 0.0
+        self._previous = None
         self._best = trial
-        if entering or self._D.z is None:
-            # Entering the band: the secant as the trials before it taught it, kept while in the band
-            # (steps of the scatter's size would fit only the scatter's draws).
-            self._D = self._secant(trial)
         c = np.array([t.c for t in self._band])
         z, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
         if not np.any(ok):
             self._next = self._law(trial)
             return
-        local = self._D.A * z + (c - trial.c) @ self._D.D.T  # the refit model with the secant, about this trial
-        d = np.mean((np.array([t.z for t in self._band]) - local)[ok], axis=0)
+        d = np.mean((np.array([t.z for t in self._band]) - z)[ok], axis=0)
         next_c, g = self._newton(trial.c, self.theta, self.model.z_goal - d, self._D, trial.c)
-        if not np.all(np.isfinite(g)):
-            self._next = self._law(trial)
-            return
-        # In the band a step corrects the scatter's draw: no longer than BAND_STEPS times the
-        # longest of the last trials' steps (a near-singular corrected Jacobian would send it far).
-        recent = [t.c for t in self._trials[-SECANT_TRIALS:]]
-        longest = max((self._length(b - a) for a, b in itertools.pairwise(recent)), default=0.0)
-        radius = BAND_STEPS * max(longest, 1e-6)
-        length = self._length(next_c - trial.c)
-        if length > radius:
-            next_c = trial.c + (next_c - trial.c) * (radius / length)
-        self._next = self._box(next_c)
+        self._next = self._box(next_c) if np.all(np.isfinite(g)) else self._law(trial)
 
     # the next trial -----------------------------------------------------------------------------
 
-    def _secant(self, anchor: Trial) -> Secant:
-        """The secant correction of the refit model about ``anchor`` (:func:`fit_secant`) from the
-        anchor and the last :data:`SECANT_TRIALS` other in-chart trials."""
-        n, p = self.model.dimension, self.start.size
-        others = [t for t in self._trials[-SECANT_TRIALS - 1 :] if t.ok and t is not anchor][-SECANT_TRIALS:]
-        if not anchor.ok:
-            return Secant.none(n, p)
-        c = np.array([anchor.c, *[t.c for t in others]])
-        F, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
-        if not np.all(ok):
-            return Secant.none(n, p, anchor.z)
-        if self._sigma_z is None:
-            self._sigma_z = chained_scatter(self.family, self._goal_q, self.model)
-        found = fit_secant(F, np.array([anchor.z, *[t.z for t in others]]), (c - c[0]) / self._scale, self._sigma_z)
-        return Secant(found.A, found.D / self._scale, found.z)
+    def _update_secant(self, trial: Trial) -> None:
+        previous = self._previous
+        self._previous = trial
+        if previous is None:
+            return
+        s = trial.c - previous.c
+        z, ok = self._final_z(np.tile(self.theta, (2, 1)), np.stack([trial.c, previous.c]))
+        if np.all(ok) and s @ s > 0:
+            broyden_update(self._D, s, (trial.z - z[0]) - (previous.z - z[1]))
 
     def _solve(self, trial: Trial | None, reach: float) -> Array:
         """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
@@ -301,11 +252,10 @@ class RobustILC(GlobalIdentification):
         model = self.model
         target = model.z_start + reach * (model.z_goal - model.z_start)
         if trial is None:
-            d, anchor, D = np.zeros_like(target), self._nominal_c, Secant.none(*self._D.D.shape)
+            d, anchor, D = np.zeros_like(target), self._nominal_c, np.zeros_like(self._D)
         else:
             z, ok = self._final_z(self.theta[None], trial.c[None])
-            z_a = trial.z if self._D.z is None else self._D.z
-            d = z_a - self._D.A * z[0] if ok[0] else np.zeros_like(target)
+            d = trial.z - z[0] if ok[0] else np.zeros_like(target)
             anchor, D = trial.c, self._D
 
         candidates = []
@@ -316,7 +266,7 @@ class RobustILC(GlobalIdentification):
         # The homotopy from the nominal model at its exact solution.
         c = self._box(model.solve(z_goal=model.z_start + reach * (model.z_goal - model.z_start)))
         for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
-            c, _ = self._newton(c, s * self.theta, target - s * d, D.part(s), anchor)
+            c, _ = self._newton(c, s * self.theta, target - s * d, s * D, anchor)
         candidates.append((c, self._mismatch(c[None], self.theta, target - d, D, anchor)[0][0]))
         norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
         pick = int(np.argmin(norms))
@@ -332,7 +282,7 @@ class RobustILC(GlobalIdentification):
             if self._thorough and min(np.linalg.norm(g) for _, g in candidates[-2:]) > SOLVED:
                 c_gn = self._box(model.solve(z_goal=target))
                 for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
-                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, D.part(s), anchor)
+                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, s * D, anchor)
                 candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
             norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
             pick = int(np.argmin(norms))
@@ -340,7 +290,7 @@ class RobustILC(GlobalIdentification):
             return self._box(c) if trial is None else self._law(trial)
         return self._box(candidates[pick][0])
 
-    def _damped(self, c: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> Array:
+    def _damped(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> Array:
         """Gauss-Newton on the model's configuration error (metres and radians, better conditioned
         than chained coordinates far from the goal) from ``c``, within the box."""
 
@@ -355,11 +305,11 @@ class RobustILC(GlobalIdentification):
         """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
         return self._box(law_step(self.model, trial))
 
-    def _mismatch(self, cs: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> tuple[Array, Mask]:
+    def _mismatch(self, cs: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Mask]:
         z, ok = self._final_z(np.tile(theta, (cs.shape[0], 1)), cs)
-        return D.A * z + (cs - anchor) @ D.D.T - target, ok
+        return z + (cs - anchor) @ D.T - target, ok
 
-    def _newton(self, c: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> tuple[Array, Array]:
+    def _newton(self, c: Array, theta: Array, target: Array, D: Array, anchor: Array) -> tuple[Array, Array]:
         """Newton's method on ``F(c; theta) + D (c - anchor) = target`` from ``c``, staying in the
         model's chart; returns the last iterate and its mismatch."""
 

@@ -127,7 +127,7 @@ def _task(seed: int) -> tuple[Array, list[Array], list[tuple[float, int, float]]
         if one[2] <= STEERING_USE * STEERING:
             return start, [goal], [one]
     try:
-        via, end, legs = choose_via(start, goal)
+        via, end, legs = choose_via(start, goal, choose_frame, STEERING_USE)
     except ValueError as error:
         turn = f"its goal's heading is {np.degrees(abs(goal[2] - start[2])):.0f}° from the start's"
         needs = turn if one is None else f"its one-chart path needs {np.degrees(one[2]):.0f}° of steering"

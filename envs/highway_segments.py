@@ -22,6 +22,7 @@ chosen by :func:`~ilc_steering.envs.highway.choose_frame` in full.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from itertools import product
 from math import pi
 
@@ -74,27 +75,29 @@ def via_candidates(start: Array, goal: Array) -> list[Array]:
     return out
 
 
-def choose_via(start: Array, goal: Array) -> tuple[Array, Array, list[Leg]]:
+def choose_via(
+    start: Array, goal: Array, choose_frame: Callable[..., Leg], steering_use: float
+) -> tuple[Array, Array, list[Leg]]:
     """The via point (world), the goal (its heading the way nearer the via's) and each segment's
-    frame, profile and steering for a two-segment manoeuvre; ``ValueError`` when no candidate keeps
+    frame, profile and steering for a two-segment manoeuvre, each segment's chart chosen by
+    ``choose_frame`` (:func:`~ilc_steering.envs.highway.choose_frame`, handed in: that module calls
+    this one) and kept within ``steering_use`` of the stop; ``ValueError`` when no candidate keeps
     both nominal paths within the stop and the lot."""
-    from ilc_steering.envs import highway
-
     scored: list[tuple[float, int, Array, Array]] = []
     for via in via_candidates(start, goal):
         end = goal.copy()
         end[2] = _near(goal[2], via[2])
-        legs = [highway.choose_frame(a, b, COARSE_GRID, 3) for a, b in ((start, via), (via, end))]
+        legs = [choose_frame(a, b, COARSE_GRID, 3) for a, b in ((start, via), (via, end))]
         worst = max(leg[2] for leg in legs)
         if np.isfinite(worst):
             scored.append((worst, len(scored), via, end))
     scored.sort(key=lambda row: (row[0], row[1]))
     best: tuple[float, Array, Array, list[Leg]] | None = None
     for _, _, via, end in scored[:REFINE]:
-        legs = [highway.choose_frame(start, via), highway.choose_frame(via, end)]
+        legs = [choose_frame(start, via), choose_frame(via, end)]
         worst = max(leg[2] for leg in legs)
         if best is None or worst < best[0]:
             best = (worst, via, end, legs)
-    if best is None or best[0] > highway.STEERING_USE * STEERING:
+    if best is None or best[0] > steering_use * STEERING:
         raise ValueError("no via point of the search keeps both segments within the ±45° stop and inside the lot")
     return best[1], best[2], best[3]

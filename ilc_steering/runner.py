@@ -203,10 +203,8 @@ class RunResult(_Judged):
     config: SteeringConfig
     trials: list[TrialRecord]
     verdict: Verdict
-    carried: dict[str, Any] | None = None
-    """What the learner handed to the next goal (``run_ilc(..., carried=...)`` with a list of goals)."""
-    started_from: dict[str, Any] | None = None
-    """What the learner was handed by the last goal's (:attr:`LearnerContext.carried`), if anything."""
+    carried: dict[str, Any] | None = None  # what its learner handed on to the next goal (run_goals)
+    started_from: dict[str, Any] | None = None  # what it was handed by the last goal's (context.carried)
 
     def to_json(self) -> dict[str, Any]:
         data = _run_json(self.config, "trials", self.trials, self.verdict)
@@ -308,20 +306,15 @@ def run_goals(
     on_goal: Callable[[int, RunResult], None] | None = None,
     on_trial: Callable[[TrialRecord], None] | None = None,
 ) -> list[RunResult]:
-    """One run of ``learner`` per goal (a one-trial config each, in order, on the same robot), each
-    with its own budget and trial counter; with ``carry``, each learner starts from what the last
-    one learned of the robot (:class:`~ilc_steering.agents.base.Transferable`: a learner that
-    carries nothing starts afresh, as without ``carry``). ``on_goal(k, result)`` is called after goal
-    ``k`` (from 0). A failure raises as :func:`run_ilc`'s, its ``partial`` the list so far."""
+    """One run of ``learner`` per goal (one-trial configs of one robot, in order), each its own budget
+    and trial counter; with ``carry`` each learner starts from what the last one learned of the robot
+    (:class:`~ilc_steering.agents.base.Transferable`). ``on_goal(k, result)`` follows goal ``k`` (from
+    0). A failure raises as :func:`run_ilc`'s, its ``partial`` the list so far."""
     goals = [load_config(config) for config in configs]
-    if not goals:
-        raise ValueError("run_goals needs at least one config")
-    for k, goal in enumerate(goals[1:], 1):
-        if carry and goal.plant != goals[0].plant:
-            raise ValueError(
-                f"goal {k + 1} ({goal.name}) has another plant than goal 1 ({goals[0].name}): "
-                "learning is carried between goals of one robot"
-            )
+    other = next((k for k, goal in enumerate(goals) if carry and goal.plant != goals[0].plant), None)
+    if not goals or other is not None:
+        where = f"goal {other + 1} ({goals[other].name}) has another plant than goal 1" if other else "no goal"
+        raise ValueError(f"run_goals: {where}: learning is carried between goals of one robot")
     results: list[RunResult] = []
     carried: dict[str, Any] | None = None
     for k, config in enumerate(goals):
