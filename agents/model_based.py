@@ -18,7 +18,7 @@ import numpy.typing as npt
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.scatter import FLOOR, MIN_SCATTER, estimate
+from ilc_steering.core.scatter import FLOOR, MIN_SCATTER, MIN_TRIALS, estimate
 
 __all__ = [
     "BAND",
@@ -309,17 +309,40 @@ def in_scatter_band(
     goal_q: Array,
     band: list[Trial],
     trial: Trial,
+    last: Array | None = None,
 ) -> tuple[Array | None, bool]:
     """The scatter estimated from ``trials`` on the refit model (None: no estimate yet), and
     whether ``trial`` is (still) in its band: within :data:`BAND` times it, or within twice that
     once the band has begun. ``band`` holds the band's trials: ``trial`` is appended, or the band
-    is emptied."""
+    is emptied. A band begins with the trials just before ``trial`` (the last of ``trials``; at most
+    :data:`~ilc_steering.core.scatter.MIN_TRIALS` of them) that were within twice :data:`BAND` too
+    and that the refit model puts within the scatter of ``trial``'s outcome (about the same
+    action): the scatter is estimated only from the fourth trial near the goal on, and those
+    before it are draws of it as well, so that the band's first mean is not a single draw (a
+    learner that stepped to correct one draw in full left a tolerance of four times the scatter on
+    the MuJoCo car). Trials farther apart in action are left out: outside the model's family its
+    error changes with the action, and their offsets would bias the mean (``newton_ilc`` on the
+    simulated lab robot held a heading bias of 6-9 mrad). Once the band has begun, ``last`` (the estimate the
+    learner last had) stands in when the trials give none: a few lucky draws in a row read as
+    errors that still fall, and a band ended by them sent the learner to chase the next draw."""
     groups = scatter_groups(model)
     scatter = trial_scatter(family, theta, trials, groups)
+    if scatter is None and band:
+        scatter = last
     inside = scatter is not None and (
         within_scatter(trial.q, goal_q, scatter, groups, BAND)
         or (bool(band) and within_scatter(trial.q, goal_q, scatter, groups, 2 * BAND))
     )
+    if inside and not band and scatter is not None:
+        earlier = [t for t in trials if t is not trial and t.ok][-MIN_TRIALS:]
+        q, ok = family.configurations(theta, np.array([trial.c, *[t.c for t in earlier]]))
+        for t, q_t, ok_t in reversed(list(zip(earlier, q[1:], ok[1:]))):
+            # a draw of the scatter at about the same action: the model moves it by less than the scatter
+            if not (ok[0] and ok_t and within_scatter(t.q, goal_q, scatter, groups, 2 * BAND)):
+                break
+            if not within_scatter(q_t, q[0], scatter, groups, 1.0):
+                break
+            band.insert(0, t)
     if inside:
         band.append(trial)
     else:

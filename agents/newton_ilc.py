@@ -47,12 +47,19 @@ after each one:
    estimate the scatter :math:`\hat\sigma` from its trials' residuals against the refit model
    (:func:`~ilc_steering.agents.model_based.trial_scatter`, :mod:`ilc_steering.core.scatter`)
    and a trial lands within :data:`~ilc_steering.agents.model_based.BAND` times it, it averages:
-   the offset :math:`d` of step 3 is the mean of :math:`d_j` over the trials since it entered the
-   band, so the :math:`N`-th trial there moves by :math:`1/N` of a new draw (the shrinking gain of
+   the offset :math:`d` of step 3 is the mean of :math:`d_j` over the band's trials, so the
+   :math:`N`-th trial there moves by :math:`1/N` of a new draw (the shrinking gain of
    stochastic-approximation ILC, Saab 2001; Butcher, Karimi, Longchamp 2008), :math:`D = 0`, and
-   no trial in the band is a failure to fall back from. A trial beyond twice the band (a change of
-   the plant, not a draw) ends the averaging. A plant that repeats itself (every packaged
-   noiseless config) has no scatter to estimate, and this step never runs.
+   no trial in the band is a failure to fall back from. The band counts the (at most four)
+   trials just before its entry that were within twice it at about the same action (the model
+   moves them by less than the scatter): the estimate needs four trials near the goal, those
+   before it are draws too, and a first mean of one draw chased it whole. It keeps the last
+   estimate while the trials give none. A trial beyond twice the band (a change of the plant,
+   not a draw) ends the averaging. It assumes the model's error is constant over the band's
+   trials (their steps are of the scatter's size); it cannot hold a tolerance that single draws
+   leave (heavy tails: the MuJoCo car's friction draws) nor one below about three times the
+   scatter. A plant that repeats itself (every packaged noiseless config) has no scatter to
+   estimate, and this step never runs.
 
 On the nominal plant :math:`\hat\theta = 0`, :math:`d = 0` and step 3 is an exact inversion:
 one update lands on the goal to the integrator's accuracy (``tests/test_newton_ilc.py``).
@@ -217,7 +224,7 @@ class NewtonILC:
     def _averaging(self, trial: Trial) -> bool:
         """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 5)."""
         self.scatter, inside = in_scatter_band(
-            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial
+            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
         )
         return inside
 

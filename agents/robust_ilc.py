@@ -68,7 +68,9 @@ each trial's measured final error, never the plant) and globalizes each of the t
    the last one, with no trust region on the measured error (in the band it is mostly the
    scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
    but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
-   band ends the averaging. A plant that repeats itself never enters it.
+   band ends the averaging; the band begins with the trials just before it at about the same
+   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). A plant
+   that repeats itself never enters it.
 
 **Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0`, the
 trials' residuals are 0, so :math:`A = 1`, :math:`D = 0` and the offset is 0: one update lands on
@@ -272,7 +274,7 @@ class RobustILC(GlobalIdentification):
     def _averaging(self, trial: Trial) -> bool:
         """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4)."""
         self.scatter, inside = in_scatter_band(
-            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial
+            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
         )
         return inside
 
