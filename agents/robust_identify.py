@@ -25,6 +25,7 @@ __all__ = [
     "FIT_TOLERANCE",
     "GRID",
     "HALVINGS",
+    "RESTART_FACTORS",
     "SECANT_TRIALS",
     "GlobalIdentification",
     "Secant",
@@ -80,6 +81,9 @@ MAX_GAIN = 4.0
 """The gains ``A`` stay within this factor of 1."""
 REFIT_GAIN = 0.5
 """A new estimate of ``theta`` is taken only if its squared misfit is below this times the old one's."""
+RESTART_FACTORS = (0.25, 0.5, 0.7, 1.4, 2.0, 4.0)
+"""The nominal solution's ``v2`` coefficients scaled by these are the starts of the identified
+model's last search (:meth:`GlobalIdentification.restarts`)."""
 _FIT_ITERATIONS = 20
 
 
@@ -117,6 +121,7 @@ class GlobalIdentification:
         self._best: Trial | None = None
         self._thorough = True
         self._outside = False  # whether the last thorough update went on to the grid
+        self._restarted: tuple[tuple[str, ...], bytes] | None = None  # the estimate restarts() last searched
 
     def _fit_trials(self) -> list[Trial]:
         trials = self._trials
@@ -196,6 +201,27 @@ class GlobalIdentification:
             best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
             self._escalations += 1
         return best[0], best[1]
+
+    def restarts(self, target: Array) -> Array:
+        """Starts ``(S, 1 + q)`` of a last search for coefficients that bring the refit model to
+        ``target`` (chained), once per estimate, on a thorough update whose estimate explains every
+        trial: the nominal solution with its ``v2`` coefficients scaled by :data:`RESTART_FACTORS`.
+
+        An identified model's solvers may end at a local minimum off the goal where the plant's own
+        solutions lie on another branch: the continuation from the nominal model folds on the way
+        (the car-trailer with half the nominal wheelbase, 16 mm off the goal; the servo car at a
+        0.03 rad offset, 6 mm off), and Newton from the trials stays in their basin. The identified
+        model is then the plant, and its other branches cost simulations, not trials. None (an
+        empty array) where the estimate does not explain the trials: its solutions would be no
+        better than its fit."""
+        key = (self.family.names, self.theta.tobytes())
+        if not self._thorough or key == self._restarted or not self._trials:
+            return np.empty((0, self.model.solve().size))
+        if self._misfit(self._residuals(self.theta[None], self._fit_trials())[0]) >= FIT_TOLERANCE:
+            return np.empty((0, self.model.solve().size))
+        self._restarted = key
+        c = self.model.solve(z_goal=target)
+        return np.array([np.concatenate([c[:1], factor * c[1:]]) for factor in RESTART_FACTORS])
 
     def _refit(self) -> tuple[ModelFamily, Array]:
         """The identification's new estimate, kept only if it explains the trials clearly better
