@@ -54,7 +54,9 @@ ESCALATE = 1e-6
 EXPLAINED = 1e-5
 """[m or rad] a servo family is kept only if it explains every trial this well."""
 ESCALATIONS = 2
-"""Failed escalations to the servo's families after which they are not tried again."""
+"""Failed escalations to the servo's families after which they are not tried again (one counts only
+when at least two trials stayed in the chart: one trial's final configuration, four numbers, has
+several exact fits among the servo's four parameters and none the fit may find from a wild trial)."""
 ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
 """The richer families, tried in turn when the geometry alone does not explain the trials."""
 ACTUATOR_GRID = {
@@ -62,8 +64,9 @@ ACTUATOR_GRID = {
     "steering_lag": np.array([1 / 128, 0.02, 0.04, 0.07, 0.1, 0.15]),
 }
 """[rad, s] the grids of the servo's parameters in the global identification."""
-ACTUATOR_STARTS = 3
-"""Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
+ACTUATOR_STARTS = 8
+"""Grid points of each richer family the Levenberg-Marquardt refinement starts from (3 found no fit of
+one trial of the servo car at half the nominal wheel radius and a 0.0225 rad offset; 8 did)."""
 HALVINGS = 8
 """Step halvings of a Levenberg-Marquardt or Newton step before it is given up."""
 SECANT_TRIALS = 6
@@ -173,11 +176,13 @@ class GlobalIdentification:
             best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
             if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
                 return best[0], best[1]
-            geometry = [best[1]]
+            geometry = [best[1], *self._grid_starts(trials)]
         else:
             geometry = [theta[: self._families[0].size]]
         for richer in self._families[1:]:
-            # The servo's parameters on their own grid, the geometry at its best fit and at the nominal.
+            # The servo's parameters on their own grid, the geometry at its best fit, at the grid's
+            # best points (the geometry's fit to a trial the servo shaped may be far from the true
+            # geometry) and at the nominal.
             n = richer.size - geometry[0].size
             axes = [ACTUATOR_GRID[name] for name in richer.names[-n:]]
             grid = np.array(
@@ -199,7 +204,7 @@ class GlobalIdentification:
             # parameters would only caricature what it lacks; the geometry's fit is kept.
             geometric = [fit for fit in fits if fit[0] is self._families[0]]
             best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
-            self._escalations += 1
+            self._escalations += int(sum(t.ok for t in trials) >= 2)
         return best[0], best[1]
 
     def restarts(self, target: Array) -> Array:
