@@ -25,6 +25,7 @@ __all__ = [
     "FIT_TOLERANCE",
     "GRID",
     "HALVINGS",
+    "RESTART_FACTORS",
     "SECANT_TRIALS",
     "GlobalIdentification",
     "Secant",
@@ -53,7 +54,9 @@ ESCALATE = 1e-6
 EXPLAINED = 1e-5
 """[m or rad] a servo family is kept only if it explains every trial this well."""
 ESCALATIONS = 2
-"""Failed escalations to the servo's families after which they are not tried again."""
+"""Failed escalations to the servo's families after which they are not tried again (one counts only
+when at least two trials stayed in the chart: one trial's final configuration, four numbers, has
+several exact fits among the servo's four parameters and none the fit may find from a wild trial)."""
 ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
 """The richer families, tried in turn when the geometry alone does not explain the trials."""
 ACTUATOR_GRID = {
@@ -61,8 +64,9 @@ ACTUATOR_GRID = {
     "steering_lag": np.array([1 / 128, 0.02, 0.04, 0.07, 0.1, 0.15]),
 }
 """[rad, s] the grids of the servo's parameters in the global identification."""
-ACTUATOR_STARTS = 3
-"""Grid points of each richer family the Levenberg-Marquardt refinement starts from."""
+ACTUATOR_STARTS = 8
+"""Grid points of each richer family the Levenberg-Marquardt refinement starts from (3 found no fit of
+one trial of the servo car at half the nominal wheel radius and a 0.0225 rad offset; 8 did)."""
 HALVINGS = 8
 """Step halvings of a Levenberg-Marquardt or Newton step before it is given up."""
 SECANT_TRIALS = 6
@@ -80,6 +84,9 @@ MAX_GAIN = 4.0
 """The gains ``A`` stay within this factor of 1."""
 REFIT_GAIN = 0.5
 """A new estimate of ``theta`` is taken only if its squared misfit is below this times the old one's."""
+RESTART_FACTORS = (0.25, 0.5, 0.7, 1.4, 2.0, 4.0)
+"""The nominal solution's ``v2`` coefficients scaled by these are the starts of the identified
+model's last search (:meth:`GlobalIdentification.restarts`)."""
 _FIT_ITERATIONS = 20
 
 
@@ -117,6 +124,7 @@ class GlobalIdentification:
         self._best: Trial | None = None
         self._thorough = True
         self._outside = False  # whether the last thorough update went on to the grid
+        self._restarted: tuple[tuple[str, ...], bytes] | None = None  # the estimate restarts() last searched
 
     def _fit_trials(self) -> list[Trial]:
         trials = self._trials
@@ -168,11 +176,13 @@ class GlobalIdentification:
             best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
             if self._misfit(best[2]) < ESCALATE or len(self._families) == 1 or self._escalations >= ESCALATIONS:
                 return best[0], best[1]
-            geometry = [best[1]]
+            geometry = [best[1], *self._grid_starts(trials)]
         else:
             geometry = [theta[: self._families[0].size]]
         for richer in self._families[1:]:
-            # The servo's parameters on their own grid, the geometry at its best fit and at the nominal.
+            # The servo's parameters on their own grid, the geometry at its best fit, at the grid's
+            # best points (the geometry's fit to a trial the servo shaped may be far from the true
+            # geometry) and at the nominal.
             n = richer.size - geometry[0].size
             axes = [ACTUATOR_GRID[name] for name in richer.names[-n:]]
             grid = np.array(
@@ -194,8 +204,29 @@ class GlobalIdentification:
             # parameters would only caricature what it lacks; the geometry's fit is kept.
             geometric = [fit for fit in fits if fit[0] is self._families[0]]
             best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
-            self._escalations += 1
+            self._escalations += int(sum(t.ok for t in trials) >= 2)
         return best[0], best[1]
+
+    def restarts(self, target: Array) -> Array:
+        """Starts ``(S, 1 + q)`` of a last search for coefficients that bring the refit model to
+        ``target`` (chained), once per estimate, on a thorough update whose estimate explains every
+        trial: the nominal solution with its ``v2`` coefficients scaled by :data:`RESTART_FACTORS`.
+
+        An identified model's solvers may end at a local minimum off the goal where the plant's own
+        solutions lie on another branch: the continuation from the nominal model folds on the way
+        (the car-trailer with half the nominal wheelbase, 16 mm off the goal; the servo car at a
+        0.03 rad offset, 6 mm off), and Newton from the trials stays in their basin. The identified
+        model is then the plant, and its other branches cost simulations, not trials. None (an
+        empty array) where the estimate does not explain the trials: its solutions would be no
+        better than its fit."""
+        key = (self.family.names, self.theta.tobytes())
+        if not self._thorough or key == self._restarted or not self._trials:
+            return np.empty((0, self.model.solve().size))
+        if self._misfit(self._residuals(self.theta[None], self._fit_trials())[0]) >= FIT_TOLERANCE:
+            return np.empty((0, self.model.solve().size))
+        self._restarted = key
+        c = self.model.solve(z_goal=target)
+        return np.array([np.concatenate([c[:1], factor * c[1:]]) for factor in RESTART_FACTORS])
 
     def _refit(self) -> tuple[ModelFamily, Array]:
         """The identification's new estimate, kept only if it explains the trials clearly better

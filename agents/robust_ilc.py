@@ -354,7 +354,7 @@ class RobustILC(GlobalIdentification):
         if norms[pick] > SOLVED:
             # Newton stalls where W is near-singular (a symmetric v1) or the branch folds: Gauss-Newton's
             # minimum-norm steps on the configuration error, from the best candidate, then (a thorough
-            # update) along the homotopy from the nominal solution.
+            # update) along the homotopy from the nominal solution, and (an exact model) from its restarts.
             c_gn = self._damped(candidates[pick][0], self.theta, target - d, D, anchor)
             candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
             if self._thorough and np.linalg.norm(candidates[-1][1]) > SOLVED:
@@ -364,6 +364,10 @@ class RobustILC(GlobalIdentification):
                 c_gn = self._box(model.solve(z_goal=target))
                 for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
                     c_gn = self._damped(c_gn, s * self.theta, target - s * d, D.part(s), anchor)
+                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
+            solved = any(np.linalg.norm(g) <= SOLVED for _, g in candidates)
+            starts = np.empty((0, self.start.size)) if solved else self.restarts(target)
+            for c_gn in [self._damped(self._box(c0), self.theta, target - d, D, anchor) for c0 in starts]:
                 candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
             norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
             pick = int(np.argmin(norms))
