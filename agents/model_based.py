@@ -85,6 +85,7 @@ def levenberg_marquardt(
     iterations: int,
     halvings: int = 8,
     done: Callable[[Array], bool] | None = None,
+    stall: float = 0.0,
 ) -> tuple[Array, Array]:
     r"""Minimize :math:`\|r(\theta)\|^2` by Levenberg-Marquardt with central differences, ``theta``
     kept in ``[low, high]``; returns the estimate and its residual.
@@ -93,9 +94,10 @@ def levenberg_marquardt(
     iteration for the derivative). The damping starts at 1e-3 of the normal matrix's diagonal,
     is divided by 3 after a step that lowers the cost and multiplied by 4 after one that does not
     (at most ``halvings`` tries per iteration). Stops when no try lowers the cost, the step is
-    below 1e-12, or ``done(r)``. :func:`levenberg_marquardt_many` of one start.
+    below 1e-12, or ``done(r)``, or (``stall`` > 0) an iteration lowered the cost by at most ``stall``
+    of it. :func:`levenberg_marquardt_many` of one start.
     """
-    thetas, r = levenberg_marquardt_many(residuals, theta[None], low, high, iterations, halvings, done)
+    thetas, r = levenberg_marquardt_many(residuals, theta[None], low, high, iterations, halvings, done, stall)
     return thetas[0], r[0]
 
 
@@ -107,6 +109,7 @@ def levenberg_marquardt_many(
     iterations: int,
     halvings: int = 8,
     done: Callable[[Array], bool] | None = None,
+    stall: float = 0.0,
 ) -> tuple[Array, Array]:
     """:func:`levenberg_marquardt` from each start of ``thetas`` ``(S, size)``, the starts side by
     side: each round, one ``residuals`` call holds what every running start asks next (its
@@ -114,8 +117,10 @@ def levenberg_marquardt_many(
     (:func:`_levenberg_marquardt_start`) on its own rows, so its estimate and residual ``(S, size)``,
     ``(S, R)`` are bit for bit those of :func:`levenberg_marquardt` from it alone, provided a
     hypothesis's residual does not depend on the hypotheses beside it in the call (a simulation's
-    does not: ``tests/test_purity.py``)."""
-    runs = [_levenberg_marquardt_start(theta, low, high, iterations, halvings, done) for theta in thetas]
+    does not: ``tests/test_purity.py``). With ``stall`` > 0 a start also stops after an iteration
+    that lowers its cost by at most that fraction: at a minimum that does not explain the data
+    (a plant outside the family) the iterations left only crawl along a flat valley."""
+    runs = [_levenberg_marquardt_start(theta, low, high, iterations, halvings, done, stall) for theta in thetas]
     found: list[tuple[Array, Array]] = [(theta, theta) for theta in thetas]
     asks = {i: next(run) for i, run in enumerate(runs)}
     while asks:
@@ -133,7 +138,13 @@ def levenberg_marquardt_many(
 
 
 def _levenberg_marquardt_start(
-    theta: Array, low: Array, high: Array, iterations: int, halvings: int, done: Callable[[Array], bool] | None
+    theta: Array,
+    low: Array,
+    high: Array,
+    iterations: int,
+    halvings: int,
+    done: Callable[[Array], bool] | None,
+    stall: float = 0.0,
 ) -> Generator[Array, Array, tuple[Array, Array]]:
     """:func:`levenberg_marquardt` from ``theta``, as a generator: it yields the hypotheses whose
     residuals it needs next, is sent them, and returns the estimate and its residual."""
@@ -141,6 +152,7 @@ def _levenberg_marquardt_start(
     eye = np.eye(theta.size)
     r = (yield theta[None])[0]
     for _ in range(iterations):
+        cost = float(r @ r)
         values = yield np.concatenate([theta + h * eye, theta - h * eye])
         J = np.ascontiguousarray((values[: theta.size] - values[theta.size :]).T) / (2 * h)
         gradient, normal = J.T @ r, J.T @ J
@@ -154,6 +166,8 @@ def _levenberg_marquardt_start(
                 break
             damping *= 4
         if not improved or np.max(np.abs(step)) < 1e-12 or (done is not None and done(r)):
+            break
+        if cost - float(r @ r) <= stall * cost:  # at a minimum that does not explain the data: it only crawls on
             break
     return theta, r
 

@@ -27,6 +27,7 @@ __all__ = [
     "HALVINGS",
     "RESTART_FACTORS",
     "SECANT_TRIALS",
+    "STALL",
     "GlobalIdentification",
     "Secant",
     "chained_scatter",
@@ -87,6 +88,9 @@ REFIT_GAIN = 0.5
 RESTART_FACTORS = (0.25, 0.5, 0.7, 1.4, 2.0, 4.0)
 """The nominal solution's ``v2`` coefficients scaled by these are the starts of the identified
 model's last search (:meth:`GlobalIdentification.restarts`)."""
+STALL = 1e-3
+"""A fit stops after an iteration that lowers its squared misfit by at most this fraction (outside
+every family all its iterations would otherwise run, each a crawl of well under a per mille)."""
 _FIT_ITERATIONS = 20
 
 
@@ -266,6 +270,7 @@ class GlobalIdentification:
             _FIT_ITERATIONS,
             HALVINGS,
             lambda r: float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE,
+            STALL,
         )
         return [(family, theta, residual) for theta, residual in zip(thetas, r)]
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.agents.base import Closable, Learner, LearnerContext
+from ilc_steering.agents.base import Closable, Learner, LearnerContext, transferred
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.segmented_env import SegmentView
 
@@ -27,7 +27,8 @@ Array = npt.NDArray[np.float64]
 class SegmentedLearner:
     """One learner per segment: ``act`` concatenates their actions, ``learn`` hands each its own
     segment's ``info`` (``info["segments"][k]``, without the true errors) if that segment ran,
-    ``reset`` resets each."""
+    ``reset`` resets each, ``transfer`` hands on the last segment's learning (learning carried
+    from goal to goal, ``ilc-steering run A B --carry``)."""
 
     def __init__(self, learners: Sequence[Learner], views: Sequence[SegmentView]) -> None:
         if len(learners) != len(views) or not learners:
@@ -48,6 +49,17 @@ class SegmentedLearner:
         for learner, view, segment in zip(self.learners, self.views, info["segments"]):
             if segment["ran"]:
                 learner.learn(rebased(segment, view.nominal_model))
+
+    def transfer(self) -> dict[str, Any] | None:
+        """What the manoeuvre's learners carry to the next goal (:class:`~ilc_steering.agents.base.Transferable`):
+        that of the last segment whose learner carries anything. Every segment drove the same robot,
+        so each learner's identification is of the same parameters; the last segment's ran the
+        trials that ended at the goal, and it ran whenever an earlier one did not halt."""
+        for learner in reversed(self.learners):
+            carried = transferred(learner)
+            if carried is not None:
+                return carried
+        return None
 
     def reset(self) -> None:
         for learner in self.learners:

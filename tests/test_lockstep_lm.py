@@ -10,17 +10,19 @@ import numpy as np
 import pytest
 
 from ilc_steering.agents.model_based import Trial, levenberg_marquardt, levenberg_marquardt_many
-from ilc_steering.agents.robust_identify import FIT_TOLERANCE, HALVINGS, GlobalIdentification
+from ilc_steering.agents.robust_identify import FIT_TOLERANCE, HALVINGS, STALL, GlobalIdentification
 from ilc_steering.config import load_config
 from ilc_steering.envs.scenario import Scenario
 
 
-def sequential_lm(residuals, theta, low, high, iterations, halvings=8, done=None):
-    """The sequential Levenberg-Marquardt as it was (agents/model_based.py before the lockstep)."""
+def sequential_lm(residuals, theta, low, high, iterations, halvings=8, done=None, stall=0.0):
+    """The sequential Levenberg-Marquardt as it was (agents/model_based.py before the lockstep), with
+    the stall rule: an iteration that lowers the cost by at most ``stall`` of it is the last."""
     h, damping = 1e-6, 1e-3
     eye = np.eye(theta.size)
     r = residuals(theta[None])[0]
     for _ in range(iterations):
+        before = r @ r
         values = residuals(np.concatenate([theta + h * eye, theta - h * eye]))
         J = np.ascontiguousarray((values[: theta.size] - values[theta.size :]).T) / (2 * h)
         gradient, normal = J.T @ r, J.T @ J
@@ -34,6 +36,8 @@ def sequential_lm(residuals, theta, low, high, iterations, halvings=8, done=None
                 break
             damping *= 4
         if not improved or np.max(np.abs(step)) < 1e-12 or (done is not None and done(r)):
+            break
+        if before - r @ r <= stall * before:
             break
     return theta, r
 
@@ -65,12 +69,13 @@ def test_lockstep_lm_equals_the_sequential_lm_bit_for_bit_on_random_problems(see
     iterations, halvings = int(rng.integers(2, 25)), int(rng.integers(4, 9))
     tolerance = float(rng.choice([0.0, 1e-3, 1e-1]))
     done = (lambda r: float(np.max(np.abs(r))) < tolerance) if tolerance else None
-    thetas, rs = levenberg_marquardt_many(residuals, starts, low, high, iterations, halvings, done)
+    stall = float(rng.choice([0.0, 1e-3, 1e-1]))
+    thetas, rs = levenberg_marquardt_many(residuals, starts, low, high, iterations, halvings, done, stall)
     assert thetas.shape == starts.shape
     for start, theta, r in zip(starts, thetas, rs):
-        theta_alone, r_alone = sequential_lm(residuals, start, low, high, iterations, halvings, done)
+        theta_alone, r_alone = sequential_lm(residuals, start, low, high, iterations, halvings, done, stall)
         assert same_bits(theta, theta_alone) and same_bits(r, r_alone)
-        one = levenberg_marquardt(residuals, start, low, high, iterations, halvings, done)
+        one = levenberg_marquardt(residuals, start, low, high, iterations, halvings, done, stall)
         assert same_bits(one[0], theta_alone) and same_bits(one[1], r_alone)
     moved = [not same_bits(t, s) for t, s in zip(thetas, starts)]
     assert any(moved)  # the problem is not trivial: some start was improved on
@@ -103,6 +108,6 @@ def test_lockstep_lm_equals_the_sequential_lm_on_robust_ilcs_residuals(family_in
 
     for start, (fitted, theta, r) in zip(starts, fits):
         assert fitted is family
-        theta_alone, r_alone = sequential_lm(residuals, start, family.low, family.high, 20, HALVINGS, done)
+        theta_alone, r_alone = sequential_lm(residuals, start, family.low, family.high, 20, HALVINGS, done, STALL)
         assert same_bits(theta, theta_alone) and same_bits(r, r_alone)
         assert not same_bits(theta, start)
