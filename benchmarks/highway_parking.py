@@ -9,10 +9,14 @@ reason; a goal one chart cannot serve is a manoeuvre of two segments (``segments
 errors the worst over its waypoints. A crash is a trial that hit a wall or whose outline came within
 :data:`~ilc_steering.envs.highway_plant.WALL_MARGIN` of one (a failed trial). Goals are learned
 one after the other in seed order; ``first goal`` and ``later goals``
-summarize seed 0's row apart from the rest (no learner here carries anything from one goal to the
-next: see ``docs/highway.md``).
+summarize the first served goal's row apart from the rest. A learner named ``ID+carry`` is ``ID``
+carrying its learning from goal to goal (``ilc-steering run A B --carry``): each goal starts from
+what the last served goal handed on (its cell keeps what it was handed and hands on, and its
+fingerprint holds what it was handed, so a resumed chain is the same computation). Each test
+(parking-v0's success, 10 cm / 0.05 rad, 1 cm / 0.01 rad) is counted in trials and in environment
+steps, every step of the trials up to the first that passes.
 
-    python benchmarks/highway_parking.py [--quick] [--out DIR]
+    python benchmarks/highway_parking.py [--quick] [--seeds 0-19] [--learners A,B+carry] [--out DIR]
 
 writes ``highway_parking.{csv,json,md}`` (committed in ``docs/highway``), one JSON per (learner,
 seed) under ``OUT/cells`` as it finishes: a second call resumes from them. Each cell carries the
@@ -46,10 +50,14 @@ from ilc_steering.output import write_atomic
 from ilc_steering.runner import run_ilc
 from ilc_steering.tables import markdown_table, write_results
 
-__all__ = ["Args", "main"]
+__all__ = ["CARRY", "SUMMARY_HEADER", "Args", "main", "summary"]
 
 CM, RAD = 0.01, 0.01
 """The tight test [m], [rad]."""
+LOOSE = (0.10, 0.05)
+"""The loose test [m], [rad] (as HER's curve, ``benchmarks/highway_her.py``)."""
+CARRY = "+carry"
+"""A learner's suffix: it carries its learning from goal to goal."""
 
 
 @dataclass(frozen=True)
@@ -58,7 +66,7 @@ class Args:
     """Two seeds (a one-segment goal and a manoeuvre), one learner, four trials: checks that the script runs (CI)."""
     seeds: tuple[int, ...] = tuple(range(20))
     """parking-v0's reset seeds: the goals."""
-    learners: tuple[str, ...] = ("robust_ilc", "newton_ilc", "ilc")
+    learners: tuple[str, ...] = ("robust_ilc", "robust_ilc+carry", "newton_ilc", "ilc")
     """``run --learner`` names."""
     trials: int = 15
     """Trials per goal."""
@@ -78,10 +86,13 @@ def _task(seed: int, trials: int) -> dict[str, Any] | str:
         return str(error)
 
 
-def fingerprint(learner: str, task: dict[str, Any] | str, code: str) -> str:
+def fingerprint(learner: str, task: dict[str, Any] | str, code: str, carried: dict[str, Any] | None = None) -> str:
     """What makes two cells the same computation: the learner, the goal's config (or its refusal),
-    the code's hash and the packages' versions."""
-    data = json.dumps({"learner": learner, "task": task, "code": code, "packages": packages()}, sort_keys=True)
+    what it was handed by the last goal (``+carry``), the code's hash and the packages' versions."""
+    data = {"learner": learner, "task": task, "code": code, "packages": packages()}
+    if carried is not None:
+        data["carried"] = carried
+    data = json.dumps(data, sort_keys=True)
     return hashlib.sha256(data.encode()).hexdigest()[:16]
 
 
@@ -92,7 +103,13 @@ def _code() -> str:
     return code_hash(files)
 
 
-def _cell(learner: str, seed: int, task: dict[str, Any] | str) -> dict[str, Any]:
+def _steps_to(flags: list[bool], steps: list[int]) -> int | None:
+    """The environment steps of every trial up to the first whose flag is set."""
+    first = _first(flags)
+    return None if first is None else sum(steps[:first])
+
+
+def _cell(learner: str, seed: int, task: dict[str, Any] | str, carried: dict[str, Any] | None) -> dict[str, Any]:
     row: dict[str, Any] = {"learner": learner, "seed": seed}
     try:
         if isinstance(task, str):
@@ -101,15 +118,22 @@ def _cell(learner: str, seed: int, task: dict[str, Any] | str) -> dict[str, Any]
     except (ConfigError, ValueError) as error:
         return {**row, "refused": str(error)}
     start = time.perf_counter()
-    result = run_ilc(config, learner=learner, seed=1)
+    carry = learner.endswith(CARRY)
+    result = run_ilc(config, learner=learner.removesuffix(CARRY), seed=1, carried=carried, transfer=carry)
     records = [r.to_json() for r in result.trials]
     success = [bool(r["plant"]["is_success"]) for r in records]
     tight = [r["cartesian_error"] <= CM and r["orientation_error"] <= RAD for r in records]
+    loose = [r["cartesian_error"] <= LOOSE[0] and r["orientation_error"] <= LOOSE[1] for r in records]
+    steps = [len(r["plant"]["actions"]) for r in records]
     return {
         **row,
         "refused": "",
         "trials_to_success": _first(success),
+        "trials_to_10cm": _first(loose),
         "trials_to_1cm": _first(tight),
+        "env_steps_to_success": _steps_to(success, steps),
+        "env_steps_to_10cm": _steps_to(loose, steps),
+        "env_steps_to_1cm": _steps_to(tight, steps),
         "segments": len(config.segment_configs()),
         "segment_drives": sum(r["plant"].get("segments_driven", bool(r["plant"]["actions"])) for r in records),
         "crashes": sum(bool(r["plant"]["crashed"] or r["plant"].get("left_lot")) for r in records),
@@ -117,80 +141,96 @@ def _cell(learner: str, seed: int, task: dict[str, Any] | str) -> dict[str, Any]
         "first_error_m": records[0]["cartesian_error"],
         "last_error_m": records[-1]["cartesian_error"],
         "last_error_rad": records[-1]["orientation_error"],
-        "env_steps": sum(len(r["plant"]["actions"]) for r in records),
+        "env_steps": sum(steps),
         "seconds": time.perf_counter() - start,
+        **({"started_from": result.started_from, "carried": result.carried} if carry else {}),
     }
 
 
-def _summary(rows: list[dict[str, Any]], learner: str, trials: int) -> list[str]:
-    """A learner's line: goals served and reached, the medians over all goals (a refused or missed
-    goal counts as more than the budget) and over the goals served, the first served goal apart."""
+def summary(rows: list[dict[str, Any]], learner: str, trials: int) -> list[str]:
+    """A learner's line: goals served; goals that pass each test within the budget; the medians
+    over all goals of the trials and environment steps to parking-v0's success and to 1 cm (a
+    refused or missed goal counts as more than the budget); trials to 1 cm of the first served
+    goal and the median of the later ones; crashes."""
     mine = [r for r in rows if r["learner"] == learner]
     served = [r for r in mine if not r["refused"]]
-    never = trials + 1
+    never = float("inf")
 
     def count(rs: list[dict[str, Any]], key: str) -> str:
         if not rs:
             return "-"
         value = median([r.get(key) or never for r in rs])
-        return f"> {trials}" if value == never else f"{value:g}"
+        return ("> budget" if key.startswith("env") else f"> {trials}") if value == never else f"{value:,g}"
+
+    def passed(key: str) -> str:
+        return f"{sum(1 for r in mine if r.get(key))}/{len(mine)}"
 
     return [
-        learner,
+        learner.replace(CARRY, " (carried)"),
         f"{len(served)}/{len(mine)}",
-        f"{sum(1 for r in mine if r.get('trials_to_1cm'))}/{len(mine)}",
+        passed("trials_to_success"),
+        passed("trials_to_10cm"),
+        passed("trials_to_1cm"),
         count(mine, "trials_to_success"),
         count(mine, "trials_to_1cm"),
-        count(served, "trials_to_success"),
-        count(served, "trials_to_1cm"),
+        count(mine, "env_steps_to_success"),
+        count(mine, "env_steps_to_1cm"),
         count(served[:1], "trials_to_1cm"),
         count(served[1:], "trials_to_1cm"),
         str(sum(r.get("crashes") or 0 for r in mine)),
     ]
 
 
+SUMMARY_HEADER = [
+    "method",
+    "goals served",
+    "parking-v0 success",
+    "10 cm / 0.05 rad",
+    "1 cm / 0.01 rad",
+    "median trials to success",
+    "median trials to 1 cm",
+    "median env steps to success",
+    "median env steps to 1 cm",
+    "first goal: trials to 1 cm",
+    "later goals: median to 1 cm",
+    "crashes",
+]
+"""The summary's columns (``benchmarks/highway_table.py`` adds HER's line under them)."""
+
+
 def main(args: Args) -> list[dict[str, Any]]:
     """The table; ``ValueError`` naming the cell when a cell on disk has another fingerprint."""
     seeds, learners, trials = args.seeds, args.learners, args.trials
     if args.quick:
-        seeds, learners, trials = (4, 12), ("robust_ilc",), 4
+        seeds, learners, trials = (4, 12), ("robust_ilc" + CARRY,), 4
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     code = _code()
     for learner in learners:
+        carried: dict[str, Any] | None = None  # what the last served goal handed on (``+carry``)
         for seed in seeds:
             path = cells / f"{learner}_seed{seed}_trials{trials}.json"
             task = _task(seed, trials)
-            mark = fingerprint(learner, task, code)
+            mark = fingerprint(learner, task, code, carried)
             if path.is_file():
                 row = json.loads(path.read_text())
                 theirs = row.get("fingerprint") if isinstance(row, dict) else None
                 if theirs == mark:
                     rows.append(row)
+                    carried = row.get("carried") or carried
                     continue
                 if not args.quick:  # a smoke test's cell of older code is made again; never mixed in
                     raise ValueError(
                         f"{path}: a cell of another computation (fingerprint {theirs} != {mark}: other code, "
                         "config or packages); give another --out or remove it"
                     )
-            row = {**_cell(learner, seed, task), "fingerprint": mark}
+            row = {**_cell(learner, seed, task, carried), "fingerprint": mark}
             write_atomic(path, json.dumps(row))
             rows.append(row)
+            carried = row.get("carried") or carried
             print(json.dumps(row), flush=True)
-    header = [
-        "learner",
-        "goals served",
-        "1 cm reached",
-        "median to success (all)",
-        "median to 1 cm (all)",
-        "median to success (served)",
-        "median to 1 cm (served)",
-        "first served goal",
-        "later served goals",
-        "crashes",
-    ]
-    table = markdown_table(header, [_summary(rows, name, trials) for name in learners], [False] + [True] * 9)
+    table = markdown_table(SUMMARY_HEADER, [summary(rows, name, trials) for name in learners], [False] + [True] * 11)
     per_seed = markdown_table(
         [
             "learner",
@@ -239,9 +279,18 @@ if __name__ == "__main__":
     parser.add_argument("--trials", type=int, default=Args.trials)
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--learners", default=",".join(Args.learners))
+    parser.add_argument("--seeds", default="0-19", help="parking-v0 seeds: FIRST-LAST (default: 0-19)")
     cli = parser.parse_args()
+    first, _, last = cli.seeds.partition("-")
+    if not (first.isdigit() and last.isdigit() and int(first) <= int(last)):
+        print(f"error: --seeds: {cli.seeds!r} is not FIRST-LAST (e.g. 0-99)", file=sys.stderr)
+        raise SystemExit(2)
     try:
-        main(Args(cli.quick, Args.seeds, tuple(cli.learners.split(",")), cli.trials, cli.out))
+        main(
+            Args(
+                cli.quick, tuple(range(int(first), int(last) + 1)), tuple(cli.learners.split(",")), cli.trials, cli.out
+            )
+        )
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
