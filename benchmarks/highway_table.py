@@ -9,8 +9,9 @@ reached; its environment steps are its training steps (per seed), a policy has n
 
     python benchmarks/highway_table.py [--into README.md docs/highway.md] [--check]
 
-prints the table; ``--into`` rewrites the block between ``<!-- highway-table -->`` and
-``<!-- /highway-table -->`` in each file; ``--check`` exits 1 if a file's block differs.
+prints the table; ``--into`` rewrites each block between ``<!-- highway-table: NAME -->`` and
+``<!-- /highway-table -->`` in each file (``summary``: this table; ``her-curve``: HER's learning
+curve, ``docs/highway/highway_her.md``'s table); ``--check`` exits 1 if a file's block differs.
 """
 
 from __future__ import annotations
@@ -21,17 +22,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).parent))
+from highway_parking import SUMMARY_HEADER, summary  # benchmarks/, the script's folder
 
-from highway_parking import SUMMARY_HEADER, summary  # noqa: E402
+from ilc_steering.arguments import Parser
+from ilc_steering.tables import markdown_table
 
-from ilc_steering.arguments import Parser  # noqa: E402
-from ilc_steering.tables import markdown_table  # noqa: E402
-
-__all__ = ["BLOCK", "her_line", "table"]
+__all__ = ["BLOCK", "her_line", "render", "table", "tables"]
 
 FOLDER = Path("docs/highway")
-BLOCK = re.compile(r"(<!-- highway-table -->\n)(.*?)(<!-- /highway-table -->)", re.DOTALL)
+BLOCK = re.compile(r"(<!-- highway-table: ([a-z-]+) -->\n)(.*?)(<!-- /highway-table -->)", re.DOTALL)
 
 
 def her_line(her: dict[str, Any]) -> list[str]:
@@ -79,10 +78,21 @@ def table(folder: Path = FOLDER) -> str:
     return note + markdown_table(SUMMARY_HEADER, lines, [False] + [True] * (len(SUMMARY_HEADER) - 1))
 
 
-def render(text: str, block: str, where: str) -> str:
-    if len(BLOCK.findall(text)) != 1:
-        raise ValueError(f"{where}: needs one <!-- highway-table --> ... <!-- /highway-table --> block")
-    return BLOCK.sub(lambda m: m.group(1) + block + m.group(3), text)
+def tables(folder: Path = FOLDER) -> dict[str, str]:
+    """Every block's text by name."""
+    curve = (folder / "highway_her.md").read_text().splitlines()
+    return {"summary": table(folder), "her-curve": "".join(line + "\n" for line in curve if line.startswith("|"))}
+
+
+def render(text: str, blocks: dict[str, str], where: str) -> str:
+    """``text`` with each block rewritten; ``ValueError`` naming a block that is not known or not closed."""
+    found = BLOCK.findall(text)
+    if text.count("<!-- highway-table:") != len(found):
+        raise ValueError(f"{where}: a <!-- highway-table: NAME --> marker without its <!-- /highway-table -->")
+    for _, name, _, _ in found:
+        if name not in blocks:
+            raise ValueError(f"{where}: a highway-table block names {name!r}; choose from {list(blocks)}")
+    return BLOCK.sub(lambda m: m.group(1) + blocks[m.group(2)] + m.group(4), text)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -92,11 +102,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--folder", type=Path, default=FOLDER)
     args = parser.parse_args(argv)
     try:
-        block = table(args.folder)
+        blocks = tables(args.folder)
         stale = []
         for path in args.into:
             text = path.read_text()
-            new = render(text, block, str(path))
+            new = render(text, blocks, str(path))
             if new != text:
                 stale.append(path)
                 if not args.check:
@@ -108,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         for path in stale:
             print(f"{path}: its highway table is not the artifacts' (python benchmarks/highway_table.py --into {path})")
         return 1 if stale else 0
-    print(block, end="")
+    print(blocks["summary"], end="")
     return 0
 
 

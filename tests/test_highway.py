@@ -404,9 +404,12 @@ def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monk
     spec.loader.exec_module(bench)
     ran: list[int] = []
 
-    def cell(learner: str, seed: int, task: Any) -> dict[str, Any]:
+    handed: list[Any] = []
+
+    def cell(learner: str, seed: int, task: Any, carried: Any) -> dict[str, Any]:
         ran.append(seed)
-        return {"learner": learner, "seed": seed, "refused": "not run here"}
+        handed.append(carried)
+        return {"learner": learner, "seed": seed, "refused": "", "carried": {"robust_ilc": {"seed": seed}}}
 
     monkeypatch.setattr(bench, "_cell", cell)
     args = bench.Args(seeds=(13,), learners=("robust_ilc",), trials=2, out=tmp_path)
@@ -419,12 +422,20 @@ def test_the_benchmark_refuses_a_cell_of_another_computation(tmp_path: Any, monk
         bench.main(args)
     assert ran == [13]
     cells = tmp_path / "cells"  # --quick, CI's smoke test, makes a stale cell again
-    (cells / "robust_ilc_seed4_trials4.json").write_text(json.dumps({"fingerprint": "stale"}))
+    quick = "robust_ilc+carry_seed4_trials4.json"
+    (cells / quick).write_text(json.dumps({"fingerprint": "stale"}))
     bench.main(dataclasses.replace(args, quick=True))
-    assert (
-        ran[1:] == [4, 12]
-        and json.loads((cells / "robust_ilc_seed4_trials4.json").read_text())["fingerprint"] != "stale"
-    )
+    assert ran[1:] == [4, 12] and json.loads((cells / quick).read_text())["fingerprint"] != "stale"
+    assert handed[1:] == [None, {"robust_ilc": {"seed": 4}}]  # +carry: each goal is handed the last one's
+    monkeypatch.setattr(bench, "_task", lambda seed, trials: task)
+    carry = dataclasses.replace(args, seeds=(13, 14), learners=("robust_ilc+carry",), out=tmp_path / "carry")
+    bench.main(carry)
+    bench.main(carry)  # resumed: the chain on disk is the same computation
+    assert ran[3:] == [13, 14]
+    first = tmp_path / "carry" / "cells" / "robust_ilc+carry_seed13_trials2.json"
+    first.write_text(json.dumps({**json.loads(first.read_text()), "carried": {"robust_ilc": {"seed": 0}}}))
+    with pytest.raises(ValueError, match=r"seed14_trials2\.json: a cell of another computation"):
+        bench.main(carry)  # the second goal was handed something else than the first cell now holds
 
 
 def test_a_segment_that_would_start_off_its_chart_is_not_sent() -> None:
