@@ -1,12 +1,15 @@
 """highway-env's own rendering of the first and the last trial of a run on one parking-v0 goal.
 
-Runs ``run --learner LEARNER`` on the packaged ``highway_parking`` task (parking-v0 seed 4), then
-replays the logged actions of its first and last trials in a fresh ``parking-v0`` with
+Runs ``run --learner LEARNER`` on the packaged ``highway_parking`` task (parking-v0 seed 4), or with
+``--seed N`` on the task the library generates for parking-v0 seed N (a manoeuvre of several
+segments where one chart cannot serve it: seed 12's), then replays the logged actions of its first
+and last trials (every segment's, back to back) in a fresh ``parking-v0`` with
 ``render_mode="rgb_array"`` and its trajectory display on, and saves the frame at the trial's end:
 
-    python benchmarks/highway_pictures.py [--quick] [--learner robust_ilc] [--trials 8] [--out DIR]
+    python benchmarks/highway_pictures.py [--quick] [--seed N] [--learner robust_ilc] [--trials 8] [--out DIR]
 
-writes ``highway_first_trial.png`` and ``highway_last_trial.png`` (committed in ``docs/highway``).
+writes ``highway_first_trial[_seedN].png`` and ``highway_last_trial[_seedN].png`` (committed in
+``docs/highway``).
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ class Args:
     """Trials of the run."""
     out: Path = Path("docs/highway")
     """Where the pictures go."""
+    seed: int | None = None
+    """parking-v0's seed: the library's generated task for it (None: the packaged ``highway_parking``)."""
 
 
 def frame(seed: int, actions: list[list[float]]) -> Any:
@@ -61,16 +66,20 @@ def main(args: Args) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ilc_steering.config import load_config
+    from ilc_steering.envs.highway import highway_config
     from ilc_steering.runner import run_ilc
 
     trials = 2 if args.quick else args.trials
-    result = run_ilc("highway_parking", trials=trials, learner=args.learner)
+    task = "highway_parking" if args.seed is None else load_config(highway_config(args.seed, trials=trials))
+    result = run_ilc(task, trials=trials, learner=args.learner)
     seed = result.config.plant.seed  # type: ignore[attr-defined]
+    tag = "" if args.seed is None else f"_seed{args.seed}"
     args.out.mkdir(parents=True, exist_ok=True)
     written = []
     for name, record in (("first", result.trials[0]), ("last", result.trials[-1])):
         assert record.plant is not None
-        path = args.out / f"highway_{name}_trial{'_quick' if args.quick else ''}.png"
+        path = args.out / f"highway_{name}_trial{tag}{'_quick' if args.quick else ''}.png"
         plt.imsave(path, frame(seed, record.plant["actions"]))
         print(f"wrote {path}: trial {record.trial}, {record.cartesian_error:.3g} m, {record.orientation_error:.3g} rad")
         written.append(path)
@@ -83,5 +92,6 @@ if __name__ == "__main__":
     parser.add_argument("--learner", default=Args.learner)
     parser.add_argument("--trials", type=int, default=Args.trials)
     parser.add_argument("--out", type=Path, default=Args.out)
+    parser.add_argument("--seed", type=int, default=None, help="parking-v0's seed (default: the packaged task's, 4)")
     cli = parser.parse_args()
-    main(Args(cli.quick, cli.learner, cli.trials, cli.out))
+    main(Args(cli.quick, cli.learner, cli.trials, cli.out, cli.seed))
