@@ -147,3 +147,19 @@ def test_the_mujoco_page_quotes_its_artifacts():
         for r in json.loads((ROOT / "docs/mujoco/mujoco_repeatability.json").read_text())["rows"]
     ]
     assert f"{min(speed):.0f}-{max(speed):.0f} simulated seconds per wall second" in page
+
+
+def test_the_highway_tables_are_the_artifacts(monkeypatch):
+    # issue 50 item 5: one table of every method on parking-v0's goals, from docs/highway's artifacts
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    monkeypatch.chdir(ROOT)
+    import highway_table
+
+    blocks = highway_table.tables(ROOT / "docs/highway")
+    for path in (ROOT / "README.md", ROOT / "docs/highway.md"):
+        text = path.read_text()
+        assert highway_table.render(text, blocks, str(path)) == text, (
+            f"python benchmarks/highway_table.py --into {path}"
+        )
+    assert "<!-- highway-table: summary -->" in README
+    assert "<!-- highway-table: her-curve -->" in (ROOT / "docs/highway.md").read_text()
