@@ -89,11 +89,10 @@ def _task(seed: int, trials: int) -> dict[str, Any] | str:
 def fingerprint(learner: str, task: dict[str, Any] | str, code: str, carried: dict[str, Any] | None = None) -> str:
     """What makes two cells the same computation: the learner, the goal's config (or its refusal),
     what it was handed by the last goal (``+carry``), the code's hash and the packages' versions."""
-    data = {"learner": learner, "task": task, "code": code, "packages": packages()}
+    data: dict[str, Any] = {"learner": learner, "task": task, "code": code, "packages": packages()}
     if carried is not None:
         data["carried"] = carried
-    data = json.dumps(data, sort_keys=True)
-    return hashlib.sha256(data.encode()).hexdigest()[:16]
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def _code() -> str:
