@@ -1,37 +1,17 @@
-r"""``robust_ilc``'s step 1: the global identification of the plant, in widening families.
+"""``robust_ilc``'s step 1: the global identification of the plant, in widening families.
 
 A :class:`GlobalIdentification` holds a nominal model's families (the geometry's, then for a car
 with a steering servo the geometry with the wheel's offset, then with the servo's lag) and fits
-them to the trials run so far.
-
-The family's parameters :math:`\theta` (a
-:class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
-fitted to every trial run so far by a grid over the whole family (``GRID`` points per
-parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
-points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
-under which it would have stayed in the chart is penalized by ``CHART_PENALTY``. When the
-geometry leaves a trial unexplained by more than ``ESCALATE``, and the robot has a steering
-servo (the car), the families of ``ACTUATOR_FAMILIES`` are fitted too: the geometry plus the
-wheel's offset, then plus the servo's first-order lag (on grids of ``ACTUATOR_GRID``, then
-Levenberg-Marquardt). The best fit is kept if it explains every trial to ``EXPLAINED``;
-otherwise the geometry's fit is (a servo family that cannot explain the trials would only
-caricature what it lacks), and after ``ESCALATIONS`` such failures the servo's families are
-no longer tried.
-A new fit replaces the last one only if its squared misfit is below ``REFIT_GAIN`` times the
-last one's: outside every family, fits of about equal misfit lie far apart (parallel parking on
-the simulated lab robot: a wheelbase ratio at the bound 2 and at 0.83), and a jump between them
-would change the Jacobian ``robust_ilc``'s secant (its step 2) was fitted against for nothing.
-
-What it identified is carried to another goal of the same robot (:meth:`GlobalIdentification.transfer`).
-Where it cannot identify is in :mod:`~ilc_steering.agents.robust_ilc`'s docstring.
+them to the trials run so far: Levenberg-Marquardt from the last estimate, a grid over the whole
+family when that does not explain the trials, the servo's families when the geometry does not
+either. The derivation, and where it cannot identify, is in :mod:`~ilc_steering.agents.robust_ilc`'s
+docstring (its step 1).
 """
 
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -149,31 +129,6 @@ class GlobalIdentification:
         self._thorough = True
         self._outside = False  # whether the last thorough update went on to the grid
         self._restarted: tuple[tuple[str, ...], bytes] | None = None  # the estimate restarts() last searched
-
-    def carried_family(self, carried: Mapping[str, Any]) -> tuple[ModelFamily, Array]:
-        """The family and parameters another goal's learner identified (:meth:`transfer`), checked
-        against this robot's families; ``ValueError`` naming what does not fit."""
-        found = carried.get("robust_ilc") if isinstance(carried, Mapping) else None
-        values = found.get("parameters") if isinstance(found, Mapping) else None
-        if not isinstance(values, Mapping):
-            raise ValueError(
-                f"context.carried is not robust_ilc's transfer() ({{'robust_ilc': {{'parameters': ...}}}}): {carried!r}"
-            )
-        for family in self._families:
-            if list(family.names) == list(values):
-                theta = np.array([values[name] for name in family.names], dtype=np.float64)
-                if not (np.all(np.isfinite(theta)) and np.all(theta >= family.low) and np.all(theta <= family.high)):
-                    raise ValueError(
-                        f"context.carried: robust_ilc's parameters {dict(values)} lie outside the family's bounds"
-                    )
-                return family, theta
-        names = [list(f.names) for f in self._families]
-        raise ValueError(f"context.carried: parameters {list(values)} are none of this robot's families {names}")
-
-    def transfer(self) -> dict[str, Any]:
-        """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``):
-        the family's parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s])."""
-        return {"robust_ilc": {"parameters": dict(zip(self.family.names, map(float, self.theta)))}}
 
     def _fit_trials(self) -> list[Trial]:
         trials = self._trials

@@ -8,10 +8,23 @@ learner keeps the same information (the :class:`~ilc_steering.agents.base.Learne
 each trial's measured final error, never the plant) and globalizes each of the three:
 
 1. **Global identification, in widening families** (:mod:`~ilc_steering.agents.robust_identify`,
-   whose docstring gives the derivation and whose constants are named here): the family's
-   parameters :math:`\theta` fitted to every trial so far by a grid over the whole family and
-   Levenberg-Marquardt, the steering servo's families when the geometry does not explain the
-   trials; a new fit replaces the last one only if it explains the trials clearly better.
+   whose constants are named here). The family's parameters :math:`\theta` (a
+   :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...) are
+   fitted to every trial run so far by a grid over the whole family (``GRID`` points per
+   parameter, one compiled call for all of them), then Levenberg-Marquardt from the best grid
+   points and from the last estimate. A trial that left the chart is a constraint: a hypothesis
+   under which it would have stayed in the chart is penalized by ``CHART_PENALTY``. When the
+   geometry leaves a trial unexplained by more than ``ESCALATE``, and the robot has a steering
+   servo (the car), the families of ``ACTUATOR_FAMILIES`` are fitted too: the geometry plus the
+   wheel's offset, then plus the servo's first-order lag (on grids of ``ACTUATOR_GRID``, then
+   Levenberg-Marquardt). The best fit is kept if it explains every trial to ``EXPLAINED``;
+   otherwise the geometry's fit is (a servo family that cannot explain the trials would only
+   caricature what it lacks), and after ``ESCALATIONS`` such failures the servo's families are
+   no longer tried.
+   A new fit replaces the last one only if its squared misfit is below ``REFIT_GAIN`` times the
+   last one's: outside every family, fits of about equal misfit lie far apart (parallel parking on
+   the simulated lab robot: a wheelbase ratio at the bound 2 and at 0.83), and a jump between them
+   would change the Jacobian the secant below was fitted against for nothing.
 2. **Continuation on a secant-corrected model.** The next coefficients solve the refit model
    corrected by what the trials teach near the best trial :math:`c_b`,
 
@@ -112,6 +125,7 @@ from ilc_steering.agents.robust_identify import (
     chained_scatter,
     fit_secant,
 )
+from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -162,8 +176,33 @@ class RobustILC(GlobalIdentification):
         self.high = np.asarray(high, dtype=np.float64)
         self._scale = model.action_scale()
         self._nominal_c = np.clip(model.solve(), self.low, self.high)
-        self._carried = None if carried is None else self.carried_family(carried)
+        self._carried = None if carried is None else self._carried_family(carried)
         self.reset()
+
+    def _carried_family(self, carried: Mapping[str, Any]) -> tuple[ModelFamily, Array]:
+        """The family and parameters another goal's learner identified (:meth:`transfer`), checked
+        against this robot's families; ``ValueError`` naming what does not fit."""
+        found = carried.get("robust_ilc") if isinstance(carried, Mapping) else None
+        values = found.get("parameters") if isinstance(found, Mapping) else None
+        if not isinstance(values, Mapping):
+            raise ValueError(
+                f"context.carried is not robust_ilc's transfer() ({{'robust_ilc': {{'parameters': ...}}}}): {carried!r}"
+            )
+        for family in self._families:
+            if list(family.names) == list(values):
+                theta = np.array([values[name] for name in family.names], dtype=np.float64)
+                if not (np.all(np.isfinite(theta)) and np.all(theta >= family.low) and np.all(theta <= family.high)):
+                    raise ValueError(
+                        f"context.carried: robust_ilc's parameters {dict(values)} lie outside the family's bounds"
+                    )
+                return family, theta
+        names = [list(f.names) for f in self._families]
+        raise ValueError(f"context.carried: parameters {list(values)} are none of this robot's families {names}")
+
+    def transfer(self) -> dict[str, Any]:
+        """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``):
+        the family's parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s])."""
+        return {"robust_ilc": {"parameters": dict(zip(self.family.names, map(float, self.theta)))}}
 
     def reset(self) -> None:
         self.reset_identification()
