@@ -122,10 +122,8 @@ from ilc_steering.agents.robust_identify import (
     SECANT_TRIALS,
     GlobalIdentification,
     Secant,
-    chained_scatter,
-    fit_secant,
+    carried_family,
 )
-from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -174,30 +172,9 @@ class RobustILC(GlobalIdentification):
         self.start = np.array(start, dtype=np.float64)
         self.low = np.asarray(low, dtype=np.float64)
         self.high = np.asarray(high, dtype=np.float64)
-        self._scale = model.action_scale()
         self._nominal_c = np.clip(model.solve(), self.low, self.high)
-        self._carried = None if carried is None else self._carried_family(carried)
+        self._carried = None if carried is None else carried_family(self._families, carried)
         self.reset()
-
-    def _carried_family(self, carried: Mapping[str, Any]) -> tuple[ModelFamily, Array]:
-        """The family and parameters another goal's learner identified (:meth:`transfer`), checked
-        against this robot's families; ``ValueError`` naming what does not fit."""
-        found = carried.get("robust_ilc") if isinstance(carried, Mapping) else None
-        values = found.get("parameters") if isinstance(found, Mapping) else None
-        if not isinstance(values, Mapping):
-            raise ValueError(
-                f"context.carried is not robust_ilc's transfer() ({{'robust_ilc': {{'parameters': ...}}}}): {carried!r}"
-            )
-        for family in self._families:
-            if list(family.names) == list(values):
-                theta = np.array([values[name] for name in family.names], dtype=np.float64)
-                if not (np.all(np.isfinite(theta)) and np.all(theta >= family.low) and np.all(theta <= family.high)):
-                    raise ValueError(
-                        f"context.carried: robust_ilc's parameters {dict(values)} lie outside the family's bounds"
-                    )
-                return family, theta
-        names = [list(f.names) for f in self._families]
-        raise ValueError(f"context.carried: parameters {list(values)} are none of this robot's families {names}")
 
     def transfer(self) -> dict[str, Any]:
         """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``):
@@ -216,7 +193,6 @@ class RobustILC(GlobalIdentification):
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
         self._next = self.start.copy()
-        self._sigma_z: Array | None = None
         if self._carried is not None:  # another goal of the same robot identified it: its model's solution first
             self.family, self.theta = self._carried[0], self._carried[1].copy()
             self._next = self._solve(None, 1.0)
@@ -256,7 +232,7 @@ class RobustILC(GlobalIdentification):
         elif best is not None and not trial.error < best.error:
             # Outside the trust region: it shrinks to the failed step (SHRINK), and the refit model's
             # answer from the best trial is taken within it, the secant anchored there.
-            self._D = self._secant(best)
+            self._D = self.secant(best)
             self._radius = np.inf if explains else SHRINK * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
@@ -265,7 +241,7 @@ class RobustILC(GlobalIdentification):
             elif best is not None:
                 self._radius = max(self._radius, 2.0 * self._length(c - best.c))
             self._best = trial
-            self._D = self._secant(trial)
+            self._D = self.secant(trial)
             self._next = self._within(c, self._solve(trial, 1.0))
         self.update_seconds.append(time.perf_counter() - began)
 
@@ -286,7 +262,7 @@ class RobustILC(GlobalIdentification):
         if len(self._band) == 1 or self._D.z is None:
             # Entering the band: the secant as the trials before it taught it, kept while in the band
             # (steps of the scatter's size would fit only the scatter's draws).
-            self._D = self._secant(trial)
+            self._D = self.secant(trial)
         c = np.array([t.c for t in self._band])
         z, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
         if not np.any(ok):
@@ -309,22 +285,6 @@ class RobustILC(GlobalIdentification):
         self._next = self._box(next_c)
 
     # the next trial -----------------------------------------------------------------------------
-
-    def _secant(self, anchor: Trial) -> Secant:
-        """The secant correction of the refit model about ``anchor`` (:func:`fit_secant`) from the
-        anchor and the last :data:`SECANT_TRIALS` other in-chart trials."""
-        n, p = self.model.dimension, self.start.size
-        others = [t for t in self._trials[-SECANT_TRIALS - 1 :] if t.ok and t is not anchor][-SECANT_TRIALS:]
-        if not anchor.ok:
-            return Secant.none(n, p)
-        c = np.array([anchor.c, *[t.c for t in others]])
-        F, ok = self._final_z(np.tile(self.theta, (c.shape[0], 1)), c)
-        if not np.all(ok):
-            return Secant.none(n, p, anchor.z)
-        if self._sigma_z is None:
-            self._sigma_z = chained_scatter(self.family, self._goal_q, self.model)
-        found = fit_secant(F, np.array([anchor.z, *[t.z for t in others]]), (c - c[0]) / self._scale, self._sigma_z)
-        return Secant(found.A, found.D / self._scale, found.z)
 
     def _solve(self, trial: Trial | None, reach: float) -> Array:
         """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
