@@ -52,7 +52,7 @@ each trial's measured final error, never the plant) and globalizes each of the t
    :data:`HOMOTOPY_STEPS` steps, each solved from the last. The candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification and the secant):
-   the next step from the best trial is no longer than the failed one (``SHRINK``). A model that explains every
+   the next step from the best trial is no longer than ``SHRINK`` times the failed one. A model that explains every
    trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
@@ -85,7 +85,14 @@ learns: a multi-secant quasi-Newton iteration on the measured outcome. It assume
 close to affine over the last trials' steps (the curvature weight) and that the model's Jacobian is
 right up to a gain per chained coordinate and a correction of size ``SECANT_PRIOR``; each trial
 adds one equation per coordinate, so it needs about as many trials near the goal as there are
-coefficients before the correction is determined, and converges linearly until then. Where it
+coefficients before the correction is determined, and converges linearly until then. The first
+secants weigh far trials by a mild curvature (``SECANT_CURVATURE``), keep the refit model's Jacobian
+where the steps say nothing (``SECANT_PRIOR``), and a step after a failed trial reaches up to twice
+as far (``SHRINK``): on the simulated lab robot's parallel parking the fourth trial explores (50-110
+mm off after 40 mm) and the fifth lands 1-8 mm off (median 4 mm over seeds 0-19; 10 before). This
+assumes that the trials so far span the directions the next step takes; where the second to fourth
+land close together (seeds 8 and 14 of 0-19), the fifth misses by 34-143 mrad, and the run
+converges at trial 6 and 11. Where it
 cannot: far from the goal, where the plant's map is not smooth at the trials' scale (the simulated
 lab robot's dead-reckoned heading and backlash: even the plant's own local Jacobian at a trial
 40 mm off sends a Newton step to 140 mm), the first trials improve by about half each; a scatter
@@ -133,9 +140,10 @@ Mask = npt.NDArray[np.bool_]
 
 HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
-SHRINK = 1.0
+SHRINK = 2.0
 """After a trial worse than the best, the next step from the best is at most this times the failed one's
-length (the failed trial has entered the secant: halving it, as before the secant, cost a trial)."""
+length: the failed trial has entered the secant, and the corrected model's answer may lie beyond it
+(halving it, as before the secant, cost a trial; 1.0 cut the lab robot's fifth trial short)."""
 BAND_STEPS = 2.0
 """A step in the scatter's band is at most this many times the longest of the last trials' steps."""
 STALLED = 4
