@@ -89,10 +89,10 @@ coefficients before the correction is determined, and converges linearly until t
 secants weigh far trials by a mild curvature (``SECANT_CURVATURE``), keep the refit model's Jacobian
 where the steps say nothing (``SECANT_PRIOR``), and a step after a failed trial reaches up to twice
 as far (``SHRINK``): on the simulated lab robot's parallel parking the fourth trial explores (50-110
-mm off after 40 mm) and the fifth lands 1-8 mm off (median 4 mm over seeds 0-19; 10 before). This
-assumes that the trials so far span the directions the next step takes; where the second to fourth
-land close together (seeds 8 and 14 of 0-19), the fifth misses by 34-143 mrad, and the run
-converges at trial 6 and 11. Where it
+mm off after 40 mm) and the fifth lands 0.5-6 mm off (median 2.5 mm over seeds 0-19; 10 before).
+This assumes that the trials so far span the directions the next step takes; where the fourth trial
+lands near (5-8 mm, seeds 8 and 14 of 0-19) it teaches little, the heading is then corrected by
+about a fifth a trial (16-31 mrad at the fifth), and the run converges at trial 9 and 12. Where it
 cannot: far from the goal, where the plant's map is not smooth at the trials' scale (the simulated
 lab robot's dead-reckoned heading and backlash: even the plant's own local Jacobian at a trial
 40 mm off sends a Newton step to 140 mm), the first trials improve by about half each; a scatter
