@@ -31,9 +31,10 @@ def test_where_the_model_explains_the_trials_there_is_no_correction():
 
 
 def test_an_affine_plant_is_learned_from_as_many_near_steps_as_coefficients():
-    J_true = J_MODEL * np.array([0.6, 0.7, 1.1, 1.3])[:, None] + RNG.normal(size=(4, 4))  # gains and a rest
+    # gains and a rest a third of the prior's size
+    J_true = J_MODEL * np.array([0.6, 0.7, 1.1, 1.3])[:, None] + RNG.normal(size=(4, 4)) * SECANT_PRIOR / 3
     z0 = np.array([0.01, -0.02, 0.03, 0.005])
-    steps = np.vstack([np.zeros(4), np.eye(4) * 0.01])
+    steps = np.vstack([np.zeros(4), np.eye(4) * 0.02])
     F, z = trials(J_true, z0, steps)
     found = fit_secant(F, z, steps, SIGMA)
     learned = found.A[:, None] * J_MODEL + found.D
@@ -53,9 +54,9 @@ def test_steps_within_the_scatter_teach_only_a_small_correction():
 
 
 @pytest.mark.slow  # 20 runs of the lab robot, about 2 min
-def test_the_lab_robot_parks_in_six_trials_over_reproduces_seeds_and_forward_in_two():
+def test_the_lab_robot_parks_in_five_trials_over_reproduces_seeds_and_forward_in_two():
     parallel = [run_ilc("experiment_parallel", learner="robust_ilc", seed=seed).converged_at for seed in range(10)]
     forward = [run_ilc("experiment_forward", learner="robust_ilc", seed=seed).converged_at for seed in range(10)]
     assert None not in parallel and None not in forward
-    assert statistics.median(parallel) <= 6  # 8 [7, 11] with the Broyden secant of the residual
+    assert statistics.median(parallel) <= 5  # 6 [5, 6] with SECANT_PRIOR 3, SECANT_CURVATURE 1, SHRINK 1
     assert statistics.median(forward) <= 2
