@@ -243,7 +243,7 @@ def _write(points: list[dict[str, Any]], args: Args, name: str, settings: dict[s
             "seed": p["seed"],
             "steps": p["steps"],
             "cpu_seconds_per_1000_steps": 1000 * p["cpu_seconds"] / args.every,
-            **g,
+            **{("episode_steps" if key == "steps" else key): value for key, value in g.items()},
         }
         for p in points
         for g in p["goals"]

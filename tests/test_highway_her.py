@@ -30,6 +30,9 @@ def test_a_curve_resumed_in_a_new_process_is_the_curve_run_straight_through(tmp_
         a, b = (json.loads((run / "highway_her_quick_curve" / name).read_text()) for run in (straight, resumed))
         assert a["goals"] == b["goals"] and a["fingerprint"] == b["fingerprint"], name
     assert (resumed / "highway_her_quick.md").read_text().count("| 300 |") == 1
+    rows = json.loads((resumed / "highway_her_quick.json").read_text())["rows"]
+    assert {r["steps"] for r in rows} == {150, 300}  # the training steps; a goal's episode has its own key
+    assert all(1 <= r["episode_steps"] <= 100 for r in rows)
 
 
 @pytest.mark.extra("rl", "highway")
