@@ -141,9 +141,8 @@ Mask = npt.NDArray[np.bool_]
 HOMOTOPY_STEPS = 8
 """Steps of the continuation from the nominal model to the refit one."""
 SHRINK = 2.0
-"""After a trial worse than the best, the next step from the best is at most this times the failed one's
-length: the failed trial has entered the secant, and the corrected model's answer may lie beyond it
-(halving it, as before the secant, cost a trial; 1.0 cut the lab robot's fifth trial short)."""
+"""After a trial worse than the best, the next step from the best is at most this times the failed one's length: the
+failed trial has entered the secant, so the corrected answer may lie beyond it (1.0 cut the lab robot's 5th trial)."""
 BAND_STEPS = 2.0
 """A step in the scatter's band is at most this many times the longest of the last trials' steps."""
 STALLED = 4
@@ -153,9 +152,8 @@ REACHED = 1e-10
 SOLVED = 1e-10
 """[chained units] a model mismatch this small needs no continuation."""
 RCOND = 1e-7
-"""Singular values of the model's Jacobian below this fraction of the largest are left out of a
-Newton step: a symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction
-would take the step far out of the box."""
+"""Singular values of the model's Jacobian below this fraction of the largest are left out of a Newton step: a
+symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction would leave the box."""
 _NEWTON_ITERATIONS = 12
 _DAMPED_ITERATIONS = 100
 
@@ -185,8 +183,9 @@ class RobustILC(GlobalIdentification):
         self.reset()
 
     def transfer(self) -> dict[str, Any]:
-        """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``):
-        the family's parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s])."""
+        """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``): the family's
+        parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s]). A next goal whose first
+        trial, the carried model's plan, leaves the chart (or is refused) starts afresh from the nominal plan."""
         return {"robust_ilc": {"parameters": dict(zip(self.family.names, map(float, self.theta)))}}
 
     def reset(self) -> None:
@@ -224,8 +223,7 @@ class RobustILC(GlobalIdentification):
             return
         improved = self._best is None or trial.error < 0.5 * self._best.error
         self._stalled = 0 if improved else self._stalled + 1
-        # A learner that has stopped improving searches globally only every STALLED-th update:
-        # where the true plant cannot reach the goal, that is all the search can find.
+        # Stalled, it searches globally only every STALLED-th update: where the plant cannot reach the goal, that is all
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
         self.family, self.theta = self._refit()
         # A model that explains every trial it is fitted to is trusted whole: the trust region guards
@@ -233,7 +231,9 @@ class RobustILC(GlobalIdentification):
         # the new model's answer.
         explains = self._misfit(self._residuals(self.theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
         best = self._best
-        if best is None and not ok:
+        if best is None and not ok and self._carried is not None and len(self._trials) == 1:  # not this robot's model
+            self.family, self.theta, self._next = self._families[0], np.zeros(self._families[0].size), self.start.copy()
+        elif best is None and not ok:
             # No trial has stayed in the chart yet: aim at a point nearer the start.
             self._reach *= 0.5
             self._next = self._solve(None, self._reach)

@@ -206,3 +206,28 @@ def test_a_manoeuvre_carries_its_last_segments_learning_to_the_next_goal() -> No
     assert set(carried[0].carried) == {"robust_ilc"}
     assert alone[1].trials[0].cartesian_error > 20 * 0.01 > tolerance
     assert carried[1].trials[0].cartesian_error < 0.01
+
+
+def test_robust_ilc_drops_a_carried_model_whose_plan_leaves_the_chart() -> None:
+    """A carried model that is not this goal's robot (highway-env's car: each goal's fit compensates
+    what no family holds) plans a first trial that leaves the chart, or that the plant refuses at
+    its walls (reported the same way): the learner then starts afresh from the nominal plan, where
+    it once halved its aim on the carried model for every trial left (parking-v0 seed 9: 15 trials
+    refused)."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from ilc_steering.agents.base import LearnerContext
+    from ilc_steering.agents.robust_ilc import make_robust_ilc
+
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
+    carried = {"robust_ilc": {"parameters": {"wheelbase_ratio": 0.6, "wheel_radius_ratio": -0.4}}}
+    context = dataclasses.replace(LearnerContext.from_env(env), carried=carried)
+    learner, nominal = make_robust_ilc(context), np.asarray(context.first_action(), dtype=np.float64)
+    first = learner.act(None)
+    assert not np.allclose(first, nominal)  # the carried model's plan first
+    learner.learn({"action": first, "error": np.full(4, np.nan), "left_chart": True})
+    assert np.array_equal(learner.act(None), nominal)
+    learner.learn({"action": nominal, "error": np.full(4, np.nan), "left_chart": True})
+    assert not np.array_equal(learner.act(None), nominal)  # afresh, it goes on as from scratch: no repeat
