@@ -184,12 +184,13 @@ class RobustILC(GlobalIdentification):
 
     def transfer(self) -> dict[str, Any]:
         """What it identified of the robot, for the next goal's ``robust_ilc`` (``run A B --carry``): the family's
-        parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s]). A next goal whose first
-        trial, the carried model's plan, leaves the chart (or is refused) starts afresh from the nominal plan."""
-        return {"robust_ilc": {"parameters": dict(zip(self.family.names, map(float, self.theta)))}}
+        parameters (log-ratios of the geometry, the actuators' offset [rad] and lag [s]) and whether the servo's
+        families are still tried (:func:`~ilc_steering.agents.robust_identify.carried_family` says how they serve)."""
+        parameters = dict(zip(self.family.names, map(float, self.theta)))
+        return {"robust_ilc": {"parameters": parameters, "servo": self.servo}}
 
     def reset(self) -> None:
-        self.reset_identification()
+        self.reset_identification(servo=self._carried is None or self._carried[2])
         self.update_seconds: list[float] = []
         """Wall time [s] of each update (identification, continuation and Newton solves)."""
         self._D = Secant.none(self.model.dimension, self.start.size)
@@ -226,9 +227,8 @@ class RobustILC(GlobalIdentification):
         # Stalled, it searches globally only every STALLED-th update: where the plant cannot reach the goal, that is all
         self._thorough = self._stalled < STALLED or self._stalled % STALLED == 0
         self.family, self.theta = self._refit()
-        # A model that explains every trial it is fitted to is trusted whole: the trust region guards
-        # against a model that does not, and one learned before the model changed would only hold back
-        # the new model's answer.
+        # A model that explains every trial it is fitted to is trusted whole: the trust region guards against one that
+        # does not, and one learned before the model changed would only hold back the new model's answer.
         explains = self._misfit(self._residuals(self.theta[None], self._fit_trials())[0]) < FIT_TOLERANCE
         best = self._best
         if best is None and not ok and self._carried is not None and len(self._trials) == 1:  # not this robot's model

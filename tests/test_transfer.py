@@ -231,3 +231,34 @@ def test_robust_ilc_drops_a_carried_model_whose_plan_leaves_the_chart() -> None:
     assert np.array_equal(learner.act(None), nominal)
     learner.learn({"action": nominal, "error": np.full(4, np.nan), "left_chart": True})
     assert not np.array_equal(learner.act(None), nominal)  # afresh, it goes on as from scratch: no repeat
+
+
+def test_robust_ilc_carries_that_no_servo_family_explained_the_robot() -> None:
+    """A goal on which the servo's families failed to explain the trials (highway-env's car) hands
+    that on: the next goal's learner fits the geometry alone (one trial's four numbers would fit the
+    servo's four parameters exactly, at a chance point), from the carried geometry; one handed
+    nothing of it tries them as before."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from ilc_steering.agents.base import LearnerContext
+    from ilc_steering.agents.robust_ilc import make_robust_ilc
+
+    env = gym.make("ilc_steering/ChainedSteering-v0", config="forward_parking")
+    fit = {"wheelbase_ratio": 0.05, "wheel_radius_ratio": 0.01, "steering_offset": 0.02, "steering_lag": 0.15}
+
+    def learner(**extra):
+        carried = {"robust_ilc": {"parameters": fit, **extra}}
+        return make_robust_ilc(dataclasses.replace(LearnerContext.from_env(env), carried=carried))
+
+    tried = learner()
+    assert tried.servo and tried.family.names == tuple(fit) and tried.transfer()["robust_ilc"]["servo"]
+    dropped = learner(servo=False)
+    assert not dropped.servo and dropped.family.names == ("wheelbase_ratio", "wheel_radius_ratio")
+    assert np.array_equal(dropped.theta, [0.05, 0.01])
+    assert dropped.transfer() == {
+        "robust_ilc": {"parameters": {"wheelbase_ratio": 0.05, "wheel_radius_ratio": 0.01}, "servo": False}
+    }
+    with pytest.raises(ValueError, match="not robust_ilc's transfer"):
+        learner(servo="no")
