@@ -224,6 +224,20 @@ def pooled_std(offsets: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return np.array([np.hypot(std[0], std[1]) / np.sqrt(2), std[2]])
 
 
+def scatter_shape(offsets: npt.NDArray[np.float64]) -> dict[str, float]:
+    """The shape of the scatter ``offsets`` (rows of ``x``, ``y`` [m], ``theta`` [rad]): the correlation
+    of ``x`` and ``y``, the std along and across the long axis of their covariance [m], and the
+    skewness of ``theta`` (0 for a symmetric scatter)."""
+    across, along = np.sqrt(np.linalg.eigvalsh(np.cov(offsets[:, :2].T, bias=True)))
+    theta = offsets[:, 2] - offsets[:, 2].mean()
+    return {
+        "correlation": float(np.corrcoef(offsets[:, 0], offsets[:, 1])[0, 1]),
+        "along_m": float(along),
+        "across_m": float(across),
+        "theta_skewness": float(np.mean(theta**3) / np.std(theta) ** 3),
+    }
+
+
 def oracle_runs(
     name: str, trials: int, seeds: tuple[int, ...], repeats: int, cartesian: float, orientation: float
 ) -> tuple[list[dict[str, Any]], npt.NDArray[np.float64]]:
@@ -399,6 +413,9 @@ def floor_table(args: Args, trials: int, last: int) -> tuple[list[dict[str, Any]
     rng = np.random.default_rng(0)
     resampled = np.array([pooled_std(offsets[rng.integers(0, repeats, repeats)]) for _ in range(2000)])
     low, high = np.quantile(resampled, [0.05, 0.95], axis=0)
+    small = args.repeats  # what the std of the repeatability table's few repeats may be, drawn from these
+    few = np.quantile([pooled_std(offsets[rng.integers(0, repeats, small)])[0] for _ in range(2000)], [0.05, 0.95])
+    shape = scatter_shape(offsets)
     cartesian, orientation = FLOOR_FACTOR * plane, FLOOR_FACTOR * theta
     floors = [
         floor_run(args.scatter, learner, seed, trials, cartesian, orientation) for learner in learners for seed in seeds
@@ -451,8 +468,11 @@ def floor_table(args: Args, trials: int, last: int) -> tuple[list[dict[str, Any]
         f"solution ({1e3 * plane:.2f} mm per coordinate in x and y, bootstrap 90 % range {1e3 * low[0]:.2f}-"
         f"{1e3 * high[0]:.2f}; {1e3 * theta:.2f} mrad in θ, {1e3 * low[1]:.2f}-{1e3 * high[1]:.2f}): "
         f"{1e3 * cartesian:.2f} mm / {1e3 * orientation:.2f} mrad, {trials} trials per run, env seeds "
-        f"{named}. The oracle knows the true plant (not a learner): the last action of a "
-        f"robust_ilc run, its mean outcome over {repeats} repeats ({1e3 * offset[0]:.2f} mm, "
+        f"{named}. The std of {small} of these repeats falls in {1e3 * few[0]:.2f}-{1e3 * few[1]:.2f} mm "
+        f"(90 %). The scatter is elongated (x and y correlated {shape['correlation']:.2f}: a std of "
+        f"{1e3 * shape['along_m']:.2f} mm along its long axis, {1e3 * shape['across_m']:.2f} mm across) and skewed "
+        f"(θ's skewness {shape['theta_skewness']:.1f}). The oracle knows the true plant (not a learner): "
+        f"the last action of a robust_ilc run, its mean outcome over {repeats} repeats ({1e3 * offset[0]:.2f} mm, "
         f"{1e3 * offset[1]:.2f} mm, {1e3 * offset[2]:.2f} mrad from the goal) removed from each seed's trials.\n"
     )
     extra = {
@@ -467,6 +487,8 @@ def floor_table(args: Args, trials: int, last: int) -> tuple[list[dict[str, Any]
         "scatter_rad": theta,
         "scatter_90_m": [low[0], high[0]],
         "scatter_90_rad": [low[1], high[1]],
+        "scatter_few_90_m": few.tolist(),
+        **shape,
         "oracle_offset": offset.tolist(),
         "summary": summary,
     }
