@@ -1,6 +1,6 @@
 """The MuJoCo car (``plant.model: mujoco_car``): how it repeats itself, and how the learners do on it.
 
-Two tables, for each of the packaged MuJoCo configs:
+Four tables, on the packaged MuJoCo configs:
 
 - **repeatability**: ``repeats`` trials of the nominal solution's coefficients on one plant (the
   scatter config draws each wheel's friction anew per trial), the std of the final ``x``, ``y``
