@@ -4,7 +4,8 @@ Runs ``run --learner LEARNER`` on the packaged ``highway_parking`` task (parking
 ``--seed N`` on the task the library generates for parking-v0 seed N (a manoeuvre of several
 segments where one chart cannot serve it: seed 12's), then replays the logged actions of its first
 and last trials (every segment's, back to back) in a fresh ``parking-v0`` with
-``render_mode="rgb_array"`` and its trajectory display on, and saves the frame at the trial's end:
+``render_mode="rgb_array"``, its window fixed on the whole lot, and saves the frame at the trial's end
+with the car's path over the trial drawn on it (white; the dot is the start):
 
     python benchmarks/highway_pictures.py [--quick] [--seed N] [--learner robust_ilc] [--trials 8] [--out DIR]
 
@@ -40,21 +41,34 @@ class Args:
     """parking-v0's seed: the library's generated task for it (None: the packaged ``highway_parking``)."""
 
 
-def frame(seed: int, actions: list[list[float]]) -> Any:
-    """highway-env's frame at the end of ``actions`` replayed from parking-v0 ``seed``'s reset,
-    the car's recent path drawn (``show_trajectories``)."""
+VIEW = {"screen_width": 800, "screen_height": 450, "scaling": 10.5}
+"""A window that holds the whole lot (69 m by 41 m, :data:`ilc_steering.envs.highway_lot.WALLS`)."""
+
+
+def frame(seed: int, actions: list[list[float]]) -> tuple[Any, Any]:
+    """highway-env's frame at the end of ``actions`` replayed from parking-v0 ``seed``'s reset, its
+    window fixed on the lot's centre, and the car's path over the whole trial in that frame's pixels
+    (every step's position, highway-env's own ``WorldSurface.pos2pix``)."""
+    from types import SimpleNamespace
+
     import gymnasium as gym
     import highway_env
 
     gym.register_envs(highway_env)
-    config = {"show_trajectories": True, "offscreen_rendering": True}
-    env = gym.make("parking-v0", render_mode="rgb_array", config=config)
+    env = gym.make("parking-v0", render_mode="rgb_array", config={"offscreen_rendering": True, **VIEW})
     env.reset(seed=seed)
+    parking: Any = env.unwrapped  # highway-env's ParkingEnv: its car and its viewer
+    path = [parking.vehicle.position.copy()]
     for action in actions:
         env.step(np.array(action, dtype=np.float64))
+        path.append(parking.vehicle.position.copy())
+    env.render()  # makes the viewer, then fix its window (it follows the car otherwise)
+    viewer = parking.viewer
+    viewer.observer_vehicle = SimpleNamespace(position=np.zeros(2))
     image = env.render()
+    pixels = np.array([viewer.sim_surface.pos2pix(x, y) for x, y in path], dtype=np.float64)
     env.close()
-    return image
+    return image, pixels
 
 
 def main(args: Args) -> list[Path]:
@@ -80,7 +94,15 @@ def main(args: Args) -> list[Path]:
     for name, record in (("first", result.trials[0]), ("last", result.trials[-1])):
         assert record.plant is not None
         path = args.out / f"highway_{name}_trial{tag}{'_quick' if args.quick else ''}.png"
-        plt.imsave(path, frame(seed, record.plant["actions"]))
+        image, pixels = frame(seed, record.plant["actions"])
+        figure = plt.figure(figsize=(image.shape[1] / 100, image.shape[0] / 100), dpi=100)
+        axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
+        axes.imshow(image)
+        axes.plot(pixels[:, 0], pixels[:, 1], color="white", linewidth=1.2)
+        axes.plot(*pixels[0], "o", color="white", markersize=4)
+        axes.set_axis_off()
+        figure.savefig(path, dpi=100)
+        plt.close(figure)
         print(f"wrote {path}: trial {record.trial}, {record.cartesian_error:.3g} m, {record.orientation_error:.3g} rad")
         written.append(path)
     return written

@@ -10,6 +10,7 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -18,6 +19,11 @@ assert _SPEC is not None and _SPEC.loader is not None
 noisy = importlib.util.module_from_spec(_SPEC)  # a script of benchmarks/, not a package
 sys.modules[_SPEC.name] = noisy  # dataclasses look their module up by name
 _SPEC.loader.exec_module(noisy)
+_CAR = importlib.util.spec_from_file_location("mujoco_car_benchmark", ROOT / "benchmarks/mujoco_car.py")
+assert _CAR is not None and _CAR.loader is not None
+mujoco_car = importlib.util.module_from_spec(_CAR)
+sys.modules[_CAR.name] = mujoco_car
+_CAR.loader.exec_module(mujoco_car)
 
 
 def test_the_plant_is_forward_parking_with_the_noise_and_a_tolerance_of_four_sigma() -> None:
@@ -67,11 +73,44 @@ def test_the_page_quotes_its_artifact_and_the_done_when_holds() -> None:
     assert f"in {relapsed[0]}, {relapsed[1]} and {relapsed[2]} runs of the hundred" in " ".join(page.split())
 
 
+def test_the_floor_table_scores_a_run_by_both_readings() -> None:
+    # inside at 2-3, out at 4, inside again from 5: the literal reading (inside by 6, last 5 inside) and the
+    # strict one (the final stretch from 6 or before) agree; from 7 only the literal holds
+    early = mujoco_car.stretches([False, True, True, False] + [True] * 11)
+    assert early == {"first_inside": 2, "stretch_from": 5, "held": 11, "relapses": 1}
+    assert mujoco_car.readings(early, 6, 5) == {"met_literal": True, "met_strict": True}
+    late = mujoco_car.stretches([False, True, True, False, False, False] + [True] * 9)
+    assert (late["stretch_from"], late["held"]) == (7, 9)
+    assert mujoco_car.readings(late, 6, 5) == {"met_literal": True, "met_strict": False}
+    ends_out = mujoco_car.stretches([True] * 14 + [False])
+    assert ends_out == {"first_inside": 1, "stretch_from": None, "held": 0, "relapses": 1}
+    assert mujoco_car.readings(ends_out, 6, 5) == {"met_literal": False, "met_strict": False}
+    never = mujoco_car.stretches([False] * 15)
+    assert mujoco_car.readings(never, 6, 5) == {"met_literal": False, "met_strict": False}
+
+
+def test_the_pooled_std_is_the_rms_of_x_and_y() -> None:
+    offsets = np.array([[1.0, 3.0, 0.5], [-1.0, -3.0, -0.5]])  # std 1 in x, 3 in y, 0.5 in theta
+    assert mujoco_car.pooled_std(offsets) == pytest.approx([math.sqrt(5), 0.5])
+
+
 def test_the_mujoco_page_quotes_its_floor_table() -> None:
-    """benchmarks/mujoco_car.py's floor table (issue 48's Done-when on the scatter config), as written."""
+    """benchmarks/mujoco_car.py's floor table (issue 48's Done-when on the scatter config), as written:
+    the learners' and the oracle's runs on the same seeds, each scored by both readings."""
     page = (ROOT / "docs/mujoco.md").read_text()
     assert (ROOT / "docs/mujoco/mujoco_floor.md").read_text().strip() in page
-    rows = json.loads((ROOT / "docs/mujoco/mujoco_floor.json").read_text())["rows"]
-    met = sum(r["met"] for r in rows)
-    assert f"met in {met} of {len(rows)} runs" in " ".join(page.split())
-    assert all(r["first_inside"] <= 3 and r["held"] >= 9 for r in rows)
+    floor = json.loads((ROOT / "docs/mujoco/mujoco_floor.json").read_text())
+    rows, within, last = floor["rows"], floor["within"], floor["last"]
+    assert floor["repeats"] >= 200 and floor["cartesian_m"] == pytest.approx(4 * floor["scatter_m"])
+    seeds = {name: [r["seed"] for r in rows if r["learner"] == name] for name in floor["summary"]}
+    assert set(seeds) == {"robust_ilc", "newton_ilc", mujoco_car.ORACLE} and len(set(map(tuple, seeds.values()))) == 1
+    for row in rows:
+        assert {k: row[k] for k in ("met_literal", "met_strict")} == mujoco_car.readings(row, within, last)
+    words = " ".join(page.split())
+    for name, met in floor["summary"].items():
+        for reading in ("literal", "strict"):
+            assert met[reading] == sum(r[f"met_{reading}"] for r in rows if r["learner"] == name)
+        named = "the oracle" if name == mujoco_car.ORACLE else f"`{name}`"
+        runs = len(seeds[name])
+        said = f"{named} meets the literal reading in {met['literal']} of {runs} runs"
+        assert f"{said} and the strict one in {met['strict']} of {runs}" in words
