@@ -21,6 +21,8 @@ each trial's measured final error, never the plant) and globalizes each of the t
    otherwise the geometry's fit is (a servo family that cannot explain the trials would only
    caricature what it lacks), and after ``ESCALATIONS`` such failures the servo's families are
    no longer tried.
+   A wild trial (farther from the goal than the start) leaves the fit once two others stayed in the
+   chart: near the chart's edge its end moves by metres for changes no fit resolves.
    A new fit replaces the last one only if its squared misfit is below ``REFIT_GAIN`` times the
    last one's: outside every family, fits of about equal misfit lie far apart (parallel parking on
    the simulated lab robot: a wheelbase ratio at the bound 2 and at 0.83), and a jump between them
@@ -52,12 +54,14 @@ each trial's measured final error, never the plant) and globalizes each of the t
    :data:`HOMOTOPY_STEPS` steps, each solved from the last. The candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification and the secant):
-   the next step from the best trial is no longer than ``SHRINK`` times the failed one. A model that explains every
+   the next step from the best trial is no longer than ``SHRINK`` times the failed one, or ``LEFT_CHART_SHRINK``
+   times it when the failed trial left the chart (it measured nothing for the secant). A model that explains every
    trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
    while the model was wrong would only hold back the identified model's answer. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
    :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
-   halted trial), so that the first in-chart trial identifies the plant.
+   halted trial), so that the first in-chart trial identifies the plant; so too while no trial
+   nearer the goal than the start has stayed in it.
 
 4. **The plant's scatter.** As ``newton_ilc`` (its step 5): once the scatter can be estimated
    from the trials' residuals against the refit model and a trial lands within
@@ -69,36 +73,26 @@ each trial's measured final error, never the plant) and globalizes each of the t
    scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
    but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
    band ends the averaging; the band begins with the trials just before it at about the same
-   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). A plant
-   that repeats itself never enters it.
+   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). Before
+   it first averages it sends the trial's action again (a counted *probe*): a plant that ends where
+   it did repeats itself, its "scatter" was the model's misfit, and it never averages.
 
-**Why it converges, and where it cannot.** On the nominal plant :math:`\hat\theta = 0`, the
-trials' residuals are 0, so :math:`A = 1`, :math:`D = 0` and the offset is 0: one update lands on
-the goal to the integrator's accuracy, as ``newton_ilc`` does (``tests/test_robust_ilc.py``).
-Inside a family (the geometry's, or a car's with its steering offset and lag) the trials identify
-the plant once they give more equations than the family has unknowns and the grid finds the basin
-(one in-chart trial for the geometry, two or three for the servo's four parameters), the residuals
-vanish again, and the next trial solves the identified model, which is the plant: it lands on the
-goal whenever the model's solvers find a solution. Outside every family (backlash, encoder dead
-reckoning, a speed loop, measurement noise) nothing is identified exactly, and the secant is what
-learns: a multi-secant quasi-Newton iteration on the measured outcome. It assumes that the plant is
-close to affine over the last trials' steps (the curvature weight) and that the model's Jacobian is
-right up to a gain per chained coordinate and a correction of size ``SECANT_PRIOR``; each trial
-adds one equation per coordinate, so it needs about as many trials near the goal as there are
-coefficients before the correction is determined, and converges linearly until then. The first
-secants weigh far trials by a mild curvature (``SECANT_CURVATURE``), keep the refit model's Jacobian
-where the steps say nothing (``SECANT_PRIOR``), and a step after a failed trial reaches up to twice
-as far (``SHRINK``): on the simulated lab robot's parallel parking the fourth trial explores (50-110
-mm off after 40 mm) and the fifth lands 0.5-6 mm off (median 2.5 mm over seeds 0-19; 10 before).
-This assumes that the trials so far span the directions the next step takes; where the fourth trial
-lands near (5-8 mm, seeds 8 and 14 of 0-19) it teaches little, the heading is then corrected by
-about a fifth a trial (16-31 mrad at the fifth), and the run converges at trial 9 and 12. Where it
-cannot: far from the goal, where the plant's map is not smooth at the trials' scale (the simulated
-lab robot's dead-reckoned heading and backlash: even the plant's own local Jacobian at a trial
-40 mm off sends a Newton step to 140 mm), the first trials improve by about half each; a scatter
-larger than ``SECANT_SCATTER`` makes the correction fit its draws (a ridge prior, and the band's
-frozen secant, bound that); and it cannot converge where the true plant cannot reach the goal (the
-oracle's unsolvable region), nor where the corrected model's solvers miss a solution the plant has.
+**Why it converges, and where it cannot.** On the nominal plant the residuals are 0, so
+:math:`A = 1`, :math:`D = 0`, no offset: one update lands on the goal to the integrator's accuracy,
+as ``newton_ilc``'s (``tests/test_robust_ilc.py``). Inside a family (the geometry's, or a car's with
+its servo) the trials identify the plant once they give more equations than the family has unknowns
+and the grid finds the basin (one in-chart trial for the geometry, two or three for the servo), and
+the next trial solves the identified model, the plant: it lands on the goal whenever the model's
+solvers find a solution. Outside every family (backlash, dead reckoning, a speed loop, noise) the
+secant learns: a multi-secant quasi-Newton iteration on the measured outcome, assuming the plant
+close to affine over the last steps (``SECANT_CURVATURE``), the model's Jacobian right up to a gain
+per coordinate and a correction of size ``SECANT_PRIOR``, and the trials spanning the directions the
+next step takes; it converges linearly until about as many trials near the goal as coefficients
+determine the correction. It cannot where the plant's map is not smooth at the trials' scale (the
+lab robot's dead-reckoned heading and backlash: the first trials improve by about half each), where
+a scatter larger than ``SECANT_SCATTER`` is fitted as a correction (a ridge prior and the band's
+frozen secant bound that), where the true plant cannot reach the goal (the oracle's unsolvable
+region), and where the corrected model's solvers miss a solution the plant has.
 """
 
 from __future__ import annotations
@@ -114,23 +108,17 @@ import numpy.typing as npt
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.agents.model_based import (
     Trial,
-    box,
-    final_chained,
-    gauss_newton,
     in_scatter_band,
-    law_step,
     measure,
-    newton_solve,
+    repeated,
 )
 from ilc_steering.agents.robust_identify import (
-    CHART_PENALTY,
     FIT_TOLERANCE,
-    HALVINGS,
     SECANT_TRIALS,
-    GlobalIdentification,
     Secant,
     carried_family,
 )
+from ilc_steering.agents.robust_solve import HOMOTOPY_STEPS, Continuation
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
@@ -138,27 +126,20 @@ __all__ = ["HOMOTOPY_STEPS", "RobustILC", "make_robust_ilc"]
 Array = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
 
-HOMOTOPY_STEPS = 8
-"""Steps of the continuation from the nominal model to the refit one."""
 SHRINK = 2.0
-"""After a trial worse than the best, the next step from the best is at most this times the failed one's length: the
-failed trial has entered the secant, so the corrected answer may lie beyond it (1.0 cut the lab robot's 5th trial)."""
+"""After a trial worse than the best, the next step from the best is at most this times the failed one's length (the
+failed trial has entered the secant: the corrected answer may lie beyond it)."""
+LEFT_CHART_SHRINK = 0.5
+"""After a trial that left the chart, the next step from the best is at most this times the failed one's length."""
 BAND_STEPS = 2.0
 """A step in the scatter's band is at most this many times the longest of the last trials' steps."""
 STALLED = 4
 """Updates without halving the best error after which the global searches run only every this many."""
 REACHED = 1e-10
 """[m or rad] a measured error this small is the integrator's accuracy: the trial is repeated."""
-SOLVED = 1e-10
-"""[chained units] a model mismatch this small needs no continuation."""
-RCOND = 1e-7
-"""Singular values of the model's Jacobian below this fraction of the largest are left out of a Newton step: a
-symmetric ``v1`` makes ``W`` singular (to round-off), and its near-null direction would leave the box."""
-_NEWTON_ITERATIONS = 12
-_DAMPED_ITERATIONS = 100
 
 
-class RobustILC(GlobalIdentification):
+class RobustILC(Continuation):
     """Global identification, continuation and a trust region (see the module docstring).
 
     Parameters
@@ -200,6 +181,9 @@ class RobustILC(GlobalIdentification):
         self.scatter: Array | None = None
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
+        self._probe: Trial | None = None  # the trial whose action it sent again, to see whether the plant repeats
+        self._probed = False  # whether it has asked for that repeat
+        self._repeats = False  # whether the plant ended twice where one action sent it: no scatter
         self._next = self.start.copy()
         if self._carried is not None:  # another goal of the same robot identified it: its model's solution first
             self.family, self.theta = self._carried[0], self._carried[1].copy()
@@ -211,15 +195,23 @@ class RobustILC(GlobalIdentification):
     def learn(self, info: Mapping[str, Any]) -> None:
         began = time.perf_counter()
         trial = measure(self.model, self.family, self._goal_q, info)
+        probe, self._probe = self._probe, None
+        if probe is not None and repeated(probe, trial):
+            # The plant repeated itself: it has no scatter, and the update the probe deferred is made now.
+            self._repeats, trial = True, probe
+        else:
+            self._trials.append(trial)
         c, ok = trial.c, trial.ok
-        self._trials.append(trial)
         if ok and trial.error < REACHED and (self._best is None or trial.error <= self._best.error):
             # At the goal to the integrator's accuracy: nothing left to learn; run it again.
             self._best, self._next = trial, c.copy()
             self.update_seconds.append(time.perf_counter() - began)
             return
         if ok and self._averaging(trial):
-            self._average(trial)
+            if self._probe is not None:
+                self._next = trial.c.copy()
+            else:
+                self._average(trial)
             self.update_seconds.append(time.perf_counter() - began)
             return
         improved = self._best is None or trial.error < 0.5 * self._best.error
@@ -233,15 +225,19 @@ class RobustILC(GlobalIdentification):
         best = self._best
         if best is None and not ok and self._carried is not None and len(self._trials) == 1:  # not this robot's model
             self.family, self.theta, self._next = self._families[0], np.zeros(self._families[0].size), self.start.copy()
-        elif best is None and not ok:
-            # No trial has stayed in the chart yet: aim at a point nearer the start.
+        elif not ok and (best is None or best.error > self._start_error):
+            # No trial has stayed in the chart yet, or none nearer the goal than the start is (a wild one whose
+            # neighbours leave the chart): aim at a point nearer the start.
             self._reach *= 0.5
             self._next = self._solve(None, self._reach)
         elif best is not None and not trial.error < best.error:
             # Outside the trust region: it shrinks to the failed step (SHRINK), and the refit model's
             # answer from the best trial is taken within it, the secant anchored there.
             self._D = self.secant(best)
-            self._radius = np.inf if explains else SHRINK * self._length(c - best.c)
+            if not ok:  # a step that left the chart measured nothing for the secant: the region shrinks within it
+                self._radius = LEFT_CHART_SHRINK * min(self._radius, self._length(c - best.c))
+            else:
+                self._radius = np.inf if explains else SHRINK * self._length(c - best.c)
             self._next = self._within(best.c, self._solve(best, 1.0))
         else:
             if explains:
@@ -256,10 +252,17 @@ class RobustILC(GlobalIdentification):
     # the scatter ---------------------------------------------------------------------------------
 
     def _averaging(self, trial: Trial) -> bool:
-        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4)."""
+        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4). Before it
+        first averages, it sends ``trial``'s action again (a counted trial, its probe): a plant that then ends
+        where it did repeats itself, and its model's residuals (a family that cannot explain it) are no scatter."""
+        if self._repeats:
+            return False
         self.scatter, inside = in_scatter_band(
             self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
         )
+        if inside and not self._probed:
+            self._probed, self._probe = True, trial
+            self._band.clear()
         return inside
 
     def _average(self, trial: Trial) -> None:
@@ -292,92 +295,6 @@ class RobustILC(GlobalIdentification):
             next_c = trial.c + (next_c - trial.c) * (radius / length)
         self._next = self._box(next_c)
 
-    # the next trial -----------------------------------------------------------------------------
-
-    def _solve(self, trial: Trial | None, reach: float) -> Array:
-        """Coefficients that bring the refit model (plus the best trial's residual, if any) to the
-        point ``reach`` of the way from the start to the goal."""
-        model = self.model
-        target = model.z_start + reach * (model.z_goal - model.z_start)
-        if trial is None:
-            d, anchor, D = np.zeros_like(target), self._nominal_c, Secant.none(*self._D.D.shape)
-        else:
-            z, ok = self._final_z(self.theta[None], trial.c[None])
-            z_a = trial.z if self._D.z is None else self._D.z
-            d = z_a - self._D.A * z[0] if ok[0] else np.zeros_like(target)
-            anchor, D = trial.c, self._D
-
-        candidates = []
-        if trial is not None:
-            candidates.append(self._newton(trial.c, self.theta, target - d, D, anchor))
-            if np.linalg.norm(candidates[0][1]) < SOLVED or not self._thorough:
-                return self._box(candidates[0][0]) if np.all(np.isfinite(candidates[0][1])) else self._law(trial)
-        # The homotopy from the nominal model at its exact solution.
-        c = self._box(model.solve(z_goal=model.z_start + reach * (model.z_goal - model.z_start)))
-        for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
-            c, _ = self._newton(c, s * self.theta, target - s * d, D.part(s), anchor)
-        candidates.append((c, self._mismatch(c[None], self.theta, target - d, D, anchor)[0][0]))
-        norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
-        pick = int(np.argmin(norms))
-        if norms[pick] > SOLVED:
-            # Newton stalls where W is near-singular (a symmetric v1) or the branch folds: Gauss-Newton's
-            # minimum-norm steps on the configuration error, from the best candidate, then (a thorough
-            # update) along the homotopy from the nominal solution, and (an exact model) from its restarts.
-            c_gn = self._damped(candidates[pick][0], self.theta, target - d, D, anchor)
-            candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
-            if self._thorough and np.linalg.norm(candidates[-1][1]) > SOLVED:
-                c_gn = self._damped(self._box(model.solve(z_goal=target)), self.theta, target - d, D, anchor)
-                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
-            if self._thorough and min(np.linalg.norm(g) for _, g in candidates[-2:]) > SOLVED:
-                c_gn = self._box(model.solve(z_goal=target))
-                for s in np.linspace(0.0, 1.0, HOMOTOPY_STEPS + 1)[1:]:
-                    c_gn = self._damped(c_gn, s * self.theta, target - s * d, D.part(s), anchor)
-                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
-            solved = any(np.linalg.norm(g) <= SOLVED for _, g in candidates)
-            starts = np.empty((0, self.start.size)) if solved else self.restarts(target)
-            for c_gn in [self._damped(self._box(c0), self.theta, target - d, D, anchor) for c0 in starts]:
-                candidates.append((c_gn, self._mismatch(c_gn[None], self.theta, target - d, D, anchor)[0][0]))
-            norms = [float(np.linalg.norm(g)) if np.all(np.isfinite(g)) else np.inf for _, g in candidates]
-            pick = int(np.argmin(norms))
-        if not np.isfinite(norms[pick]):
-            return self._box(c) if trial is None else self._law(trial)
-        return self._box(candidates[pick][0])
-
-    def _damped(self, c: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> Array:
-        """Gauss-Newton on the model's configuration error (metres and radians, better conditioned
-        than chained coordinates far from the goal) from ``c``, within the box."""
-
-        def residuals(cs: Array) -> Array:
-            g, ok = self._mismatch(cs, theta, target, D, anchor)
-            q = self.family.to_configuration(np.where(ok[:, None], g + self.model.z_goal, self.model.z_goal))
-            return np.where(ok[:, None], q - self._goal_q, CHART_PENALTY)
-
-        return gauss_newton(residuals, c, self.low, self.high, 1e-7 * self._scale, _DAMPED_ITERATIONS)[0]
-
-    def _law(self, trial: Trial) -> Array:
-        """Eqs. 33-34 from ``trial``: the step when the refit model has no solution in its chart."""
-        return self._box(law_step(self.model, trial))
-
-    def _mismatch(self, cs: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> tuple[Array, Mask]:
-        z, ok = self._final_z(np.tile(theta, (cs.shape[0], 1)), cs)
-        return D.A * z + (cs - anchor) @ D.D.T - target, ok
-
-    def _newton(self, c: Array, theta: Array, target: Array, D: Secant, anchor: Array) -> tuple[Array, Array]:
-        """Newton's method on ``F(c; theta) + D (c - anchor) = target`` from ``c``, staying in the
-        model's chart; returns the last iterate and its mismatch."""
-
-        def mismatch(cs: Array) -> tuple[Array, Mask]:
-            return self._mismatch(cs, theta, target, D, anchor)
-
-        values, ok = mismatch(c[None])
-        g = values[0] if ok[0] else np.full_like(target, np.inf)
-        return newton_solve(
-            mismatch, c, g, self._box, 1e-7 * self._scale, _NEWTON_ITERATIONS, HALVINGS, 1e-2 * SOLVED, RCOND
-        )
-
-    def _final_z(self, thetas: Array, c: Array) -> tuple[Array, Mask]:
-        return final_chained(self.family, thetas, c)
-
     def _length(self, step: Array) -> float:
         """The size of a step in action scales (the largest over the coefficients)."""
         return float(np.max(np.abs(step) / self._scale))
@@ -388,9 +305,6 @@ class RobustILC(GlobalIdentification):
         if length > self._radius:
             c = origin + (c - origin) * (self._radius / length)
         return self._box(c)
-
-    def _box(self, c: Array) -> Array:
-        return box(c, self.low, self.high)
 
 
 def make_robust_ilc(context: LearnerContext) -> RobustILC:

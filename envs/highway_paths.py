@@ -12,8 +12,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.config.steering import MIN_TRAVEL, v1_travel
 from ilc_steering.core.integrate import OK
-from ilc_steering.core.nominal import NominalModel
+from ilc_steering.core.nominal import MAX_NOMINAL_MISS, NominalModel
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CarPlant, rotate
 from ilc_steering.core.simulate import simulate
@@ -68,11 +69,15 @@ def task_profile(pieces: tuple[float, ...], v1_fixed: tuple[float, ...]) -> Any:
 
 def nominal_path(start: Array, goal: Array, frame: float, profile: InputProfile) -> Array:
     """The nominal car's path (world configurations ``(S, 4)``) of the nominal solution from ``start`` to
-    ``goal`` with ``profile`` in the task frame rotated by ``frame`` [rad], without a steering stop."""
+    ``goal`` with ``profile`` in the task frame rotated by ``frame`` [rad], without a steering stop
+    (``inf`` where that solution is not exact: an ill-posed task, which ``run`` refuses)."""
     model = nominal_map()
     q0, q1 = rotate(start, frame), rotate(goal, frame)
     nominal = NominalModel(4, profile, model.to_chained(q0), model.to_chained(q1), model, STEERING)
-    trials = simulate(CarPlant(model, model), profile, q0[None], nominal.solve()[None], 1 / 32, record=True)
+    c = nominal.solve()
+    if nominal.miss(c) > MAX_NOMINAL_MISS:  # W singular (eq. 23): run refuses the task as ill-posed
+        return np.full((1, 4), np.inf)
+    trials = simulate(CarPlant(model, model), profile, q0[None], c[None], 1 / 32, record=True)
     if trials.states is None or trials.status[0] != OK:
         return np.full((1, 4), np.inf)
     return rotate(trials.states[0], -frame)
@@ -84,10 +89,12 @@ def choose_frame(
     """The task frame [rad] and the profile (an index of :data:`PROFILES`) for a task, and the
     steering angle [rad] its nominal path (:func:`nominal_path`) needs: for each profile in turn,
     the frame whose path needs the least steering while it stays :data:`CHART_SLACK` inside the
-    chart and the car's outline :data:`PATH_MARGIN` inside the lot's walls; the first profile whose path keeps
-    :data:`STEERING_SPARE` of the stop spare, else the one that steers least (``inf``: no frame
-    keeps any path in). ``grid`` [rad] spaces the frames tried, ``profiles`` tries the first few only."""
-    edge = pi / 2 - CHART_SLACK
+    chart and the car's outline :data:`PATH_MARGIN` inside the lot's walls; the first profile whose
+    path keeps :data:`STEERING_SPARE` of the stop spare, else the one that steers least (``inf``: no
+    frame keeps any path in). A frame in which ``v1`` would cover no distance along ``z1``
+    (:func:`~ilc_steering.config.steering.v1_travel`, the loader's check) is not tried. ``grid``
+    [rad] spaces the frames tried, ``profiles`` tries the first few only."""
+    edge, model = pi / 2 - CHART_SLACK, nominal_map()
     low, high = max(start[2], goal[2]) - edge, min(start[2], goal[2]) + edge
     best = (0.5 * (start[2] + goal[2]), 0, np.inf)
     with np.errstate(all="ignore"):  # a path that blows up is left out below
@@ -95,6 +102,9 @@ def choose_frame(
             candidate = task_profile(pieces, v1_fixed)
             mine = (best[0], index, np.inf)
             for frame in np.arange(low, high + 1e-12, grid):
+                z1 = [model.to_chained(rotate(q, float(frame)))[0] for q in (start, goal)]
+                if v1_travel(float(z1[1] - z1[0]), pieces, v1_fixed, RAMP) <= MIN_TRAVEL:
+                    continue  # W singular (eq. 11): the loader refuses this frame's task
                 path = nominal_path(start, goal, float(frame), candidate)
                 theta = path[:, 2] - frame
                 inside = bool(np.all(np.abs(theta) < edge) and np.all(inside_lot(path, PATH_MARGIN)))

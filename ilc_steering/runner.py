@@ -23,6 +23,7 @@ from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core import scatter as scatter_
 from ilc_steering.core.external import is_external
+from ilc_steering.core.nominal import MAX_NOMINAL_MISS
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.errors import LearnerError, LimitError, PlantError
@@ -53,11 +54,6 @@ DEFAULT_LEARNER = "ilc_paper"
 (``ilc`` starts from the nominal solution in all three)."""
 
 
-MAX_NOMINAL_MISS = 1e-6
-"""The largest miss of the nominal model's own exact solution, relative to the distance from the
-start to the goal in chained coordinates, of a well-posed task."""
-
-
 def check_task(env: gym.Env[Any, Any], where: str) -> None:
     """``ValueError`` naming ``where`` (the config) when the task is ill-posed for its nominal
     model: its exact solution (section 2.2) misses the goal, because ``W`` of eq. (23) is singular
@@ -68,9 +64,8 @@ def check_task(env: gym.Env[Any, Any], where: str) -> None:
 
     model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
     c = model.solve()
-    distance = float(np.linalg.norm(model.z_goal - model.z_start))
-    miss = float(np.linalg.norm(model.final_state(c) - model.z_goal)) / max(distance, 1e-12)
-    if not np.isfinite(miss) or miss > MAX_NOMINAL_MISS:
+    miss = model.miss(c)
+    if miss > MAX_NOMINAL_MISS:
         _, W = model.transition(c[0])
         singular = np.linalg.svd(W, compute_uv=False)
         raise ValueError(

@@ -98,7 +98,8 @@ def verdict(met: list[bool], hold: int = scatter_.HOLD) -> Verdict:
 def with_scatter(config: SteeringConfig, model: NominalModel, records: Sequence[Trial], result: Verdict) -> Verdict:
     """``result`` with the plant's scatter estimated from ``records`` (their residuals against
     ``model``, the nominal model's eq. 23, in the world frame), the bounds of the tolerance
-    below its repeatability and whether the run converged to the plant's floor."""
+    below its repeatability and whether the run converged to the plant's floor; none of it for a
+    plant that has repeated itself (:func:`~ilc_steering.core.scatter.repeats`)."""
     import numpy as np
 
     if len(records) < 2:
@@ -125,6 +126,9 @@ def with_scatter(config: SteeringConfig, model: NominalModel, records: Sequence[
         groups, names = (tuple(range(outcomes.shape[1])),), ("error",)
         bounds = (tolerance.error,)
         true = np.array([[r.error_norm] for r in records])
+    finals = np.array([np.asarray(r.final_state, dtype=np.float64) for r in records])
+    if scatter_.repeats(np.array([r.action for r in records]), finals):
+        return result  # one action sent twice ended twice at one place (in the chart or halted): no scatter
     found = scatter_.estimate(outcomes, errors, groups)
     if found is None:
         return result

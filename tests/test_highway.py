@@ -18,6 +18,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.config import load_config
 from ilc_steering.core.external import ExternalPlant, is_external
+from ilc_steering.core.nominal import MAX_NOMINAL_MISS
 from ilc_steering.envs import highway, highway_plant
 from ilc_steering.envs.scenario import Scenario
 
@@ -84,7 +85,8 @@ def test_a_goal_it_cannot_serve_is_refused_by_name(monkeypatch: pytest.MonkeyPat
         highway_plant.parking_task(12)
     from ilc_steering.envs import highway_segments
 
-    monkeypatch.setattr(highway_segments, "BACK", ())  # no via point to try
+    monkeypatch.setattr(highway_segments, "BACK", ())  # no via point to try, in either family
+    monkeypatch.setattr(highway_segments, "WIDE", ((), (), ()))
     highway._task.cache_clear()
     try:
         with pytest.raises(
@@ -95,10 +97,12 @@ def test_a_goal_it_cannot_serve_is_refused_by_name(monkeypatch: pytest.MonkeyPat
         highway._task.cache_clear()
 
 
-@pytest.mark.parametrize("seed", [12, pytest.param(11, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("seed", [12, *(pytest.param(seed, marks=pytest.mark.slow) for seed in (11, 22, 24))])
 def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
-    """Seed 12 faces away from its spot (180°), seed 11 would steer 70° in one chart: each gets a
-    via point, two segments in their own charts within the stop, inside the walls; one trial runs
+    """Seed 12 faces away from its spot (180°), seed 11 would steer 70° in one chart, seed 22's
+    least-steering frame for its last segment would be ill-posed (start and goal at one z1), seed 24
+    turns 151° near the lot's middle (the wider family of via points): each gets a via point, two
+    segments in their own charts within the stop, inside the walls, each well-posed; one trial runs
     both on one parking-v0 episode (one reset): its logged actions, replayed through parking-v0's
     public step from one reset, end where the trial says, bit for bit."""
     from ilc_steering.envs.highway_plant import STEERING
@@ -115,6 +119,7 @@ def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
     env = gym.make("ilc_steering/SegmentedSteering-v0", config=load_config(raw))
     env.reset(seed=0)
     views = env.unwrapped.segment_views()
+    assert all(view.nominal_model.miss(view.nominal_model.solve()) <= MAX_NOMINAL_MISS for view in views)
     _, _, _, _, info = env.step(np.concatenate([view.nominal_model.solve() for view in views]))
     assert not info["plant"]["crashed"] and not info["plant"]["left_lot"] and not info["left_chart"]
     assert info["cartesian_error"] < 0.5 and info["orientation_error"] < 0.05
@@ -122,6 +127,16 @@ def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
     turn = np.angle(np.exp(1j * (pose[2] - info["q_final"][2])))
     np.testing.assert_allclose([*pose[[0, 1, 3]], turn], [*info["q_final"][[0, 1, 3]], 0.0], atol=1e-12)
     assert not crashed
+
+
+def test_an_ill_posed_path_is_no_path() -> None:
+    """Start and goal at one ``z1`` in the task frame (x for a car) with no fixed ``v1``: ``W`` is zero,
+    the nominal solution misses the goal, and ``run`` would refuse the task; the path is ``inf`` so
+    that no generated task takes this frame."""
+    profile = highway.task_profile(*highway.PROFILES[0])
+    start, goal = np.array([0.0, 0.0, 0.0, 0.0]), np.array([0.0, 3.0, 0.2, 0.0])
+    assert np.all(np.isinf(highway.nominal_path(start, goal, 0.0, profile)))
+    assert np.all(np.isfinite(highway.nominal_path(start, goal, 0.5, profile)))
 
 
 def test_a_task_for_any_seed_loads() -> None:

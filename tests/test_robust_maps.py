@@ -85,3 +85,28 @@ def test_the_servo_car_at_half_the_wheel_radius_is_identified_from_its_first_tri
     assert learner.family.names[-1] == "steering_lag"
     found = learner.family.parameters(learner.theta)
     assert abs(found["wheel_radius_ratio"] - 0.5) < 1e-6 and abs(found["steering_offset"] - 0.0225) < 1e-6
+
+
+@pytest.mark.slow  # about 10 s: the servo kernel
+def test_the_servo_car_whose_nominal_plan_ends_near_the_chart_s_edge_is_parked():
+    # Offset 0.0075 rad, wheel radius 0.03 m: the nominal plan ends 5 m off the goal at 76 degrees of
+    # heading, where halving the step moves the end by metres. Fitted with that trial, the servo's
+    # families never explained the trials; its neighbours left the chart and the learner sent it
+    # again for 25 trials; the residuals of a family that cannot explain a plant read as a scatter
+    # of 3 cm, and the learner averaged its way off. Now the wild trial leaves the fit once two
+    # others stayed in the chart, and the plant, asked once to repeat a trial, shows it has no scatter.
+    trials, last, learner = learn("parallel_parking_servo", 30, steering_offset=0.0075, true_wheel_radius=0.03)
+    assert 0 < trials <= 8, trials
+    assert last < 5e-4
+    assert learner._repeats or learner.scatter is None
+
+
+@pytest.mark.slow  # about 10 s: the servo kernel
+def test_the_servo_car_at_the_map_s_corner_is_parked():
+    # Offset -0.03 rad, wheel radius 0.01 m: its plans from the first trial left the chart 15 times
+    # in 17 trials (a trust region of twice the failed step), and the run was then called "converged
+    # to the plant's floor" on a plant that repeats itself. A step that leaves the chart now halves
+    # the region, and one from a trial farther off than the start aims nearer the start.
+    trials, last, _ = learn("parallel_parking_servo", 30, steering_offset=-0.03, true_wheel_radius=0.01)
+    assert 0 < trials <= 10, trials
+    assert last < 5e-4

@@ -149,7 +149,8 @@ def _every_learner():
 @pytest.mark.parametrize("name", list(_every_learner()))
 def test_no_learner_sends_a_failed_trial_again(name):
     """On a noisy plant whose tolerance no learner can reach (0.5 µm against 0.2 mm of measurement
-    noise), no trial is followed by the same coefficients: each learner changes something."""
+    noise), no failed trial is followed by the same coefficients but once, the repeat a learner may
+    ask for to see whether the plant scatters (``robust_ilc``'s probe): each learner changes something."""
     import dataclasses
     import importlib.util
 
@@ -176,7 +177,7 @@ def test_no_learner_sends_a_failed_trial_again(name):
         failed = [not within_tolerance(tolerance, info) for info in rollout.infos]
         assert all(failed)
         resent = [k + 2 for k in range(len(actions) - 1) if failed[k] and np.array_equal(actions[k], actions[k + 1])]
-        assert resent == [], f"{name}, seed {seed}: trials {resent} resend the failed trial before them"
+        assert len(resent) <= 1, f"{name}, seed {seed}: trials {resent} resend the failed trial before them"
 
 
 # 2. "Converged" means it stays -------------------------------------------------------------------
@@ -459,3 +460,50 @@ def test_a_users_in_process_plant_gone_wrong_is_named_as_the_failure(counted, mo
     assert "the counted car" in str(caught.value)
     assert main(["run", str(counted()), "--trials", "2"]) == 4
     assert "the counted car" in capsys.readouterr().err
+
+
+def test_a_plant_seen_to_repeat_itself_has_no_scatter():
+    from ilc_steering.core.scatter import repeats
+
+    c, q = np.array([[1.0, 2.0], [1.5, 2.0], [1.0, 2.0]]), np.array([[0.1, 0.2], [0.3, 0.1], [0.1, 0.2]])
+    assert repeats(c, q)
+    assert not repeats(c, q + np.array([[0.0, 0.0], [0.0, 0.0], [1e-5, 0.0]]))  # one action, two outcomes: scatter
+    assert not repeats(c[:2], q[:2]) and not repeats(c, np.where(np.arange(3)[:, None] == 2, np.nan, q))
+
+
+CYCLE = """
+import numpy as np
+
+
+class Cycle:  # four actions about the nominal solution, in turn: each sent again every fourth trial
+    def __init__(self, context):
+        self.c0, self.k = context.first_action(), 0
+
+    def reset(self):
+        self.k = 0
+
+    def act(self, observation):
+        return self.c0 * (1.0 + 0.02 * (self.k % 4))
+
+    def learn(self, info):
+        self.k += 1
+
+
+def make(context):
+    return Cycle(context)
+"""
+
+
+def test_a_plant_that_repeats_itself_is_not_called_scattered(tmp_path, monkeypatch, capsys):
+    """Parallel parking on the servo car (outside the nominal model's family): four actions in turn,
+    12 trials. The nominal model's residuals differ from action to action and look like a scatter
+    of centimetres; each action sent again ends where it did, so ``run`` says nothing of the plant's
+    repeatability (before, "below this plant's repeatability, about 0.049 m / 0.15 rad")."""
+    (tmp_path / "cycle.py").write_text(CYCLE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    text = (Path(__file__).parents[1] / "configs" / "parallel_parking_servo.yaml").read_text()
+    path = tmp_path / "servo.yaml"
+    path.write_text(text.replace("trials: 15", "trials: 12"))
+    assert main(["run", str(path), "--learner", "cycle:make"]) == 1
+    out = capsys.readouterr().out
+    assert "repeatability" not in out and out.splitlines()[-1] == "not converged within 12 trials"

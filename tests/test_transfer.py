@@ -260,5 +260,5 @@ def test_robust_ilc_carries_that_no_servo_family_explained_the_robot() -> None:
     assert dropped.transfer() == {
         "robust_ilc": {"parameters": {"wheelbase_ratio": 0.05, "wheel_radius_ratio": 0.01}, "servo": False}
     }
-    with pytest.raises(ValueError, match="not robust_ilc's transfer"):
+    with pytest.raises(ValueError, match="robust_ilc's 'servo' must be true or false, got 'no'"):
         learner(servo="no")

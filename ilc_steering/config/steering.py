@@ -4,6 +4,7 @@ checks that span keys (dimensions, tolerances, the task's chart, the time grid, 
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,12 +25,22 @@ from ilc_steering.core.robots.car import frame_angle, rotate
 from ilc_steering.errors import ConfigError
 from ilc_steering.schema import NAME_PATTERN, show
 
-__all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name"]
+__all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name", "v1_travel"]
 
 _NAME = re.compile(NAME_PATTERN)
 MIN_TRAVEL = 1e-3
 """[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``:
 below it ``W`` is all but singular and the ``c11`` box all but zero wide."""
+
+
+def v1_travel(z1_change: float, pieces: Sequence[float], v1_fixed: Sequence[float], ramp: float | None) -> float:
+    """The distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` covers along ``z1`` for a change of
+    ``z1_change`` (eq. 12: the learned first piece covers what the fixed ones leave; a trapezoid's
+    area is its plateau times ``Delta - ramp``); the loader refuses a task whose travel is within
+    :data:`MIN_TRAVEL`, and a generator of tasks must too."""
+    ramp = ramp or 0.0
+    fixed = sum(v * (d - ramp) for v, d in zip(v1_fixed, pieces[1:]))
+    return abs(z1_change - fixed) + sum(abs(v) * (d - ramp) for v, d in zip(v1_fixed, pieces[1:]))
 
 
 @dataclass(frozen=True)
@@ -163,10 +174,7 @@ class SteeringConfig:
             )
             # eq. 12 sets the learned v1 from the change of z1 (x in the task frame for the car, section
             # 2.1; whatever the robot's chained map makes it for another robot)
-            z1_change = z1[(i + 1) % len(points)] - z1[i]
-            ramp = leg.ramp or 0.0  # a trapezoid's area is its plateau times (Delta - ramp)
-            fixed = sum(v * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
-            travel = abs(z1_change - fixed) + sum(abs(v) * (d - ramp) for v, d in zip(leg.v1_fixed, leg.pieces[1:]))
+            travel = v1_travel(z1[(i + 1) % len(points)] - z1[i], leg.pieces, leg.v1_fixed, leg.ramp)
             require(
                 travel > MIN_TRAVEL,
                 f"{key}.v1_fixed",

@@ -18,7 +18,11 @@ import numpy.typing as npt
 from ilc_steering.core.chained_form import ChainedForm
 from ilc_steering.core.profiles import InputProfile
 
-__all__ = ["ChainedMap", "NominalModel"]
+__all__ = ["MAX_NOMINAL_MISS", "ChainedMap", "NominalModel"]
+
+MAX_NOMINAL_MISS = 1e-6
+"""The largest miss of the nominal model's own exact solution (:meth:`NominalModel.miss`), relative to
+the distance from the start to the goal in chained coordinates, of a well-posed task."""
 
 Array = npt.NDArray[np.float64]
 
@@ -106,6 +110,15 @@ class NominalModel:
         V, W = self.transition(c11)
         c2 = np.linalg.lstsq(W, zd[1:] - V @ z0[1:], rcond=None)[0]
         return np.concatenate([[c11], c2])
+
+    def miss(self, c: Array) -> float:
+        """How far the nominal model's final state from ``c`` is from the goal, relative to the
+        distance from the start to it in chained coordinates (``inf`` when not finite): above
+        :data:`MAX_NOMINAL_MISS` for :meth:`solve`'s ``c``, ``W`` of eq. 23 is singular there and the
+        task ill-posed."""
+        distance = float(np.linalg.norm(self.z_goal - self.z_start))
+        miss = float(np.linalg.norm(self.final_state(c) - self.z_goal)) / max(distance, 1e-12)
+        return miss if np.isfinite(miss) else float("inf")
 
     def action_scale(self) -> Array:
         """A natural magnitude for each coefficient, never zero: for ``c11`` the largest of the

@@ -40,7 +40,18 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["CONVERGING", "FLOOR", "HOLD", "MIN_SCATTER", "MIN_TRIALS", "SPREAD", "WINDOW", "estimate", "repeatability"]
+__all__ = [
+    "CONVERGING",
+    "FLOOR",
+    "HOLD",
+    "MIN_SCATTER",
+    "MIN_TRIALS",
+    "SPREAD",
+    "WINDOW",
+    "estimate",
+    "repeatability",
+    "repeats",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -102,6 +113,24 @@ def estimate(residuals: Array, errors: Array, groups: Sequence[Sequence[int]]) -
     dof = used.size - 1
     sigma = np.array([np.sqrt(np.sum(r[:, list(g)] ** 2) / (dof * len(g))) for g in groups])
     return sigma, dof
+
+
+def repeats(actions: Array, outcomes: Array) -> bool:
+    """Whether the plant has shown that it repeats itself: two trials of one action ``(m, p)`` whose
+    final states ``(m, nq)`` (finite) agree within :data:`MIN_SCATTER` in
+    every coordinate. Such a plant has no scatter, whatever a model's residuals say: a model outside
+    the plant's family leaves residuals that change with the action, and an estimate from them
+    would call its error the plant's floor."""
+    actions, outcomes = np.asarray(actions, dtype=np.float64), np.asarray(outcomes, dtype=np.float64)
+    for i in range(actions.shape[0]):
+        for j in range(i):
+            if (
+                np.array_equal(actions[i], actions[j])
+                and np.all(np.isfinite(outcomes[[i, j]]))
+                and np.max(np.abs(outcomes[i] - outcomes[j])) < MIN_SCATTER
+            ):
+                return True
+    return False
 
 
 def repeatability(sigma: float | None) -> float | None:
