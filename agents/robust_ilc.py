@@ -73,9 +73,10 @@ each trial's measured final error, never the plant) and globalizes each of the t
    scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
    but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
    band ends the averaging; the band begins with the trials just before it at about the same
-   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). Before
-   it first averages it sends the trial's action again (a counted *probe*): a plant that ends where
-   it did repeats itself, its "scatter" was the model's misfit, and it never averages.
+   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). The trial
+   after the one that first enters the band sends that one's action again (a counted *probe*): a
+   plant that ends where it did repeats itself, its "scatter" was the model's misfit, and it never
+   averages again.
 
 **Why it converges, and where it cannot.** On the nominal plant the residuals are 0, so
 :math:`A = 1`, :math:`D = 0`, no offset: one update lands on the goal to the integrator's accuracy,
@@ -181,7 +182,7 @@ class RobustILC(Continuation):
         self.scatter: Array | None = None
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
-        self._probe: Trial | None = None  # the trial whose action it sent again, to see whether the plant repeats
+        self._probe: tuple[Trial, bool] | None = None  # the trial whose action it sends again, and whether it has
         self._probed = False  # whether it has asked for that repeat
         self._repeats = False  # whether the plant ended twice where one action sent it: no scatter
         self._next = self.start.copy()
@@ -195,24 +196,31 @@ class RobustILC(Continuation):
     def learn(self, info: Mapping[str, Any]) -> None:
         began = time.perf_counter()
         trial = measure(self.model, self.family, self._goal_q, info)
-        probe, self._probe = self._probe, None
-        if probe is not None and repeated(probe, trial):
-            # The plant repeated itself: it has no scatter, and the update the probe deferred is made now.
-            self._repeats, trial = True, probe
+        probe = self._probe
+        if probe is not None and probe[1]:  # the probe's answer: the plant sent again where it went
+            self._probe = None
+            if repeated(probe[0], trial):  # it repeats itself: no scatter, and the last update again, without the band
+                self._repeats = True
+                self._band.clear()
+                trial = self._trials[-1]
+            else:
+                self._trials.append(trial)
         else:
             self._trials.append(trial)
+        self._update(trial)
+        if self._probe is not None and not self._probe[1] and self._probe[0] is not trial:
+            self._next, self._probe = self._probe[0].c.copy(), (self._probe[0], True)
+        self.update_seconds.append(time.perf_counter() - began)
+
+    def _update(self, trial: Trial) -> None:
+        """The next trial from ``trial`` (steps 1-4)."""
         c, ok = trial.c, trial.ok
         if ok and trial.error < REACHED and (self._best is None or trial.error <= self._best.error):
             # At the goal to the integrator's accuracy: nothing left to learn; run it again.
             self._best, self._next = trial, c.copy()
-            self.update_seconds.append(time.perf_counter() - began)
             return
         if ok and self._averaging(trial):
-            if self._probe is not None:
-                self._next = trial.c.copy()
-            else:
-                self._average(trial)
-            self.update_seconds.append(time.perf_counter() - began)
+            self._average(trial)
             return
         improved = self._best is None or trial.error < 0.5 * self._best.error
         self._stalled = 0 if improved else self._stalled + 1
@@ -247,22 +255,21 @@ class RobustILC(Continuation):
             self._best = trial
             self._D = self.secant(trial)
             self._next = self._within(c, self._solve(trial, 1.0))
-        self.update_seconds.append(time.perf_counter() - began)
 
     # the scatter ---------------------------------------------------------------------------------
 
     def _averaging(self, trial: Trial) -> bool:
-        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4). Before it
-        first averages, it sends ``trial``'s action again (a counted trial, its probe): a plant that then ends
-        where it did repeats itself, and its model's residuals (a family that cannot explain it) are no scatter."""
+        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4). The trial
+        after the one that first enters the band sends that one's action again (a counted trial, its probe): a
+        plant that then ends where it did repeats itself, and its model's residuals (a family that cannot explain
+        it) were no scatter; on a scattering plant the probe is one more draw of the band."""
         if self._repeats:
             return False
         self.scatter, inside = in_scatter_band(
             self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
         )
         if inside and not self._probed:
-            self._probed, self._probe = True, trial
-            self._band.clear()
+            self._probed, self._probe = True, (trial, False)
         return inside
 
     def _average(self, trial: Trial) -> None:
