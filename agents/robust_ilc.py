@@ -54,10 +54,11 @@ each trial's measured final error, never the plant) and globalizes each of the t
    :data:`HOMOTOPY_STEPS` steps, each solved from the last. The candidate nearest the goal is kept.
 3. **A trust region on the measured error.** A trial whose measured error is not below the best
    one so far is not learned from as a step (it still enters the identification and the secant):
-   the next step from the best trial is no longer than ``SHRINK`` times the failed one, or ``LEFT_CHART_SHRINK``
-   times it when the failed trial left the chart (it measured nothing for the secant). A model that explains every
+   the next step from the best trial is no longer than ``SHRINK`` times the failed one. A model that explains every
    trial it is fitted to (to ``FIT_TOLERANCE``) lifts the trust region: a region learned
-   while the model was wrong would only hold back the identified model's answer. Until some
+   while the model was wrong would only hold back the identified model's answer. A trial that left
+   the chart measured nothing for the secant, and whatever the model: the region shrinks to
+   ``LEFT_CHART_SHRINK`` times the smaller of its radius and the failed step. Until some
    trial stays in the chart, the target itself is continued: the next trial aims at a point
    :math:`\lambda` of the way from the start to the goal (:math:`\lambda` halved after each
    halted trial), so that the first in-chart trial identifies the plant; so too while no trial
@@ -73,10 +74,10 @@ each trial's measured final error, never the plant) and globalizes each of the t
    scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
    but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
    band ends the averaging; the band begins with the trials just before it at about the same
-   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). The trial
-   after the one that first enters the band sends that one's action again (a counted *probe*): a
-   plant that ends where it did repeats itself, its "scatter" was the model's misfit, and it never
-   averages again.
+   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). After one
+   averaged step, the next trial sends the action of the one that first entered the band again (a
+   counted *probe*): a plant that ends where it did repeats itself, its "scatter" was the model's
+   misfit, and it never averages again (the next trial is planned by the trust region, step 3).
 
 **Why it converges, and where it cannot.** On the nominal plant the residuals are 0, so
 :math:`A = 1`, :math:`D = 0`, no offset: one update lands on the goal to the integrator's accuracy,
@@ -197,19 +198,25 @@ class RobustILC(Continuation):
         began = time.perf_counter()
         trial = measure(self.model, self.family, self._goal_q, info)
         probe = self._probe
-        if probe is not None and probe[1]:  # the probe's answer: the plant sent again where it went
-            self._probe = None
-            if repeated(probe[0], trial):  # it repeats itself: no scatter, and the last update again, without the band
-                self._repeats = True
-                self._band.clear()
-                trial = self._trials[-1]
-            else:
-                self._trials.append(trial)
-        else:
-            self._trials.append(trial)
+        if probe is not None and probe[1] and repeated(probe[0], trial):
+            # The probe's answer: the plant repeats itself, it has no scatter, and the next trial is planned from
+            # the best one by the trust region, as outside the band (the probe's own trial teaches nothing new).
+            self._probe, self._repeats, self.scatter = None, True, None
+            self._band.clear()
+            best = self._best if self._best is not None else probe[0]
+            self._D = self.secant(best)
+            self._next = self._within(best.c, self._solve(best, 1.0))
+            self.update_seconds.append(time.perf_counter() - began)
+            return
+        if probe is not None and probe[1]:
+            self._probe = None  # a draw of the scatter at the band's first action: a trial like any other
+        self._trials.append(trial)
         self._update(trial)
         if self._probe is not None and not self._probe[1] and self._probe[0] is not trial:
-            self._next, self._probe = self._probe[0].c.copy(), (self._probe[0], True)
+            if trial.ok and trial.error < REACHED:
+                self._probe = None  # at the goal to the integrator's accuracy: it is run again, nothing to ask
+            else:
+                self._next, self._probe = self._probe[0].c.copy(), (self._probe[0], True)
         self.update_seconds.append(time.perf_counter() - began)
 
     def _update(self, trial: Trial) -> None:
@@ -259,10 +266,10 @@ class RobustILC(Continuation):
     # the scatter ---------------------------------------------------------------------------------
 
     def _averaging(self, trial: Trial) -> bool:
-        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4). The trial
-        after the one that first enters the band sends that one's action again (a counted trial, its probe): a
-        plant that then ends where it did repeats itself, and its model's residuals (a family that cannot explain
-        it) were no scatter; on a scattering plant the probe is one more draw of the band."""
+        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4). After one
+        averaged step, the next trial sends the action of the one that first entered the band again (a counted
+        trial, its probe): a plant that then ends where it did repeats itself, and its model's residuals (a family
+        that cannot explain it) were no scatter; on a scattering plant the probe is one more draw of the band."""
         if self._repeats:
             return False
         self.scatter, inside = in_scatter_band(

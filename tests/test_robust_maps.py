@@ -94,11 +94,11 @@ def test_the_servo_car_whose_nominal_plan_ends_near_the_chart_s_edge_is_parked()
     # families never explained the trials; its neighbours left the chart and the learner sent it
     # again for 25 trials; the residuals of a family that cannot explain a plant read as a scatter
     # of 3 cm, and the learner averaged its way off. Now the wild trial leaves the fit once two
-    # others stayed in the chart, and the plant, asked once to repeat a trial, shows it has no scatter.
+    # others stayed in the chart: the servo's family explains the trials, and no scatter is seen.
     trials, last, learner = learn("parallel_parking_servo", 30, steering_offset=0.0075, true_wheel_radius=0.03)
     assert 0 < trials <= 8, trials
     assert last < 5e-4
-    assert learner._repeats or learner.scatter is None
+    assert learner.scatter is None and learner.family.names[-1] == "steering_lag"
 
 
 @pytest.mark.slow  # about 10 s: the servo kernel

@@ -117,19 +117,19 @@ def estimate(residuals: Array, errors: Array, groups: Sequence[Sequence[int]]) -
 
 def repeats(actions: Array, outcomes: Array) -> bool:
     """Whether the plant has shown that it repeats itself: two trials of one action ``(m, p)`` whose
-    final states ``(m, nq)`` (finite) agree within :data:`MIN_SCATTER` in
-    every coordinate. Such a plant has no scatter, whatever a model's residuals say: a model outside
-    the plant's family leaves residuals that change with the action, and an estimate from them
-    would call its error the plant's floor."""
+    final states ``(m, nq)`` (finite) agree within :data:`MIN_SCATTER` in every coordinate. Such a
+    plant has no scatter, whatever a model's residuals say: a model outside the plant's family
+    leaves residuals that change with the action, and an estimate from them would call its error
+    the plant's floor. One pass over the trials, grouped by action."""
     actions, outcomes = np.asarray(actions, dtype=np.float64), np.asarray(outcomes, dtype=np.float64)
-    for i in range(actions.shape[0]):
-        for j in range(i):
-            if (
-                np.array_equal(actions[i], actions[j])
-                and np.all(np.isfinite(outcomes[[i, j]]))
-                and np.max(np.abs(outcomes[i] - outcomes[j])) < MIN_SCATTER
-            ):
-                return True
+    seen: dict[bytes, Array] = {}
+    for action, outcome in zip(actions, outcomes):
+        if not np.all(np.isfinite(outcome)):
+            continue
+        key = action.tobytes()
+        if key in seen and np.max(np.abs(outcome - seen[key])) < MIN_SCATTER:
+            return True
+        seen.setdefault(key, outcome)
     return False
 
 
