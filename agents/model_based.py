@@ -33,7 +33,6 @@ __all__ = [
     "levenberg_marquardt_many",
     "measure",
     "newton_solve",
-    "repeated",
     "scatter_groups",
     "trial_scatter",
     "trust_box",
@@ -300,13 +299,6 @@ def trial_scatter(
     if found is None or float(np.min(found[0])) < MIN_SCATTER:
         return None
     return found[0]
-
-
-def repeated(a: Trial, b: Trial) -> bool:
-    """Whether ``b``, sent with ``a``'s action, ended where ``a`` did (within
-    :data:`~ilc_steering.core.scatter.MIN_SCATTER` in every coordinate): a plant that repeats itself,
-    whose scatter is none whatever a model's residuals say."""
-    return a.ok and b.ok and np.array_equal(a.c, b.c) and float(np.max(np.abs(a.q - b.q))) < MIN_SCATTER
 
 
 def within_scatter(q: Array, goal_q: Array, sigma: Array, groups: tuple[tuple[int, ...], ...], factor: float) -> bool:

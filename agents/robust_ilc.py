@@ -74,10 +74,9 @@ each trial's measured final error, never the plant) and globalizes each of the t
    scatter's draw, and a trust region on it would only freeze the learner at its luckiest trial)
    but no longer than ``BAND_STEPS`` times the longest of the last steps. A trial beyond twice the
    band ends the averaging; the band begins with the trials just before it at about the same
-   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). After one
-   averaged step, the next trial sends the action of the one that first entered the band again (a
-   counted *probe*): a plant that ends where it did repeats itself, its "scatter" was the model's
-   misfit, and it never averages again (the next trial is planned by the trust region, step 3).
+   action, and keeps the last estimate while the trials give none (as ``newton_ilc``'s). A plant
+   whose residuals vanish never enters it; one that repeats itself outside every family may (its
+   model's misfit reads as a scatter), and it then averages on that misfit.
 
 **Why it converges, and where it cannot.** On the nominal plant the residuals are 0, so
 :math:`A = 1`, :math:`D = 0`, no offset: one update lands on the goal to the integrator's accuracy,
@@ -112,7 +111,6 @@ from ilc_steering.agents.model_based import (
     Trial,
     in_scatter_band,
     measure,
-    repeated,
 )
 from ilc_steering.agents.robust_identify import (
     FIT_TOLERANCE,
@@ -183,9 +181,6 @@ class RobustILC(Continuation):
         self.scatter: Array | None = None
         """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
         self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 4)
-        self._probe: tuple[Trial, bool] | None = None  # the trial whose action it sends again, and whether it has
-        self._probed = False  # whether it has asked for that repeat
-        self._repeats = False  # whether the plant ended twice where one action sent it: no scatter
         self._next = self.start.copy()
         if self._carried is not None:  # another goal of the same robot identified it: its model's solution first
             self.family, self.theta = self._carried[0], self._carried[1].copy()
@@ -197,26 +192,8 @@ class RobustILC(Continuation):
     def learn(self, info: Mapping[str, Any]) -> None:
         began = time.perf_counter()
         trial = measure(self.model, self.family, self._goal_q, info)
-        probe = self._probe
-        if probe is not None and probe[1] and repeated(probe[0], trial):
-            # The probe's answer: the plant repeats itself, it has no scatter, and the next trial is planned from
-            # the best one by the trust region, as outside the band (the probe's own trial teaches nothing new).
-            self._probe, self._repeats, self.scatter = None, True, None
-            self._band.clear()
-            best = self._best if self._best is not None else probe[0]
-            self._D = self.secant(best)
-            self._next = self._within(best.c, self._solve(best, 1.0))
-            self.update_seconds.append(time.perf_counter() - began)
-            return
-        if probe is not None and probe[1]:
-            self._probe = None  # a draw of the scatter at the band's first action: a trial like any other
         self._trials.append(trial)
         self._update(trial)
-        if self._probe is not None and not self._probe[1] and self._probe[0] is not trial:
-            if trial.ok and trial.error < REACHED:
-                self._probe = None  # at the goal to the integrator's accuracy: it is run again, nothing to ask
-            else:
-                self._next, self._probe = self._probe[0].c.copy(), (self._probe[0], True)
         self.update_seconds.append(time.perf_counter() - began)
 
     def _update(self, trial: Trial) -> None:
@@ -266,17 +243,10 @@ class RobustILC(Continuation):
     # the scatter ---------------------------------------------------------------------------------
 
     def _averaging(self, trial: Trial) -> bool:
-        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4). After one
-        averaged step, the next trial sends the action of the one that first entered the band again (a counted
-        trial, its probe): a plant that then ends where it did repeats itself, and its model's residuals (a family
-        that cannot explain it) were no scatter; on a scattering plant the probe is one more draw of the band."""
-        if self._repeats:
-            return False
+        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 4)."""
         self.scatter, inside = in_scatter_band(
             self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
         )
-        if inside and not self._probed:
-            self._probed, self._probe = True, (trial, False)
         return inside
 
     def _average(self, trial: Trial) -> None:

@@ -1,7 +1,6 @@
 """``robust_ilc`` (global identification, continuation, a trust region) and the oracle of the maps."""
 
 import dataclasses
-import itertools
 import json
 
 import numpy as np
@@ -196,85 +195,3 @@ def test_inside_the_family_it_still_takes_two_trials():
     trials, error, learners = learn(config, [car(config, 1.1, 1.1)], make_robust_ilc, 4)
     assert trials == [2]
     assert learners[0].family.names == ("wheelbase_ratio", "wheel_radius_ratio")  # no escalation
-
-
-def _probed(monkeypatch, average_gain: float) -> tuple[list[np.ndarray], list[float], object]:
-    """``RobustILC.learn``'s states on a plant that repeats itself and a model that never explains it,
-    its solvers stubbed (each halves the error; the band's step takes ``average_gain`` of it): a
-    trial within 0.1 of the goal is in the scatter's band. The actions sent and their errors."""
-    from types import SimpleNamespace
-
-    from ilc_steering.agents import robust_ilc
-    from ilc_steering.agents.model_based import Trial
-
-    goal = np.array([1.0, 1.0])
-
-    def measure(model, family, goal_q, info):
-        c = np.asarray(info["action"], dtype=np.float64)
-        return Trial(c, c - goal, c - goal, float(np.linalg.norm(c - goal)), True)
-
-    def in_scatter_band(model, family, theta, trials, goal_q, band, trial, last=None):
-        inside = trial.error < 0.1
-        band.append(trial) if inside else band.clear()
-        return np.array([0.01]), inside
-
-    monkeypatch.setattr(robust_ilc, "measure", measure)
-    monkeypatch.setattr(robust_ilc, "in_scatter_band", in_scatter_band)
-
-    class Stubbed(robust_ilc.RobustILC):
-        def __init__(self) -> None:
-            self.family = self._carried = None
-            self.model = SimpleNamespace(dimension=2)
-            self.theta, self._goal_q, self._scale = np.zeros(1), np.zeros(2), np.ones(2)
-            self.low, self.high, self.start = -10 * np.ones(2), 10 * np.ones(2), np.zeros(2)
-            self._families, self._start_error = [None], float(np.linalg.norm(goal))
-            self.reset_identification = lambda servo=True: None  # type: ignore[method-assign]
-            self._trials, self._best, self._thorough = [], None, True
-            self.reset()
-
-        def _refit(self):
-            return self.family, self.theta
-
-        def _misfit(self, r):
-            return 1.0
-
-        def _residuals(self, thetas, trials, family=None):
-            return np.zeros((1, 1))
-
-        def secant(self, anchor):
-            return None
-
-        def _solve(self, trial, reach):
-            base = self.start if trial is None else trial.c
-            return base - 0.5 * (base - goal)
-
-        def _average(self, trial):
-            self._best, self._next = trial, trial.c - average_gain * trial.q
-
-    learner = Stubbed()
-    actions, errors = [], []
-    for _ in range(14):
-        c = learner.act()
-        learner.learn({"action": c})
-        actions.append(c)
-        errors.append(float(np.linalg.norm(c - goal)))
-    return actions, errors, learner
-
-
-def test_the_probe_asks_once_and_a_plant_that_repeats_itself_is_then_learned_without_the_band(monkeypatch):
-    # After one averaged step the band's first action is sent again; the plant ends where it did, so
-    # it has no scatter and the trust region plans on (the probe's trial re-run before froze it: the
-    # same action 8 times in a row, 4 cm off).
-    actions, errors, learner = _probed(monkeypatch, 0.5)
-    again = [k for k in range(len(actions)) if any(np.array_equal(actions[k], a) for a in actions[:k])]
-    assert again == [6] and np.array_equal(actions[6], actions[4])
-    assert not any(np.array_equal(a, b) for a, b in itertools.pairwise(actions))
-    assert learner._repeats and learner.scatter is None and errors[-1] < 1e-3
-
-
-def test_the_probe_is_not_sent_from_a_trial_at_the_goal(monkeypatch):
-    # The band's step lands on the goal: that trial is run again (the integrator's accuracy), never
-    # replaced by the probe's farther action.
-    actions, errors, _ = _probed(monkeypatch, 1.0)
-    first = errors.index(0.0)
-    assert all(e == 0.0 for e in errors[first:])
