@@ -14,7 +14,6 @@ finds none. ``python -m ilc_steering.envs.highway --seed 7`` writes a config.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from functools import lru_cache
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.arguments import Parser
 from ilc_steering.config.steering import check_name
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.envs.highway_paths import (
@@ -157,7 +157,9 @@ def _yaml(config: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m ilc_steering.envs.highway --seed N [--name NAME]``: print parking-v0 seed N's config."""
-    parser = argparse.ArgumentParser(description="print the config of parking-v0's task for a seed")
+    parser = Parser(
+        prog="python -m ilc_steering.envs.highway", description="print the config of parking-v0's task for a seed"
+    )
     parser.add_argument("--seed", type=int, required=True)
     parser.add_argument("--name", default=None)
     args = parser.parse_args(argv)

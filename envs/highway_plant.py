@@ -60,6 +60,7 @@ __all__ = [
     "ACTION_STEP",
     "LENGTH",
     "MAX_TURN",
+    "SEEDS",
     "STEERING",
     "WALLS",
     "WALL_MARGIN",
@@ -116,15 +117,19 @@ def _pose(vehicle: Any) -> Array:
     return np.array([x - 0.5 * LENGTH * np.cos(heading), y - 0.5 * LENGTH * np.sin(heading), heading, steering])
 
 
+SEEDS = 2**31
+"""parking-v0's seeds a task is made of: ``[0, SEEDS)``, a config's ``plant.seed`` (a 32-bit signed integer)."""
+
+
 def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:
     """parking-v0's start and goal for ``seed`` as world configurations ``(x, y, theta, phi)`` (rear
     axle [m], heading and steering [rad], the goal's steering 0): the start's heading in
     ``(-pi, pi]``, the goal's the way nearer it. ``ValueError`` naming the seed when the turn between
     them exceeds :data:`MAX_TURN` (one chart cannot serve it; not checked with ``one_chart=False``,
-    for a manoeuvre of several segments), or when ``seed`` is not a whole number >= 0 (what
-    parking-v0's reset takes)."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"parking-v0 seed {seed!r}: needs a whole number >= 0")
+    for a manoeuvre of several segments), or when ``seed`` is not a whole number in ``[0, 2**31)``
+    (:data:`SEEDS`: what a config's ``plant.seed`` takes)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < SEEDS:
+        raise ValueError(f"parking-v0 seed {seed!r:.40}: needs a whole number in [0, 2**31)")
     env = _make_env()
     env.reset(seed=seed)
     vehicle = env.unwrapped.vehicle
@@ -327,7 +332,7 @@ class HighwayPlantConfig:
 
     def __post_init__(self) -> None:
         require(
-            isinstance(self.seed, int) and 0 <= self.seed < 2**31, "seed", f"must be in [0, 2**31), got {self.seed}"
+            isinstance(self.seed, int) and 0 <= self.seed < SEEDS, "seed", f"must be in [0, 2**31), got {self.seed}"
         )
 
     def nominal_map(self) -> CarModel:

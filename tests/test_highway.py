@@ -203,11 +203,21 @@ def test_robust_ilc_parks_to_a_centimetre_within_8_trials() -> None:
     np.testing.assert_allclose([*replayed[[0, 1, 3]], turn], [*final[[0, 1, 3]], 0.0], atol=1e-12)
 
 
-@pytest.mark.parametrize("seed", [-1, 1.5, True, "3"])
+@pytest.mark.parametrize("seed", [-1, 1.5, True, "3", 2**31])
 def test_a_seed_parking_v0_cannot_take_is_refused_where_it_enters(seed: Any) -> None:
-    with pytest.raises(ValueError, match="needs a whole number >= 0"):
+    # 2**31: parking-v0 takes it, a config's plant.seed does not (the generator printed a config its loader refused)
+    with pytest.raises(ValueError, match=r"needs a whole number in \[0, 2\*\*31\)"):
         highway_plant.parking_task(seed)
-    assert highway.main(["--seed", "-1"]) == 2
+
+
+@pytest.mark.parametrize("seed", ["-1", str(2**31), "abc", "4.5", ""])
+def test_the_generator_refuses_a_seed_in_one_line(capsys: pytest.CaptureFixture[str], seed: str) -> None:
+    try:
+        code = highway.main(["--seed", seed])
+    except SystemExit as stop:  # the parser's refusal of what is not a whole number
+        code = stop.code
+    out, err = capsys.readouterr()
+    assert code == 2 and not out and len(err.strip().splitlines()) == 1, (code, err)
 
 
 def test_the_generator_writes_no_name_its_loader_refuses(capsys: pytest.CaptureFixture[str]) -> None:

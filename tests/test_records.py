@@ -202,3 +202,35 @@ def test_the_committed_records_still_read(folder):
         from ilc_steering.sweep.rows import RowRecord
 
         check_record(RowRecord, json.loads(row.read_text()), row)
+
+
+VALUE_FORGERIES = {  # a cell of the right shape that its run could not have made -> the refusal's words
+    "a level met at a negative trial": (lambda c: {**c, "trials_to": dict.fromkeys(c["trials_to"], -5)}, "trials_to"),
+    "another budget": (lambda c: {**c, "budget": 3}, "holds budget 3, not 30"),
+    "an unknown method": (lambda c: {**c, "method": "bogus_method"}, "not a cell of its run"),
+    "a seed the run has not": (lambda c: {**c, "seed": 99}, "not a cell of its run"),
+    "a best error that is not a number": (lambda c: {**c, "best_error": float("nan")}, "best_error nan"),
+}
+
+
+@pytest.mark.parametrize("forgery", [*sorted(VALUE_FORGERIES), "a cell twice"])
+def test_tables_never_publish_a_cell_its_run_could_not_have_made(tmp_path, capsys, forgery):
+    # the schema holds (a table of them rendered "-5 [-5, -5]", "(11/11)", a row "bogus_method"):
+    # tables checks each cell as `compare --against` checks a committed run's
+    folder = tmp_path / "run"
+    folder.mkdir()
+    shutil.copy(COMPARE / "run.json", folder / "run.json")
+    report = json.loads((COMPARE / "compare.json").read_text())
+    if forgery == "a cell twice":
+        report["cells"].append(report["cells"][0])
+        message = "twice"
+    else:
+        forge, message = VALUE_FORGERIES[forgery]
+        report["cells"][0] = forge(report["cells"][0])
+    (folder / "compare.json").write_text(json.dumps(report))
+    page = tmp_path / "page.md"
+    page.write_text("<!-- compare-table: nominal -->\nx\n<!-- /compare-table -->\n")
+    assert main(["tables", str(folder), "--into", str(page)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "compare.json" in err and message in err, err
+    assert page.read_text().count("\n") == 3  # not rewritten

@@ -163,6 +163,8 @@ def test_sweep_over_plant_keys(tmp_path):
         (["--axis", "true_wheelbase", "a", "0.3", "--axis", "true_wheel_radius", "0.01", "0.03"], "must be numbers"),
         (["--axis", "true_wheelbase", "0.1", "0.3"], "exactly two"),
         (["--axis", "true_wheelbase", "-0.1", "0.3", "--axis", "true_wheel_radius", "0.01", "0.03"], "invalid plant"),
+        # a whole-number key was offered, and every grid of it refused: "must be a whole number ..., got 0.0"
+        (["--axis", "encoder_pulses", "0", "1000", "--axis", "true_wheelbase", "0.1", "0.3"], "takes no real number"),
     ],
 )
 def test_sweep_refuses_bad_axes_in_one_line(tmp_path, capsys, axes, message):

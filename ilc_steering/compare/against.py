@@ -59,26 +59,31 @@ class CommittedRun:
     """How many cells the committed run recorded as failed (they are not taken)."""
     made_by: dict[str, Any] | None = None
     """What made its cells (``run.json``'s provenance, :mod:`~ilc_steering.engine.provenance`)."""
+    label: str = ""
+    """How refusals name the run: ``--against DIR`` (or ``DIR`` for ``tables``)."""
 
 
-def _refuse(folder: Path, problem: str) -> ValueError:
-    return ValueError(f"--against {folder}: {problem}")
+def _refuse(label: str, problem: str) -> ValueError:
+    return ValueError(f"{label}: {problem}")
 
 
-def read_committed(folder: Path) -> CommittedRun:
+def read_committed(folder: Path, label: str | None = None, cell_files: bool = True) -> CommittedRun:
     """The run record and every cell of the compare run folder ``folder``; ``ValueError`` (one
-    line, naming ``--against``) if it is not one: no ``run.json``, a record without the package
-    version or the configs' content hashes (written before they were kept, so its cells cannot be
-    vouched for), or no cells. A cell in ``cells/`` wins over its copy in ``compare.json``."""
+    line, naming ``label``, by default ``--against DIR``) if it is not one: no ``run.json``, a
+    record without the package version or the configs' content hashes (written before they were
+    kept, so its cells cannot be vouched for), a cell twice, or no cells. A cell in ``cells/``
+    wins over its copy in ``compare.json``; without ``cell_files``, ``compare.json`` alone is read
+    (what a clone holds: ``tables`` publishes it)."""
+    name = label or f"--against {folder}"
     if not folder.is_dir():
-        raise _refuse(folder, "not a folder; give a compare run folder (one with run.json)")
+        raise _refuse(name, "not a folder; give a compare run folder (one with run.json)")
     record_path = folder / "run.json"
     if not is_file(record_path):  # a FIFO, a link loop, ...: there, and refused by name when read
-        raise _refuse(folder, "no run.json, so this is not a compare run folder")
+        raise _refuse(name, "no run.json, so this is not a compare run folder")
     try:
         stored, _ = read_run(folder)  # checked against its schema (engine.provenance.RunRecord)
     except ValueError as error:
-        raise _refuse(folder, str(error)) from None
+        raise _refuse(name, str(error)) from None
     record = dict(stored)
     configs = record.pop("configs", None)
     made_by = record.pop("provenance", None)
@@ -86,37 +91,37 @@ def read_committed(folder: Path) -> CommittedRun:
     if "version" not in record or not isinstance(configs, dict):
         missing = "package version" if "version" not in record else "content hashes of its configs"
         raise _refuse(
-            folder,
+            name,
             f"{record_path} records no {missing} (written before they were kept), so its cells cannot be "
             "checked against this version; recompute the run with this version",
         )
     if not all(isinstance(k, str) and isinstance(v, str) for k, v in configs.items()):
-        raise _refuse(folder, f"{record_path}: 'configs' must map scenario names to content hashes")
+        raise _refuse(name, f"{record_path}: 'configs' must map scenario names to content hashes")
     cells: dict[str, tuple[str, Any]] = {}
     report = folder / "compare.json"
     if is_file(report):
         try:
             listed = read_report(report)["cells"]
         except ValueError as error:
-            raise _refuse(folder, str(error)) from None
+            raise _refuse(name, str(error)) from None
         for index, cell in enumerate(listed):
             identity = _identity(cell, f"{report}: cells[{index}]")
             if identity in cells:
                 raise _refuse(
-                    folder, f"{report} holds the cell {identity} twice ({cells[identity][0]} and cells[{index}])"
+                    name, f"{report} holds the cell {identity} twice ({cells[identity][0]} and cells[{index}])"
                 )
             cells[identity] = (f"{report}: cells[{index}]", cell)
-    for path in sorted((folder / "cells").glob("*.json")):
+    for path in sorted((folder / "cells").glob("*.json")) if cell_files else ():
         try:
             cell = read_json(path, MAX_RUN_BYTES)
             check_record(CellRecord, cell, path)
         except ValueError as error:
-            raise _refuse(folder, str(error)) from None
+            raise _refuse(name, str(error)) from None
         cells[_identity(cell, str(path))] = (str(path), cell)
     if not cells:
-        raise _refuse(folder, "holds no cells (neither cells/*.json nor compare.json)")
+        raise _refuse(name, "holds no cells (neither cells/*.json nor compare.json)")
     failed = len(list((folder / "failed").glob("*.json")))
-    return CommittedRun(folder, record, configs, list(cells.values()), failed, made_by)
+    return CommittedRun(folder, record, configs, list(cells.values()), failed, made_by, name)
 
 
 def _identity(cell: Any, where: str) -> str:
@@ -159,11 +164,10 @@ def resolve_settings(
     ``ValueError`` naming ``--against`` and the option if the committed run was made by another
     ``version`` of the package, holds a setting this version has no option for, or if ``given``
     sets an option otherwise than the committed run (its cells would not be comparable)."""
-    folder = committed.folder
     stored = committed.settings
     if stored.get("version") != version:
         raise _refuse(
-            folder,
+            committed.label,
             f"made by ilc-steering {stored.get('version')}, this is {version}: its cells are not comparable "
             f"with this version's; recompute it with {version}, or install {stored.get('version')}",
         )
@@ -172,12 +176,12 @@ def resolve_settings(
         if name == "version":
             continue
         if name not in defaults:
-            raise _refuse(folder, f"its run.json holds a setting {name!r} that this version has no option for")
+            raise _refuse(committed.label, f"its run.json holds a setting {name!r} that this version has no option for")
         if _same(given[name], defaults[name]):
             values[name] = tuple(value) if isinstance(value, list) else value
         elif not _same(given[name], value):
             raise _refuse(
-                folder,
+                committed.label,
                 f"it was run with {_option(name, value)}, not {_option(name, given[name])}; leave the option out "
                 "to take the committed run's",
             )
@@ -205,15 +209,14 @@ def committed_cells(
     from ilc_steering.agents.registry import METHODS, is_custom
     from ilc_steering.compare.cells import check_cell
 
-    folder = committed.folder
     for name, digest in configs.items():
         theirs = committed.configs.get(name)
         if theirs != digest:
             raise ValueError(
-                f"--against {folder}: its {name!r} cells were computed with another config (content hash {theirs}, "
+                f"{committed.label}: its {name!r} cells were computed with another config (content hash {theirs}, "
                 f"this one's {digest}): the same name, another content"
             )
-    hint = f"the committed run --against {folder} is not consistent; recompute it"
+    hint = f"the committed run {committed.label} is not consistent; recompute it"
     held: dict[Cell, dict[str, Any]] = {}
     for where, cell in committed.cells:
         prior, method, scenario, seed = (cell[name] for name in ("prior", "method", "scenario", "seed"))

@@ -17,10 +17,13 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
+from dataclasses import fields, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.compare.cells import read_report
+from ilc_steering.compare import cells as compare_cells
+from ilc_steering.compare.args import Args
 from ilc_steering.compare.report import iqm_table, main_table, ratio_table, statistic
 from ilc_steering.compare.stats import LADDER_NAMES, ratios, summarize
 from ilc_steering.engine.provenance import RunRecord, read_run
@@ -130,17 +133,37 @@ def _run_line(run: dict[str, Any]) -> str:
     )
 
 
+def _cells(folder: Path) -> list[dict[str, Any]]:
+    """The cells of ``folder``'s ``compare.json``, each checked as ``compare --against`` checks a
+    committed run's: one of its run (a method of this version, one of its scenarios and seeds,
+    never twice) and value by value within its budget; ``ValueError`` naming the file and the cell.
+    A table never publishes a cell its run could not have made."""
+    from ilc_steering import __version__
+    from ilc_steering.compare.against import committed_cells, read_committed, resolve_settings
+    from ilc_steering.compare.plan import check_options
+
+    committed = read_committed(folder, label=str(folder), cell_files=False)
+    defaults = {f.name: f.default for f in fields(Args)}
+    settings = resolve_settings(committed, defaults, defaults, __version__)
+    try:
+        args = check_options(replace(Args(), **settings))
+    except ValueError as error:
+        raise ValueError(f"{folder / 'run.json'}: {error}") from None
+    held, _ = committed_cells(args, committed, committed.configs, partial(compare_cells.budget, args))
+    return list(held.values())
+
+
 def _tables(folder: Path) -> dict[str, str]:
     if not (folder / "compare.json").is_file() or not (folder / "run.json").is_file():
         raise ValueError(f"{folder}: not a compare run folder with compare.json and run.json")
-    data = read_report(folder / "compare.json")
+    cells = _cells(folder)
     stored, record = read_run(folder)
     run = {**stored, "record": record}
     from ilc_steering.agents import registry
 
-    rows = summarize(data["cells"])
+    rows = summarize(cells)
     entries = ratios(rows, {"black-box": registry.ids("black-box"), "RL": registry.ids("RL")})
-    return {name: make(rows, entries, {**run, "cells": data["cells"]}) for name, make in TABLES.items()}
+    return {name: make(rows, entries, {**run, "cells": cells}) for name, make in TABLES.items()}
 
 
 def render(text: str, tables: dict[str, str], where: str = "") -> str:

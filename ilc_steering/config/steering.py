@@ -129,7 +129,15 @@ class SteeringConfig:
             with domain(points[-1][0]):
                 frame = frame_angle(*(point[2] for _, point in points))
             if isinstance(self.task, TaskConfig) and self.task.frame is not None:
-                frame = self.task.frame  # the points' chart is checked in it below
+                frame = self.task.frame  # the points' chart is checked in it below; a heading off it is the frame's
+                for key, point in points:
+                    turned = point[2] - frame
+                    require(
+                        abs(turned) < np.pi / 2,
+                        "task.frame",
+                        f"{frame} rad puts {key}'s heading {point[2]} rad at {turned:.6g} rad in the task frame, "
+                        "outside the chart's (-pi/2, pi/2); leave it out for frame_angle's",
+                    )
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         plant = self.plant.plant()
         with domain("plant", prefix="plant."):

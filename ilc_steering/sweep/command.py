@@ -29,7 +29,7 @@ import time
 from dataclasses import asdict, dataclass, replace
 from dataclasses import fields as dataclass_fields
 from pathlib import Path
-from typing import Any
+from typing import Any, get_type_hints
 
 import numpy as np
 
@@ -152,6 +152,18 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
     return [key for key, _, _ in args.axes]
 
 
+def _real_keys(plant_class: type) -> set[str]:
+    """The keys of a plant config that take a real number (``float``, or ``float | None``): what a
+    map's axis can vary; a whole number (``encoder_pulses``), a flag or a choice cannot take a grid's
+    values. Every field but ``model`` when the class's annotations cannot be resolved (a user's robot)."""
+    names = [f.name for f in dataclass_fields(plant_class) if f.name != "model"]
+    try:
+        hints = get_type_hints(plant_class)
+    except Exception:  # a user's annotations naming what its module does not import
+        return set(names)
+    return {name for name in names if hints.get(name) in (float, float | None)}
+
+
 def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
     """Two distinct numeric keys of the config's plant, each with a range, every plant of the grid
     valid and of the config's robot (one compiled call per kernel a row needs)."""
@@ -161,10 +173,12 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
     if keys[0] == keys[1]:
         raise ValueError(f"--axis: {keys[0]} is given twice; a map has two different axes")
     plant_config: Any = config.plant
-    fields = {f.name for f in dataclass_fields(plant_config)} - {"model"}
+    fields = _real_keys(type(plant_config))
     for key, low, high in args.axes:
         if key not in fields:
-            raise ValueError(f"--axis {key}: not a key of this plant; choose from {sorted(fields)}")
+            known = key in {f.name for f in dataclass_fields(plant_config)}
+            what = "takes no real number (a grid's values)" if known else "not a key of this plant"
+            raise ValueError(f"--axis {key}: {what}; choose from {sorted(fields)}")
         if not (np.isfinite(low) and np.isfinite(high) and low < high):
             raise ValueError(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
     if (args.low, args.high) != (SweepArgs.low, SweepArgs.high):
