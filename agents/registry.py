@@ -163,11 +163,11 @@ class LearnerSpec:
 
     def make(self, context: LearnerContext, budget: int) -> Learner:
         """The learner for ``context`` and a budget of ``budget`` trials, with the context's
-        ``learning.cost`` attached. A factory that raises is a
-        :class:`~ilc_steering.errors.LearnerError` naming the learner; one that makes something
-        without ``act``, ``learn`` and ``reset`` is a ``ValueError``."""
+        ``learning.cost`` attached. A factory that raises (``sys.exit()`` included: anything but an
+        interrupt) is a :class:`~ilc_steering.errors.LearnerError` naming the learner; one that makes
+        something without ``act``, ``learn`` or ``reset`` is a ``ValueError`` naming what it lacks."""
         from ilc_steering.agents.costs import with_cost
-        from ilc_steering.errors import LearnerError
+        from ilc_steering.errors import INTERRUPTS, LearnerError, described
 
         if self.family == "RL":
             settings = f"{_RL_SETTINGS}:%s"
@@ -182,12 +182,14 @@ class LearnerSpec:
             factory = self.factory()
             try:
                 learner = factory(context)
-            except Exception as error:
-                raise LearnerError(f"learner {self.id}: its factory raised {type(error).__name__}: {error}") from error
-        if not isinstance(learner, Learner):
-            raise ValueError(
-                f"{self.option} {self.id}: made {type(learner).__name__}, which has no act, learn and reset"
-            )
+            except INTERRUPTS:
+                raise
+            except BaseException as error:  # a factory's sys.exit() is its failure, not success
+                raise LearnerError(f"learner {self.id}: its factory raised {described(error)}") from error
+        missing = [name for name in ("act", "learn", "reset") if not callable(getattr(learner, name, None))]
+        if missing:
+            lacks = " and ".join([", ".join(missing[:-1]), missing[-1]] if len(missing) > 1 else missing)
+            raise ValueError(f"{self.option} {self.id}: made {type(learner).__name__}, which has no {lacks} method")
         return with_cost(learner, context)
 
 

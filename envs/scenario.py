@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.checks import check_jitter, check_noise
-from ilc_steering.core.external import ExternalPlant, run_external
+from ilc_steering.core.external import ExternalPlant, run_external, users_plant
 from ilc_steering.core.grid import DEFAULT_MAX_STEP
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -112,7 +112,8 @@ class Scenario:
         if isinstance(plant, ExternalPlant):  # someone else's code: it reports in the task frame, nothing to jitter
             if parameter_jitter:
                 raise ValueError("simulation.parameter_jitter: an external plant has no true factors to jitter")
-            self.external = plant.with_frame(frame)
+            with users_plant(plant, "with_frame"):
+                self.external = plant.with_frame(frame)
             plant = self.external  # type: ignore[assignment]  # an ExternalPlant serves as the Plant here
         self.plant = plant
         self.kind = plant.kind
@@ -178,7 +179,8 @@ class Scenario:
         own draw (:meth:`~ilc_steering.core.external.ExternalPlant.reseed`); a simulated plant's
         disturbances are drawn from the env's generator and need nothing."""
         if self.external is not None:
-            self.external.reseed(seed)
+            with users_plant(self.external, "reseed"):
+                self.external.reseed(seed)
 
     def draw_noise(self, rng: np.random.Generator, count: int) -> Array | None:
         """Measurement errors of ``count`` trials ``(count, nq)`` drawn from ``rng``, or ``None``

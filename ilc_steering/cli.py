@@ -8,14 +8,15 @@ Exit codes (:data:`EXIT_CODES`): 0 converged (or done; ``run``: the last ``--hol
 tolerance), 1 not converged, 5 converged to the plant's floor (``run``: the tolerance is below the
 plant's repeatability, estimated from the trials, and the last trials are within that), 2 bad input (a config,
 an argument, a run file, an unusable output path: all checked before any trial runs), 3 an
-internal error (a bug of the library), 4 the user's code failed: in ``run``, a learner raised or
-acted with an action the env refused, or a plant failed (``plant.model: process``: the program hung,
-died or answered junk; the message names it and the trial; the trials completed are written to
-``--json`` / ``--plots``, as they are when a trial's commands are refused for the robot's limits,
-exit 2); in ``compare`` and ``sweep``, some cells or rows failed (or
-outlived ``--cell-timeout``): each is recorded with its error under ``failed/``, the others are
-finished and reported, and the last line says how many failed. 130: interrupted. Errors are
-one line; ``--debug`` adds the traceback.
+internal error (a bug of the library), 4 the user's code failed: in ``run``, a learner raised
+(``sys.exit()`` included) or acted with an action the env refused, or a plant failed (it raised or
+returned junk; ``plant.model: process``: the program hung, died or answered junk; the message names
+it and the trial; the trials completed are written to ``--json`` / ``--plots``, as they are when a
+trial's commands are refused for the robot's limits, exit 2); in ``compare`` and ``sweep``, some
+cells or rows failed (or outlived ``--cell-timeout``): each is recorded with its error under
+``failed/``, the others are finished and reported, and the last line says how many failed. 130:
+interrupted (``run`` writes the trials completed, as for 4, and its line says so). Errors are one
+line; ``--debug`` adds the traceback.
 """
 
 from __future__ import annotations
@@ -29,15 +30,16 @@ from pathlib import Path
 
 from ilc_steering.arguments import Parser
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
-from ilc_steering.config import MAX_TRIALS, load_config, packaged_configs
+from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
 from ilc_steering.console import learn, learn_goals, save, save_goals
 from ilc_steering.core.scatter import HOLD
-from ilc_steering.errors import ConfigError, LearnerError, LimitError, PlantError
-from ilc_steering.output import check_output_dir, check_output_file
+from ilc_steering.errors import ENDS_A_RUN, ConfigError, LearnerError, PlantError
+from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
 from ilc_steering.reproduce import PAPER
 from ilc_steering.reproduce import reproduce as reproduce_paper
 from ilc_steering.runner import (
     DEFAULT_LEARNER,
+    CyclicRunResult,
     RunResult,
     step_warning,
 )
@@ -51,27 +53,53 @@ EXIT_CODES = {
     1: "not converged",
     2: "bad input: a config, an argument, a run file or an output path, refused before any trial",
     3: "internal error: a bug of ilc-steering (please report it; --debug prints the traceback)",
-    4: "the user's code failed (a learner, or a plant: a program that hung, died or answered junk): run wrote "
-    "the trials before it; compare and sweep recorded each failed cell or row (its error, or --cell-timeout) "
-    "under failed/ and finished the others",
+    4: "the user's code failed (a learner, or a plant: it raised, exited, hung, died or answered junk): run "
+    "wrote the trials before it; compare and sweep recorded each failed cell or row (its error, or "
+    "--cell-timeout) under failed/ and finished the others",
     5: "converged to the plant's floor: the tolerance is below the plant's repeatability (estimated from "
     "the trials) and run's last --hold trials are within the repeatability",
-    130: "interrupted",
+    130: "interrupted (run wrote the trials before it)",
 }
 """The CLI's exit codes, as its ``--help`` prints them."""
 
 
 # Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
+def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
+    """``--trials`` and ``--hold`` checked against each other and the configs; the ``--hold`` to use."""
+    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
+        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
+    if args.hold is None:  # the default: a run too short for it says "not converged", as it is
+        return HOLD
+    if not 1 <= args.hold <= MAX_TRIALS:
+        raise ValueError(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
+    for config in configs:
+        unit = "cycles" if config.is_cyclic else "trials"
+        count = config.learning.trials if args.trials is None else args.trials
+        budget = (
+            f"--trials {count}" if args.trials is not None else f"the {count} {unit} of {config.name} (learning.trials)"
+        )
+        if args.hold > count:
+            raise ValueError(
+                f"--hold {args.hold} is more than {budget}: the run could never hold {args.hold} {unit} "
+                f"within the tolerance; give --hold at most {count}, or more --trials"
+            )
+    return int(args.hold)
+
+
+def _interrupted(done: int, unit: str, args: argparse.Namespace) -> KeyboardInterrupt:
+    """The interrupt of a run whose ``done`` trials (cycles, goals) were kept: its one line says so."""
+    where = [str(path) for path in (args.json, getattr(args, "plots", None)) if path is not None]
+    note = f"; what ran is kept in {' and '.join(where)}" if done and where else ""
+    return KeyboardInterrupt(f"after {done} {unit[:-1] if done == 1 else unit}{note}")
+
+
 def _run(args: argparse.Namespace) -> int:
     if len(args.config) > 1:
         return _run_goals(args)
     if args.carry:
         raise ValueError("--carry needs two or more configs (goals of one robot, in order)")
     config = load_config(args.config[0])
-    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
-        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
-    if not 1 <= args.hold <= MAX_TRIALS:
-        raise ValueError(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
+    hold = _counts(args, [config])
     if args.json is not None:
         check_output_file(args.json, "--json")
     if args.plots is not None:
@@ -80,10 +108,16 @@ def _run(args: argparse.Namespace) -> int:
     if warning is not None:
         print(f"ilc-steering: {warning}", file=sys.stderr)
     try:
-        result = learn(config, args.trials, args.json is not None or args.plots is not None, args.learner, args.hold)
-    except (LearnerError, PlantError, LimitError) as error:
-        if isinstance(error.partial, RunResult) and error.partial.trials:
-            save(error.partial, args.json, args.plots)  # the trials it completed are kept
+        result = learn(config, args.trials, args.json is not None or args.plots is not None, args.learner, hold)
+    except ENDS_A_RUN as error:
+        partial = getattr(error, "partial", None)
+        done = 0
+        if isinstance(partial, (RunResult, CyclicRunResult)):
+            done = len(partial.trials if isinstance(partial, RunResult) else partial.cycles)
+            if done:
+                save(partial, args.json, args.plots)  # the trials it completed are kept
+        if isinstance(error, KeyboardInterrupt):  # still an interrupt (exit 130), saying what was kept
+            raise _interrupted(done, "cycles" if config.is_cyclic else "trials", args) from error
         raise
     save(result, args.json, args.plots)
     if result.converged_at is not None:
@@ -94,19 +128,20 @@ def _run(args: argparse.Namespace) -> int:
 def _run_goals(args: argparse.Namespace) -> int:
     """``run A B C [--carry]``: one run per goal, in order, the learner carrying what it learned."""
     configs = [load_config(name) for name in args.config]
-    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
-        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
-    if not 1 <= args.hold <= MAX_TRIALS:
-        raise ValueError(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
+    hold = _counts(args, configs)
     if args.plots is not None:
         raise ValueError("--plots draws one run: give one config (or plot a goal's run from --json)")
     if args.json is not None:
         check_output_file(args.json, "--json")
     try:
-        results = learn_goals(configs, args.trials, args.learner, args.hold, args.carry)
-    except (LearnerError, PlantError, LimitError) as error:
-        if isinstance(error.partial, list) and error.partial:
-            save_goals(error.partial, args.json)  # the goals it completed are kept
+        results = learn_goals(configs, args.trials, args.learner, hold, args.carry)
+    except ENDS_A_RUN as error:
+        partial = getattr(error, "partial", None)
+        done = len(partial) if isinstance(partial, list) else 0
+        if isinstance(partial, list) and partial:
+            save_goals(partial, args.json)  # the goals it completed are kept
+        if isinstance(error, KeyboardInterrupt):
+            raise _interrupted(done, "goals", args) from error
         raise
     save_goals(results, args.json)
     if all(r.converged_at is not None for r in results):
@@ -157,10 +192,17 @@ def _parser() -> argparse.ArgumentParser:
         help="number of trials, or cycles for a cyclic config (default: the config's)",
     )
     run.add_argument(
-        "--json", type=Path, default=None, help="write the per-trial results and trajectories here (the input of plot)"
+        "--json",
+        type=output_file,
+        default=None,
+        help="write the per-trial results and trajectories here (the input of plot)",
     )
     run.add_argument(
-        "--plots", type=Path, default=None, metavar="DIR", help="write the paper's figures of this run here as PNGs"
+        "--plots",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="write the paper's figures of this run here as PNGs",
     )
     run.add_argument(
         "--learner",
@@ -173,17 +215,17 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--hold",
         type=int,
-        default=HOLD,
+        default=None,
         metavar="N",
         help=f"converged means the last N trials (cycles) are all within the tolerance (default {HOLD}: one "
-        "trial within it may be the scatter's luck)",
+        "trial within it may be the scatter's luck); at most the trials run",
     )
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")
-    reproduce.add_argument("--json-dir", type=Path, default=None, help="write one JSON per scenario here")
+    reproduce.add_argument("--json-dir", type=output_folder, default=None, help="write one JSON per scenario here")
     reproduce.add_argument(
         "--plots",
-        type=Path,
+        type=output_folder,
         default=None,
         metavar="DIR",
         help="write the paper's figures (Figs. 3-14, 16-21, 23-25) here as PNGs",
@@ -191,7 +233,7 @@ def _parser() -> argparse.ArgumentParser:
     reproduce.set_defaults(handler=reproduce_paper)
     plot = sub.add_parser("plot", help="draw the paper's figures of a run written by run --json")
     plot.add_argument("run", type=Path, help="the run's JSON file")
-    plot.add_argument("--out", type=Path, required=True, metavar="DIR", help="write the PNGs here")
+    plot.add_argument("--out", type=output_folder, required=True, metavar="DIR", help="write the PNGs here")
     plot.set_defaults(handler=_plot)
     compare = sub.add_parser(
         "compare", help="trials to tolerance: ILC against RL and black-box optimizers, across seeds"
@@ -279,8 +321,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         return int(args.handler(args))
-    except KeyboardInterrupt:
-        print("ilc-steering: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as error:  # run keeps the trials before it, and says where
+        print(f"ilc-steering: interrupted {_one_line(error)}".rstrip(), file=sys.stderr)
         return 130
     except BrokenPipeError:  # stdout closed early (ilc-steering list | head -1): nothing left to say
         devnull = os.open(os.devnull, os.O_WRONLY)

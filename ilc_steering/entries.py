@@ -25,6 +25,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from ilc_steering.errors import INTERRUPTS
+
 __all__ = ["CONFIG_FOLDERS", "ENTRY", "load_entry", "search_folders"]
 
 CONFIG_FOLDERS: ContextVar[tuple[str, ...]] = ContextVar("CONFIG_FOLDERS", default=())
@@ -79,9 +81,9 @@ def load_entry(entry: str, who: str, folders: Iterable[str | os.PathLike[str]] =
                 f"{who} {entry}: cannot import it: no module {error.name!r} in {where} or on the path"
             ) from None
         raise ValueError(f"{who} {entry}: cannot import it: importing it raised ModuleNotFoundError: {error}") from None
+    except INTERRUPTS:
+        raise
     except BaseException as error:  # the user's module: SyntaxError, its own error, even SystemExit
-        if isinstance(error, KeyboardInterrupt):
-            raise
         problem = " ".join(str(error).split())[:300]
         raise ValueError(
             f"{who} {entry}: cannot import it: importing it raised {type(error).__name__}: {problem}"

@@ -6,9 +6,13 @@ The runner, the comparison, the benchmarks and the tests all call :func:`run_tri
 of the env is one trial (for the cyclic env, one segment); every trial the learner asks for is
 run, counted and recorded, and nothing past the budget is.
 
-What a learner raises, in ``act``, ``learn`` or ``close``, and an action the env refuses (a NaN,
-the wrong shape) is a :class:`LearnerError` naming the learner and the trial: the learner's
-fault, not bad input to the library (exit 2) nor a bug of it (exit 3).
+What a learner raises, in ``act``, ``learn`` or ``close`` (``sys.exit()`` and any other
+``BaseException`` but an interrupt, :data:`~ilc_steering.errors.INTERRUPTS`), and an action the env
+refuses (a NaN, the wrong shape) is a :class:`LearnerError` naming the learner and the trial: the
+learner's fault, not bad input to the library (exit 2) nor a bug of it (exit 3).
+
+A trial is recorded (the rollout, the callbacks) as soon as the env has run it, before the learner
+learns from it: a learner that fails in ``learn`` loses no trial that ran.
 """
 
 from __future__ import annotations
@@ -22,17 +26,18 @@ import numpy as np
 
 from ilc_steering.agents.base import Closable, Learner, transferred
 from ilc_steering.core.score import TRUE_KEYS
-from ilc_steering.errors import LearnerError, LimitError
+from ilc_steering.errors import INTERRUPTS, ConfigError, LearnerError, LimitError, described
 
 __all__ = ["Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
 
 
 def _fault(name: str, what: str, trial: int, error: BaseException) -> LearnerError:
-    return LearnerError(f"learner {name}: {what} in trial {trial}: {type(error).__name__}: {error}")
+    return LearnerError(f"learner {name}: {what} in trial {trial}: {described(error, 2000)}")
 
 
 TrialCallback = Callable[[int, dict[str, Any]], bool | None]
-"""Called after trial ``k`` (from 1) with its ``info``; returning ``True`` stops the loop."""
+"""Called after trial ``k`` (from 1) with its ``info``, before the learner learns from it;
+returning ``True`` stops the loop (after the learner has learned from that trial)."""
 
 
 @dataclass
@@ -85,21 +90,26 @@ def run_trials(
         for k in range(1, trials + 1):
             try:
                 action = learner.act(observation)
-            except (Exception, SystemExit) as error:  # a learner's sys.exit() is its failure, not success
+            except INTERRUPTS:
+                raise
+            except BaseException as error:  # a learner's sys.exit() is its failure, not success
                 raise _fault(who, "act() raised", k, error) from error
             try:
                 observation, reward, terminated, truncated, info = env.step(action)
-            except LimitError:  # commands beyond the robot's limits, refused before they were sent: exit 2
+            except (LimitError, ConfigError):  # beyond the robot's limits, or a config the plant cannot run: exit 2
                 raise
             except ValueError as error:  # the env checks the action: a NaN, a wrong shape
                 raise _fault(who, "the env refused its action", k, error) from error
+            rollout.infos.append(info)  # the trial ran: kept, whatever the learner does next
+            rollout.rewards.append(float(reward))
+            stop = any([bool(callback(k, info)) for callback in callbacks])
             try:
                 learner.learn({key: value for key, value in info.items() if key not in TRUE_KEYS})
-            except (Exception, SystemExit) as error:  # a learner's sys.exit() is its failure, not success
+            except INTERRUPTS:
+                raise
+            except BaseException as error:  # a learner's sys.exit() is its failure, not success
                 raise _fault(who, "learn() raised", k, error) from error
-            rollout.infos.append(info)
-            rollout.rewards.append(float(reward))
-            if any([bool(callback(k, info)) for callback in callbacks]):
+            if stop:
                 rollout.stopped = k < trials
                 break
             if k < trials and (terminated or truncated):
@@ -107,14 +117,18 @@ def run_trials(
         if transfer:
             try:
                 rollout.carried = transferred(learner)
-            except (Exception, SystemExit) as error:
+            except INTERRUPTS:
+                raise
+            except BaseException as error:
                 raise _fault(who, "transfer() raised", len(rollout), error) from error
         failed = False
     finally:
         if isinstance(learner, Closable):
             try:
                 learner.close()
-            except Exception as error:
+            except INTERRUPTS:
+                raise
+            except BaseException as error:
                 if not failed:  # else the error that ended the loop is the one to report
                     raise _fault(who, "close() raised", len(rollout), error) from error
     return rollout
@@ -151,7 +165,9 @@ def run_vector_trials(
             run = k
             try:
                 actions = np.array([learner.act(obs) for learner, obs in zip(learners, observations)])
-            except (Exception, SystemExit) as error:  # a learner's sys.exit() is its failure, not success
+            except INTERRUPTS:
+                raise
+            except BaseException as error:  # a learner's sys.exit() is its failure, not success
                 raise _fault(who, "act() raised", k, error) from error
             try:
                 observations, _, _, _, info = envs.step(actions)
@@ -163,7 +179,9 @@ def run_vector_trials(
             for learner, row in zip(learners, rows):
                 try:
                     learner.learn({key: value for key, value in row.items() if key not in TRUE_KEYS})
-                except (Exception, SystemExit) as error:
+                except INTERRUPTS:
+                    raise
+                except BaseException as error:
                     raise _fault(who, "learn() raised", k, error) from error
             if any([bool(callback(k, rows)) for callback in callbacks]):
                 break

@@ -11,6 +11,7 @@ umask 022), a replaced one keeps its mode; a symbolic link to a regular file is 
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import io
 import json
@@ -34,6 +35,8 @@ __all__ = [
     "differences",
     "injective_name",
     "open_lock",
+    "output_file",
+    "output_folder",
     "safe_name",
     "write_atomic",
     "write_figure",
@@ -43,6 +46,24 @@ __all__ = [
 
 def _problem(error: OSError) -> str:
     return describe(error)
+
+
+def output_file(text: str) -> Path:
+    """An option's file path as typed (an ``argparse`` type): refused, in one line, when empty or
+    ending in a separator, a folder's name that ``Path`` would strip to a file's (``new.json/``)."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; give a file's path")
+    if text.endswith((os.sep, os.altsep or os.sep)):
+        raise argparse.ArgumentTypeError(f"{text}: ends in {text[-1]!r}, a folder's name; give a file's path")
+    return Path(text)
+
+
+def output_folder(text: str) -> Path:
+    """An option's folder path as typed (an ``argparse`` type): refused, in one line, when empty
+    (``Path("")`` is the working directory, which nobody typed); ``.`` names it."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; give a folder's path (. for the working directory)")
+    return Path(text)
 
 
 def check_output_dir(path: Path, option: str) -> Path:

@@ -1,8 +1,9 @@
 """Runs of the paper's learners on a config, as records for the CLI, JSON and figures.
 
 Both runs go through the one trial loop, :func:`ilc_steering.loop.run_trials`. Before the first
-trial, :func:`check_task` refuses a task that is ill-posed for its nominal model and
-:func:`step_warning` says when the integrator's step is too coarse for it. When a run has
+trial, :func:`~ilc_steering.preflight.check_task` refuses a task that is ill-posed for its nominal
+model and :func:`~ilc_steering.preflight.step_warning` says when the integrator's step is too coarse
+for it (:mod:`ilc_steering.preflight`, re-exported here). When a run has
 converged, and whether the plant's scatter allowed it to, is its verdict
 (:mod:`ilc_steering.verdict`).
 """
@@ -20,19 +21,19 @@ import gymnasium as gym
 from ilc_steering.agents.base import Learner, LearnerContext
 from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.registry import LearnerSpec, lookup
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig, config_data, load_config
 from ilc_steering.core import scatter as scatter_
-from ilc_steering.core.external import is_external
-from ilc_steering.core.nominal import MAX_NOMINAL_MISS
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.errors import LearnerError, LimitError, PlantError
+from ilc_steering.errors import ENDS_A_RUN, keep_partial
 from ilc_steering.loop import run_trials
+from ilc_steering.preflight import MAX_STEP_MISS, check_task, step_warning
 from ilc_steering.segmented import segmented_learner
 from ilc_steering.verdict import Verdict, verdict, with_scatter
 
 __all__ = [
     "DEFAULT_LEARNER",
+    "MAX_STEP_MISS",
     "CycleRecord",
     "CyclicRunResult",
     "RunResult",
@@ -52,82 +53,6 @@ DEFAULT_LEARNER = "ilc_paper"
 """``run``'s learner: the paper's eqs. 33-34, its fictitious zero iteration first. Every id of
 :data:`ilc_steering.agents.registry.REGISTRY` means the same in ``run``, ``compare`` and ``sweep``
 (``ilc`` starts from the nominal solution in all three)."""
-
-
-def check_task(env: gym.Env[Any, Any], where: str) -> None:
-    """``ValueError`` naming ``where`` (the config) when the task is ill-posed for its nominal
-    model: its exact solution (section 2.2) misses the goal, because ``W`` of eq. (23) is singular
-    at the solution's ``c11``, or needs an action beyond the env's action box. Either way every
-    learner's updates would be clipped or useless in every trial, and a run could only say "not
-    converged"."""
-    import numpy as np
-
-    model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
-    c = model.solve()
-    miss = model.miss(c)
-    if miss > MAX_NOMINAL_MISS:
-        _, W = model.transition(c[0])
-        singular = np.linalg.svd(W, compute_uv=False)
-        raise ValueError(
-            f"{where}: an ill-posed task: the nominal model's exact solution misses the goal by {miss:.2g} of the "
-            f"distance to it, W (eq. 23) being singular at c11 = {c[0]:.3g} (singular values down to "
-            f"{singular[-1]:.2g}); change task.pieces or task.v1_fixed (v1 on one piece undone by another "
-            "makes W singular) or raise task.v2_terms"
-        )
-    high = np.asarray(env.action_space.high, dtype=np.float64)  # type: ignore[attr-defined]
-    beyond = np.flatnonzero(np.abs(c) > high)
-    if beyond.size:
-        i = int(beyond[0])
-        raise ValueError(
-            f"{where}: the nominal solution needs |c[{i}]| = {abs(c[i]):.3g}, beyond the action box "
-            f"({high[i]:.3g}, task.action_bound); raise task.action_bound or leave it out (10x the nominal scale)"
-        )
-
-
-MAX_STEP_MISS = 0.01
-"""The largest change of a trial's final configuration, as a fraction of the tightest tolerance,
-when ``simulation.max_step`` is halved, for the step to be fine enough (:func:`step_warning`)."""
-
-
-def step_warning(config: SteeringConfig) -> str | None:
-    """A warning when ``simulation.max_step`` is too coarse for the task (None when it is fine):
-    the step-halving test. The nominal solution is simulated at the step and at half of it; a
-    final configuration that moves by more than :data:`MAX_STEP_MISS` of the tightest tolerance
-    means the counts would be the integrator's, not the plant's. (A warning, not an error: a
-    coarse step is a legitimate way to provoke a trial that leaves the chart.)
-
-    It simulates the library's own plant (a simulation: no robot moves), and for an external
-    plant (someone else's simulator, or a robot) the nominal model only: such a plant is driven
-    once per counted trial and never by a check (``tests/test_scatter.py`` counts its drives)."""
-    import numpy as np
-
-    from ilc_steering.core.family import ModelFamily
-    from ilc_steering.envs.scenario import Scenario
-
-    if config.is_cyclic:
-        return None
-    if config.is_segmented:  # each segment is a one-trial task of its own
-        return next((w for w in map(step_warning, config.segment_configs()) if w is not None), None)
-    step = config.simulation.max_step
-    finer = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, max_step=step / 2))
-    coarse, fine = Scenario.from_config(config), Scenario.from_config(finer)
-    model = coarse.nominals[0]
-    c = model.solve()[None]
-    if is_external(coarse.plant):
-        families = [ModelFamily(model, max_step) for max_step in (step, step / 2)]
-        configurations = [family.configurations(family.origin, c)[0][0] for family in families]
-    else:
-        configurations = [s.plant.configuration(s.run(c).final)[0] for s in (coarse, fine)]
-    miss = float(np.max(np.abs(configurations[0] - configurations[1])))
-    tolerance = config.learning.tolerance
-    tightest = min(v for v in (tolerance.cartesian, tolerance.orientation, tolerance.error) if v is not None)
-    if np.isfinite(miss) and miss <= MAX_STEP_MISS * tightest:
-        return None
-    return (
-        f"warning: {config.name}: simulation.max_step = {step:g} s is too coarse: halving it moves the final "
-        f"configuration by {miss:.2g}, over {MAX_STEP_MISS:.0%} of the tolerance {tightest:g}, so the counts are "
-        "the integrator's, not the plant's; lower simulation.max_step (default 1/32 s)"
-    )
 
 
 def learner_spec(name: str) -> LearnerSpec:
@@ -171,7 +96,7 @@ def _run_json(config: SteeringConfig, kind: str, records: list[Any], result: Ver
         "kind": kind,
         kind: [r.to_json() for r in records],
         **result.to_json(),
-        "config": dataclasses.asdict(config),
+        "config": config_data(config),
     }
 
 
@@ -246,9 +171,10 @@ def run_ilc(
     what this one hands on (:func:`run_goals` chains them).
 
     A learner that fails raises :class:`~ilc_steering.errors.LearnerError` naming it (``learner``),
-    its ``partial`` the :class:`RunResult` of the trials run before; so do a plant that fails
-    (:class:`~ilc_steering.errors.PlantError`) and commands refused for the robot's limits
-    (:class:`~ilc_steering.errors.LimitError`).
+    its ``partial`` the :class:`RunResult` of the trials run before (the trial it failed on
+    included, if it ran); so do a plant that fails (:class:`~ilc_steering.errors.PlantError`),
+    commands refused for the robot's limits (:class:`~ilc_steering.errors.LimitError`) and an
+    interrupt (``KeyboardInterrupt``).
     """
     config = load_config(config)
     spec = learner_spec(learner)
@@ -283,8 +209,8 @@ def run_ilc(
 
     try:
         rollout = run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner, transfer=transfer)
-    except (LearnerError, PlantError, LimitError) as error:  # the trials before it are kept
-        error.partial = RunResult(config, records, judged(met), started_from=started_from)
+    except ENDS_A_RUN as error:  # the trials before it are kept
+        keep_partial(error, RunResult(config, records, judged(met), started_from=started_from))
         raise
     finally:
         env.close()
@@ -317,8 +243,9 @@ def run_goals(
             result = run_ilc(
                 config, trials, on_trial, False, learner, seed, hold, carried if carry else None, transfer=carry
             )
-        except (LearnerError, PlantError, LimitError) as error:
-            error.partial = [*results, error.partial] if error.partial is not None else results
+        except ENDS_A_RUN as error:
+            last = getattr(error, "partial", None)
+            keep_partial(error, [*results, last] if last is not None else results)
             raise
         results.append(result)
         carried = result.carried
@@ -364,7 +291,8 @@ def run_cyclic_ilc(
     keeps every segment's trajectory in its record.
 
     A cycle met the tolerance when every waypoint met it in that cycle; the run has converged
-    when its last ``hold`` cycles met it (:class:`~ilc_steering.verdict.Verdict`).
+    when its last ``hold`` cycles met it (:class:`~ilc_steering.verdict.Verdict`). A run that
+    fails or is interrupted raises as :func:`run_ilc`'s, its ``partial`` the cycles completed.
     """
     config = load_config(config)
     env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles, record_trajectory=trajectories)
@@ -389,6 +317,11 @@ def run_cyclic_ilc(
         met.clear()
 
     steps = (config.learning.trials if cycles is None else cycles) * len(models)
-    run_trials(env, agent, steps, seed=0, options=None if start is None else {"start": start}, callbacks=[keep])
-    env.close()
+    try:
+        run_trials(env, agent, steps, seed=0, options=None if start is None else {"start": start}, callbacks=[keep])
+    except ENDS_A_RUN as error:  # the cycles before it are kept
+        keep_partial(error, CyclicRunResult(config, records, verdict(cycles_met, hold)))
+        raise
+    finally:
+        env.close()
     return CyclicRunResult(config, records, verdict(cycles_met, hold))

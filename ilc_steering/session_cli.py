@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ilc_steering.console import print_header, print_row, print_verdict, save
-from ilc_steering.output import check_output_dir, check_output_file
+from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
 from ilc_steering.pose_files import final_pose
 from ilc_steering.session import Session
 
@@ -102,7 +102,7 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``session`` subcommands."""
     sub = parser.add_subparsers(dest="session_command", required=True, metavar="ACTION")
     new = sub.add_parser("new", help="start a session in a new folder from a process-plant config")
-    new.add_argument("folder", type=Path, metavar="DIR")
+    new.add_argument("folder", type=output_folder, metavar="DIR")
     new.add_argument("--config", type=Path, required=True, help="a config with plant.model: process")
     new.add_argument("--learner", default="ilc_paper", help="a learner id or module:attr (default: ilc_paper)")
     new.add_argument("--seed", type=int, default=1, help="the learner's seed (default: 1)")
@@ -126,6 +126,6 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     withdraw.set_defaults(handler=_withdraw)
     status = sub.add_parser("status", help="the trials so far, their errors, and whether it converged")
     status.add_argument("folder", type=Path, metavar="DIR")
-    status.add_argument("--json", type=Path, default=None, help="write the run's JSON here")
-    status.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the run's figures here")
+    status.add_argument("--json", type=output_file, default=None, help="write the run's JSON here")
+    status.add_argument("--plots", type=output_folder, default=None, metavar="DIR", help="write the run's figures here")
     status.set_defaults(handler=_status)

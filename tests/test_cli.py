@@ -131,6 +131,7 @@ def test_compare_quick_runs_every_method(quick_comparison):
         ["current"],
         ["tables", "docs/compare"],
         ["plot", "run.json"],
+        ["plot", "run.json", "--out", ""],
     ],
 )
 def test_a_bad_argument_is_one_line_naming_it_and_exit_2(argv, capsys):
@@ -140,3 +141,38 @@ def test_a_bad_argument_is_one_line_naming_it_and_exit_2(argv, capsys):
     err = capsys.readouterr().err
     assert len(err.splitlines()) == 1, err
     assert err.startswith("ilc-steering") and ": error: " in err and err.rstrip().endswith("--help)"), err
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "says"),
+    [
+        ("--plots", "", "argument --plots: an empty path"),  # before: PNGs written into the working directory
+        ("--json", "", "argument --json: an empty path"),
+        ("--json", "new.json/", "argument --json: new.json/: ends in '/', a folder's name"),  # before: file new.json
+    ],
+)
+def test_an_output_path_that_path_would_change_is_refused_and_nothing_written(
+    tmp_path, monkeypatch, capsys, option, value, says
+):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stopped:
+        main(["run", "forward_parking", "--trials", "1", option, value])
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert says in err and len(err.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--trials", "2", "--hold", "50"], "--hold 50 is more than --trials 2"),
+        (["--hold", "11"], "--hold 11 is more than the 10 trials of forward_parking (learning.trials)"),
+    ],
+)
+def test_a_hold_longer_than_the_run_is_refused_naming_both(capsys, argv, says):
+    """A run of 2 trials can never hold 50 within the tolerance (before: accepted, "not converged")."""
+    assert main(["run", "forward_parking", *argv]) == 2
+    err = capsys.readouterr().err
+    assert says in err and len(err.splitlines()) == 1
+    assert main(["run", "forward_parking", "--trials", "2"]) == 1  # the default --hold: a short run, not an error

@@ -104,6 +104,14 @@ def test_input_profile_contract(profile):
         e1, e2 = profile.evaluate(c[1], t0 + tau)
         np.testing.assert_allclose(np.polyval(v1[1, s, ::-1], tau), e1, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(np.polyval(v2[1, s, ::-1], tau), e2, rtol=1e-10, atol=1e-10)
+    # what a profile hands out or keeps cannot be written to change its next trials (a user's plant
+    # gets the profile; before, a profile of several pieces kept a writeable matrix of v2)
+    held = [a for value in vars(profile).values() for a in (value if isinstance(value, tuple) else (value,))]
+    for array in [profile.bases(), profile.breakpoints, *held]:
+        if isinstance(array, np.ndarray) and array.flags.writeable:
+            array[...] = 0.0
+    for again, first in zip(profile.polynomials(c), (v1, v2)):
+        np.testing.assert_array_equal(again, first)
     # z1 (eq. 12) and z_b (eqs. 24-25) on the unperturbed chained form, as simulated
     n = 1 + min(profile.v2_terms, 4)
     z0 = rng.normal(size=(3, n))

@@ -7,7 +7,9 @@ every call of its ``run_trials`` (a drive of a real robot), with an optional sca
 
 from __future__ import annotations
 
+import json
 import re
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -418,39 +420,82 @@ def test_a_bad_plant_seed_is_refused_in_one_line(seed):
         plant_generator(0, seed)
 
 
-def _hostile(mode: str):
-    """``run_trials`` of a user's in-process plant gone wrong in one way (``mode``)."""
+def _hostile(mode: str, after: int = 0):
+    """``run_trials`` of a user's in-process plant gone wrong in one way (``mode``), honest for its
+    first ``after`` calls."""
+    import counted_car
+
     from ilc_steering.core.external import ExternalTrials
 
+    honest, calls = counted_car.CountedCarPlant.run_trials, []
+
+    class Weird(BaseException):  # neither an Exception nor an interrupt
+        pass
+
     def run_trials(self, profile, x0, c, record=False):
+        calls.append(mode)
+        if len(calls) <= after:
+            return honest(self, profile, x0, c, record)
         b = c.shape[0]
         final = np.tile(x0[:, :4], 1)
+        logs: object = [{} for _ in range(b)]
         if mode == "raises":
             raise ValueError("the robot's driver lost its socket")
+        if mode in ("exits", "exits 3"):
+            sys.exit(3 if mode == "exits 3" else 0)
+        if mode == "weird":
+            raise Weird("weird")
+        if mode == "interrupt":
+            raise KeyboardInterrupt
+        if mode == "writes c":
+            c[:] = np.nan  # the env's action, the learner's info["action"], if it were handed over
+        if mode == "writes x0":
+            x0[:] = 0.0
         if mode == "nan":
             final[0, 0] = np.nan
         if mode == "shape":
             final = final[:, :3]
+        if mode == "strings":
+            final = np.array([["a", "b", "c", "d"]] * b)
+        logs = {"log object": [{"x": object()}], "log nan": [{"f": [1.0, np.nan]}], "log key": [{1: "a"}]}.get(
+            mode, logs
+        )
+        logs = [{}, {}] if mode == "log count" else [] if mode == "no logs" else logs
         status = np.zeros(b, dtype=np.int64) + (7 if mode == "status" else 0)
         if mode == "type":
             return {"final": final}
-        return ExternalTrials(final, status, logs=[{} for _ in range(b)])
+        return ExternalTrials(final, status, logs=logs)
 
+    run_trials.calls = calls  # type: ignore[attr-defined]  # cleared, the plant starts honest again
     return run_trials
+
+
+READ_ONLY = "run_trials raised ValueError: assignment destination is read-only"
 
 
 @pytest.mark.parametrize(
     ("mode", "says"),
     [
         ("raises", "run_trials raised ValueError: the robot's driver lost its socket"),
+        ("exits", "run_trials raised SystemExit: 0"),  # before: exit 0, silent, no JSON
+        ("exits 3", "run_trials raised SystemExit: 3"),  # before: exit 3, no message
+        ("weird", "run_trials raised Weird: weird"),  # before: a traceback, exit 1
+        ("writes c", READ_ONLY),  # before: NaN in info["action"], the learner blamed (LinAlgError)
+        ("writes x0", READ_ONLY),  # (the profile's arrays: tests/test_protocols.py)
         ("nan", "not finite"),
         ("shape", "final states of shape (1, 3), not (1, 4)"),
+        ("strings", "final states of dtype <U1, not real numbers"),  # before: "of shape (1, 4), not (1, 4)"
         ("status", "status [7]"),
         ("type", "a dict, not ExternalTrials"),
+        ("log object", "a log that is not plain JSON data: logs[0]['x'] is <object"),  # before: exit 3 at write
+        ("log nan", "logs[0]['f'][1] is nan, not a finite number"),  # before: a bare NaN in the --json file
+        ("log key", "logs[0] has the key 1, not a string"),
+        ("log count", "2 logs, not a list of one log per trial (1)"),
     ],
 )
 def test_a_users_in_process_plant_gone_wrong_is_named_as_the_failure(counted, monkeypatch, capsys, mode, says):
-    """Not the learner's fault ("the env refused its action"), not an internal error: the plant's, exit 4."""
+    """Not the learner's fault ("the env refused its action"), not an internal error, not a success:
+    the plant's, exit 4, in one line; whatever it raises but an interrupt (``sys.exit()`` included)."""
     import counted_car
 
     monkeypatch.setattr(counted_car.CountedCarPlant, "run_trials", _hostile(mode))
@@ -458,7 +503,52 @@ def test_a_users_in_process_plant_gone_wrong_is_named_as_the_failure(counted, mo
         run_ilc(counted(), trials=2)
     assert "the counted car" in str(caught.value)
     assert main(["run", str(counted()), "--trials", "2"]) == 4
-    assert "the counted car" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the counted car" in err and len(err.splitlines()) == 1 and "bug" not in err
+
+
+def test_a_plant_that_logs_nothing_runs_its_trials(counted, monkeypatch):
+    """``ExternalTrials`` without ``logs`` (its default): each trial's log is ``{}`` (before: exit 3)."""
+    import counted_car
+
+    monkeypatch.setattr(counted_car.CountedCarPlant, "run_trials", _hostile("no logs"))
+    assert [record.plant for record in run_ilc(counted(), trials=2).trials] == [{}, {}]
+
+
+def test_a_plant_that_fails_after_trials_ran_keeps_them_in_strict_json(counted, monkeypatch, tmp_path, capsys):
+    import counted_car
+
+    monkeypatch.setattr(counted_car.CountedCarPlant, "run_trials", _hostile("log nan", after=2))
+    out = tmp_path / "run.json"
+    assert main(["run", str(counted()), "--trials", "3", "--json", str(out)]) == 4
+    data = json.loads(out.read_text(), parse_constant=lambda name: pytest.fail(f"{name} in the JSON"))
+    assert [t["trial"] for t in data["trials"]] == [1, 2] and data["trials"][0]["plant"] == {}
+
+
+def test_an_interrupt_keeps_the_trials_that_ran_and_still_exits_as_interrupted(counted, monkeypatch, tmp_path, capsys):
+    """Ctrl-C in trial 2 (the plant or the learner: the same loop): trial 1 is written where asked, one
+    line says so, exit 130 (before: "ilc-steering: interrupted", no JSON)."""
+    import counted_car
+
+    hostile = _hostile("interrupt", after=1)
+    monkeypatch.setattr(counted_car.CountedCarPlant, "run_trials", hostile)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        run_ilc(counted(), trials=3)
+    assert [t.trial for t in caught.value.partial.trials] == [1]
+    hostile.calls.clear()
+    out = tmp_path / "run.json"
+    assert main(["run", str(counted()), "--trials", "3", "--json", str(out)]) == 130
+    assert [t["trial"] for t in json.loads(out.read_text())["trials"]] == [1]
+    err = capsys.readouterr().err
+    assert err == f"ilc-steering: interrupted after 1 trial; what ran is kept in {out}\n"
+
+
+def test_a_plant_whose_reseed_exits_is_named(counted, monkeypatch, capsys):
+    import counted_car
+
+    monkeypatch.setattr(counted_car.CountedCarPlant, "reseed", lambda self, seed: sys.exit(0))
+    with pytest.raises(PlantError, match=r"the counted car: reseed raised SystemExit: 0"):
+        run_ilc(counted(), trials=2)
 
 
 def test_a_plant_seen_to_repeat_itself_has_no_scatter():
@@ -506,3 +596,20 @@ def test_a_plant_that_repeats_itself_is_not_called_scattered(tmp_path, monkeypat
     assert main(["run", str(path), "--learner", "cycle:make"]) == 1
     out = capsys.readouterr().out
     assert "repeatability" not in out and out.splitlines()[-1] == "not converged within 12 trials"
+
+
+@pytest.mark.parametrize(("mode", "code"), [("interrupt", 130), ("exits", 4)])
+def test_a_cyclic_run_ended_early_keeps_its_cycles(counted, monkeypatch, tmp_path, capsys, mode, code):
+    """Cycle 1 (two segments) ran before the plant failed or the user interrupted in cycle 2: it is
+    written (before: nothing was, whatever ended the run)."""
+    import counted_car
+
+    cyclic = (HERE.parent / "configs/cyclic_home_goal.yaml").read_text()
+    plant = counted().read_text().split("task:")[0].split("plant:")[1]
+    path = tmp_path / "cyclic_counted.yaml"
+    path.write_text(cyclic.split("plant:")[0] + "plant:" + plant + "task:" + cyclic.split("task:")[1])
+    monkeypatch.setattr(counted_car.CountedCarPlant, "run_trials", _hostile(mode, after=2))
+    out = tmp_path / "cyclic.json"
+    assert main(["run", str(path), "--trials", "3", "--json", str(out)]) == code
+    assert [c["cycle"] for c in json.loads(out.read_text())["cycles"]] == [1]
+    assert len(capsys.readouterr().err.splitlines()) == 1

@@ -262,6 +262,7 @@ FLOORS = (
             "ilc_steering.loop",
             "ilc_steering.segmented",
             "ilc_steering.verdict",
+            "ilc_steering.preflight",
             "ilc_steering.runner",
             "ilc_steering.oracle",
             "ilc_steering.plots",

@@ -366,6 +366,54 @@ def broken_factory(context):
     raise KeyError("no such thing")
 
 
+def exits_in_its_factory(context):
+    import sys
+
+    sys.exit(0)
+
+
+class Weird(BaseException):  # neither an Exception nor an interrupt
+    pass
+
+
+def _weird(self):
+    if self.trial == 2:
+        raise Weird("weird")
+
+
+def weird(context):
+    return Failing(context, _weird)
+
+
+class LearnFailsAt2(Failing):
+    def __init__(self, context):
+        super().__init__(context, lambda self: None)
+
+    def learn(self, info):
+        if self.trial == 2:
+            raise ValueError("task.pieces: my own value error")
+        super().learn(info)
+
+
+class ActOnly:
+    def __init__(self, context):
+        pass
+
+    def act(self, observation):
+        return None
+
+
+class NoAct:
+    def __init__(self, context):
+        pass
+
+    def learn(self, info):
+        pass
+
+    def reset(self):
+        pass
+
+
 class NanAt3(Failing):
     def __init__(self, context):
         super().__init__(context, lambda self: None)
@@ -459,6 +507,34 @@ def test_run_names_the_failing_learner_and_writes_the_trials_it_ran(learners, ca
     assert len(err.splitlines()) == 1 and "learner trust_learners:NanAt3: the env refused its action in trial 3" in err
     assert "bug" not in err
     assert [t["trial"] for t in json.loads(target.read_text())["trials"]] == [1, 2]
+
+
+def test_a_learner_that_fails_in_learn_keeps_the_trial_it_ran(learners, capsys):
+    """Trial 2 ran before learn() failed on it: it is printed and written (before: neither)."""
+    target = learners / "learn.json"
+    argv = ["run", "forward_parking", "--learner", "trust_learners:LearnFailsAt2", "--json", str(target)]
+    assert main(argv) == 4
+    printed = capsys.readouterr()
+    assert "learner trust_learners:LearnFailsAt2: learn() raised in trial 2: ValueError" in printed.err
+    assert [line.split()[0] for line in printed.out.splitlines() if line.startswith("    ")] == ["1", "2"]
+    assert [t["trial"] for t in json.loads(target.read_text())["trials"]] == [1, 2]
+
+
+@pytest.mark.parametrize(
+    ("learner", "code", "message"),
+    [
+        ("trust_learners:exits_in_its_factory", 4, "learner trust_learners:exits_in_its_factory: its factory raised "
+         "SystemExit: 0"),  # before: exit 0, nothing said
+        ("sys:exit", 4, "learner sys:exit: its factory raised SystemExit: LearnerContext("),  # before: exit 1
+        ("trust_learners:weird", 4, "learner trust_learners:weird: act() raised in trial 2: Weird: weird"),
+        ("trust_learners:NoAct", 2, "made NoAct, which has no act method"),  # before: "no act, learn and reset"
+        ("trust_learners:ActOnly", 2, "made ActOnly, which has no learn and reset method"),
+    ],
+)  # fmt: skip
+def test_a_learner_that_exits_raises_anything_or_lacks_a_method_is_named(learners, capsys, learner, code, message):
+    assert main(["run", "forward_parking", "--trials", "3", "--learner", learner]) == code
+    err = capsys.readouterr().err
+    assert message in err and len(err.splitlines()) == 1 and len(err) < 500 and "bug" not in err
 
 
 def test_workers_are_capped(tmp_path, capsys):

@@ -8,6 +8,8 @@ that would replace a packaged robot or has a malformed name is skipped with a wa
 
 from __future__ import annotations
 
+import json
+import re
 import sys
 import textwrap
 from pathlib import Path
@@ -148,3 +150,105 @@ def test_plant_model_takes_module_colon_class_like_learner(fresh):
         (fresh / "other.py").write_text("from my_unicycle import Config\n")
         path.write_text(text.replace("  model: unicycle", "  model: 'other:Config'", 1))
         load_config(path)  # the same name from another entry: refused, not replaced
+
+
+HOSTILE_ROBOTS = """
+import sys
+from dataclasses import dataclass
+from typing import Literal
+
+from ilc_steering.core.robots.unicycle import UnicycleModel, UnicyclePlantConfig
+
+
+@dataclass(frozen=True)
+class Raising(UnicyclePlantConfig):
+    model: Literal["raising"]
+
+    def __post_init__(self):
+        raise RuntimeError("my __post_init__ exploded")
+
+
+@dataclass(frozen=True)
+class PlantRaises(UnicyclePlantConfig):
+    model: Literal["plant_raises"]
+
+    def __post_init__(self):
+        pass
+
+    def plant(self):
+        raise TypeError("my plant() exploded")
+
+
+@dataclass(frozen=True)
+class PlantExits(PlantRaises):
+    model: Literal["plant_exits"]
+
+    def plant(self):
+        sys.exit(3)
+
+
+@dataclass(frozen=True)
+class NanNominal(UnicyclePlantConfig):
+    model: Literal["nan_nominal"]
+
+    def __post_init__(self):
+        pass
+
+    def nominal_map(self):
+        return UnicycleModel(float("nan"), 0.1)
+"""
+
+
+@pytest.mark.parametrize(
+    ("cls", "says"),
+    [
+        ("Raising", "plant.model 'hostile_robots:Raising': Raising raised RuntimeError: my __post_init__ exploded"),
+        ("PlantRaises", "plant.model 'plant_raises' (hostile_robots:PlantRaises): PlantRaises.plant() raised "
+         "TypeError: my plant() exploded"),
+        ("PlantExits", "plant.model 'plant_exits' (hostile_robots:PlantExits): PlantExits.plant() raised "
+         "SystemExit: 3"),
+        ("NanNominal", "plant.model 'nan_nominal' (hostile_robots:NanNominal): NanNominal.plant() raised "
+         "ParameterError: wheel_radius: must be a length"),  # before: "wheel_radius: ..." alone, no file
+    ],
+)  # fmt: skip
+def test_a_users_robot_config_that_raises_is_bad_input_naming_the_file_the_model_and_the_class(
+    fresh, capsys, cls, says
+):
+    """Before: exit 3, "internal error ... This is a bug" (or a message naming neither file nor robot)."""
+    (fresh / "hostile_robots.py").write_text(HOSTILE_ROBOTS)
+    text = (HERE.parent / "configs" / "unicycle_parking.yaml").read_text()
+    path = fresh / "hostile.yaml"
+    path.write_text(text.replace("  model: unicycle", f"  model: hostile_robots:{cls}", 1))
+    with pytest.raises(ConfigError, match=re.escape(f"{path}: {says}")):
+        load_config(path)
+    from ilc_steering.cli import main
+
+    assert main(["run", str(path), "--trials", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ilc-steering: config error: ") and says in err and len(err.splitlines()) == 1
+
+
+def test_a_run_of_a_users_robot_is_saved_as_its_module_and_loads_back_in_another_process(fresh, capsys):
+    """``run --json`` of ``plant.model: module:Class`` keeps the entry, so ``plot`` reads it where no
+    config registered the name (before: "plant.model: must be one of [...], got 'my_unicycle'")."""
+    from ilc_steering.cli import main
+    from ilc_steering.plots import load_run
+
+    (fresh / "my_unicycle.py").write_text(
+        "from dataclasses import dataclass\nfrom typing import Literal\n"
+        "from ilc_steering.core.robots.unicycle import UnicyclePlantConfig\n\n\n"
+        "@dataclass(frozen=True)\nclass Config(UnicyclePlantConfig):\n"
+        '    model: Literal["my_unicycle"]  # type: ignore[assignment]\n'
+    )
+    text = (HERE.parent / "configs" / "unicycle_parking.yaml").read_text()
+    path, out = fresh / "mine.yaml", fresh / "run.json"
+    path.write_text(text.replace("  model: unicycle", "  model: my_unicycle:Config", 1))
+    main(["run", str(path), "--trials", "2", "--json", str(out)])
+    assert json.loads(out.read_text())["config"]["plant"]["model"] == "my_unicycle:Config"
+    for state in (robots.ROBOTS, robots._LOADED, robots._SOURCES):  # as a fresh process has them
+        state.pop("my_unicycle", None)
+    run = load_run(out)
+    assert run.config == load_config(path) and run.config.plant.model == "my_unicycle"
+    packaged = fresh / "packaged.json"
+    main(["run", "unicycle_parking", "--trials", "1", "--json", str(packaged)])
+    assert json.loads(packaged.read_text())["config"]["plant"]["model"] == "unicycle"  # a packaged name stays

@@ -16,7 +16,7 @@ honoured. A file is read through :mod:`ilc_steering.readers`: its size checked b
 (:data:`MAX_FILE_BYTES`), its nesting after (:data:`~ilc_steering.readers.MAX_DEPTH`).
 """
 
-from ilc_steering.config.loading import MAX_FILE_BYTES, load_config, packaged_configs, plant_config
+from ilc_steering.config.loading import MAX_FILE_BYTES, config_data, load_config, packaged_configs, plant_config
 from ilc_steering.config.sections import (
     MAX_ACTION_BOUND,
     MAX_TRIALS,
@@ -45,6 +45,7 @@ __all__ = [
     "SteeringConfig",
     "TaskConfig",
     "ToleranceConfig",
+    "config_data",
     "load_config",
     "packaged_configs",
     "plant_config",

@@ -13,7 +13,7 @@ from typing import Any
 from pydantic_core import core_schema
 
 from ilc_steering.config.sections import LearningConfig, SimulationConfig, Task, domain, require
-from ilc_steering.config.steering import SteeringConfig
+from ilc_steering.config.steering import SteeringConfig, robots_code
 from ilc_steering.core import robots
 from ilc_steering.core.plants import PlantConfig
 from ilc_steering.entries import CONFIG_FOLDERS
@@ -22,7 +22,7 @@ from ilc_steering.readers import check_depth, read_text
 from ilc_steering.schema import show, validate
 from ilc_steering.yaml_reader import MAX_VALUES, count_values, load_yaml
 
-__all__ = ["MAX_FILE_BYTES", "load_config", "packaged_configs", "plant_config"]
+__all__ = ["MAX_FILE_BYTES", "config_data", "load_config", "packaged_configs", "plant_config"]
 
 MAX_FILE_BYTES = 1 << 20
 """Largest config file read [bytes]."""
@@ -83,6 +83,25 @@ def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> Steerin
         _FOLDERS.reset(token)
 
 
+def config_data(config: SteeringConfig) -> dict[str, Any]:
+    """``config`` as plain data that :func:`load_config` builds back, in another process too (a run's
+    JSON, which ``plot`` reads): a robot of a user's module is saved as the ``module:ConfigClass``
+    it was loaded from, not as the name only this process registered (:func:`robots.saved_name`)."""
+    data = dataclasses.asdict(config)
+    _save_models(config.plant, data["plant"])
+    return data
+
+
+def _save_models(plant: Any, data: dict[str, Any]) -> None:
+    """Put each robot's saved name (:func:`robots.saved_name`) in ``data``, ``plant``'s fields as
+    :func:`dataclasses.asdict` made them, a robot config nested in another's included."""
+    data["model"] = robots.saved_name(plant.model)
+    for field in dataclasses.fields(plant):
+        inner = getattr(plant, field.name)
+        if isinstance(inner, PlantConfig) and isinstance(data.get(field.name), dict):
+            _save_models(inner, data[field.name])
+
+
 def _config(data: Any) -> SteeringConfig:
     """A :class:`SteeringConfig` from a file's data: each section through its schema
     (:func:`~ilc_steering.schema.validate`), the plant's by its robot's config class, then the
@@ -124,7 +143,8 @@ def plant_config(value: Any, key: str = "plant") -> PlantConfig:
         )
         with domain(f"{key}.model"):  # a plugin that cannot load is named, with its package
             cls = robots.config_class(model)
-    built: PlantConfig = validate(cls, value, key)
+    with robots_code(cls, "", model):  # its __post_init__ is the user's code when the robot is theirs
+        built: PlantConfig = validate(cls, value, key)
     return built
 
 

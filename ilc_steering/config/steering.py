@@ -4,8 +4,10 @@ checks that span keys (dimensions, tolerances, the task's chart, the time grid, 
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -19,18 +21,46 @@ from ilc_steering.config.sections import (
     domain,
     require,
 )
+from ilc_steering.core import robots
 from ilc_steering.core.grid import check_grid
 from ilc_steering.core.plants import PlantConfig
 from ilc_steering.core.robots.car import frame_angle, rotate
-from ilc_steering.errors import ConfigError
+from ilc_steering.errors import INTERRUPTS, ConfigError, described
 from ilc_steering.schema import NAME_PATTERN, show
 
-__all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name", "v1_travel"]
+__all__ = ["MIN_TRAVEL", "SteeringConfig", "check_name", "robots_code", "v1_travel"]
 
 _NAME = re.compile(NAME_PATTERN)
 MIN_TRAVEL = 1e-3
 """[m for a car] the least distance ``sum_i |v1_i| Delta_i`` the nominal ``v1`` must cover along ``z1``:
 below it ``W`` is all but singular and the ``c11`` box all but zero wide."""
+
+
+@contextmanager
+def robots_code(owner: Any, what: str, model: str, values: bool = False, key: str = "plant") -> Iterator[None]:
+    """A call into a robot's own code while its config loads: ``owner`` (its config class or
+    object, or its plant) runs ``what`` (``"plant()"``; ``""`` for the class's construction and
+    ``__post_init__``). What a user's robot raises (``sys.exit()`` included; an interrupt passes) is
+    a :class:`ConfigError` naming ``key.model`` (``model``, as loaded from ``module:ConfigClass``
+    when it was), the class and what raised: the user's robot cannot take this config, bad input of
+    theirs (exit 2; ``docs/robots.md``), never the library's bug. A ``ValueError`` passes to the
+    caller that puts it under its key, unless ``values`` (where no key of the config is at fault).
+    The library's own robots' other errors pass too: those are its bugs (exit 3)."""
+    try:
+        yield
+    except (ConfigError, *INTERRUPTS):
+        raise
+    except BaseException as error:
+        cls = owner if isinstance(owner, type) else type(owner)
+        if (isinstance(error, ValueError) and not values) or (
+            not isinstance(error, ValueError) and cls.__module__.startswith("ilc_steering.")
+        ):
+            raise
+        entry = robots.saved_name(model)
+        label = f"{key + '.' if key else ''}model {model!r}" + (f" ({entry})" if entry != model else "")
+        raise ConfigError(
+            f"{label}: {cls.__qualname__}{'.' + what if what else ''} raised {described(error)}"
+        ) from None
 
 
 def v1_travel(z1_change: float, pieces: Sequence[float], v1_fixed: Sequence[float], ramp: float | None) -> float:
@@ -139,15 +169,18 @@ class SteeringConfig:
                         "outside the chart's (-pi/2, pi/2); leave it out for frame_angle's",
                     )
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
-        plant = self.plant.plant()
-        with domain("plant", prefix="plant."):
+        model = self.plant.model
+        with robots_code(self.plant, "plant()", model, values=True):
+            plant = self.plant.plant()
+        with domain("plant", prefix="plant."), robots_code(self.plant, "check_task()", model):
             self.plant.check_task(self.simulation.max_step, self.is_cyclic)
         task_points = []
         for key, point in points:
             with domain(key, {"phi": key, "configuration": key}):
                 q = np.array(point, dtype=np.float64)
                 task_points.append(rotate(q, frame) if self.plant.kind.has_pose else q)
-                plant.check_configuration(task_points[-1])
+                with robots_code(plant, "check_configuration()", model):
+                    plant.check_configuration(task_points[-1])
         cost = self.learning.cost
         if cost != "none":
             require(not self.is_cyclic, "learning.cost", "is for one-trial tasks (the cyclic law has none)")
@@ -161,10 +194,11 @@ class SteeringConfig:
                 "learning.cost",
                 f"{cost} needs task.v2_terms > n - 1 = {n - 1}, spare coefficients for a null space of W",
             )
-        chained_map = self.plant.nominal_map()
+        with robots_code(self.plant, "nominal_map()", model, values=True):
+            chained_map = self.plant.nominal_map()
         z1 = []
         for (key, _), q in zip(points, task_points):
-            with domain(key):
+            with domain(key), robots_code(chained_map, "to_chained()", model):
                 z1.append(float(np.asarray(chained_map.to_chained(q), dtype=np.float64)[..., 0]))
         for i, (key, leg) in enumerate(self.legs()):
             require(

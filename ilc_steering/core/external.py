@@ -24,8 +24,12 @@ nothing (a real robot, a plant that repeats itself), so a subclass written befor
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+import numbers
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from reprlib import repr as show
 from typing import Any, ClassVar, NoReturn, Protocol, runtime_checkable
 
 import numpy as np
@@ -36,7 +40,7 @@ from ilc_steering.core.plants import Kernel, PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials
 from ilc_steering.core.stepper import LEFT_CHART, OK
-from ilc_steering.errors import ConfigError, LimitError, PlantError
+from ilc_steering.errors import INTERRUPTS, ConfigError, LimitError, PlantError, described
 
 __all__ = [
     "PLANT_STREAM",
@@ -44,8 +48,10 @@ __all__ = [
     "ExternalPlantBase",
     "ExternalTrials",
     "is_external",
+    "plain_log",
     "plant_generator",
     "run_external",
+    "users_plant",
 ]
 
 Array = npt.NDArray[np.float64]
@@ -54,8 +60,10 @@ Array = npt.NDArray[np.float64]
 @dataclass(frozen=True)
 class ExternalTrials(Trials):
     """:class:`~ilc_steering.core.simulate.Trials` of an external plant, with what the plant itself
-    logged for each trial (``logs[b]``, plain JSON data: the actions it was sent, a crash, its own
-    success test); the env puts ``logs[b]`` in the trial's ``info["plant"]`` and ``run --json`` keeps it."""
+    logged for each trial (``logs[b]``, a mapping of plain JSON data: the actions it was sent, a
+    crash, its own success test; or none at all, ``[]``); the env puts ``logs[b]`` in the trial's
+    ``info["plant"]`` and ``run --json`` keeps it. A log that is not JSON data (an object, a NaN) is
+    the plant's failure (:func:`run_external`)."""
 
     logs: list[dict[str, Any]] = field(default_factory=list)
 
@@ -203,21 +211,78 @@ class ExternalPlantBase:
         self._refuse("reference field for solve_ivp")
 
 
-def run_external(plant: ExternalPlant, profile: InputProfile, x0: Array, c: Array, record: bool) -> ExternalTrials:
-    """``plant.run_trials`` behind the library's boundary: what the user's plant raises, and what it
-    returns that is not ``B`` trials of finite final states ``(B, state_dim)`` with a status ``OK``
-    or ``LEFT_CHART`` each (and with ``record``, ``times`` and ``states`` of matching shapes), is a
-    :class:`~ilc_steering.errors.PlantError` naming the plant; the plant's own
+@contextmanager
+def users_plant(plant: Any, what: str) -> Iterator[None]:
+    """Run a call into the user's ``plant`` (``what``: ``"run_trials"``, ``"reseed"``): whatever it
+    raises, ``sys.exit()`` and other ``BaseException`` included, is a
+    :class:`~ilc_steering.errors.PlantError` naming the plant, except an interrupt
+    (:data:`~ilc_steering.errors.INTERRUPTS`) and the plant's own
     :class:`~ilc_steering.errors.PlantError`, :class:`~ilc_steering.errors.LimitError` and
-    :class:`~ilc_steering.errors.ConfigError` (bad input: a config it cannot run) pass."""
-    who = str(getattr(plant, "who", None) or getattr(plant, "name", None) or type(plant).__name__)
-    batch = c.shape[0]
+    :class:`~ilc_steering.errors.ConfigError` (bad input: a config it cannot run), which pass."""
     try:
-        trials = plant.run_trials(profile, x0, c, record)
-    except (PlantError, LimitError, ConfigError):
+        yield
+    except (PlantError, LimitError, ConfigError, *INTERRUPTS):
         raise
-    except Exception as error:
-        raise PlantError(f"{who}: run_trials raised {type(error).__name__}: {error}") from error
+    except BaseException as error:
+        raise PlantError(f"{plant_name(plant)}: {what} raised {described(error)}") from error
+
+
+def plant_name(plant: Any) -> str:
+    """What messages call the user's plant: its ``who`` (a program's command), ``name`` or class."""
+    return str(getattr(plant, "who", None) or getattr(plant, "name", None) or type(plant).__name__)
+
+
+def _handed(a: Array) -> Array:
+    """A read-only copy of ``a`` for the user's plant: what it does to its arguments stays with it."""
+    copy = np.array(a)
+    copy.flags.writeable = False
+    return copy
+
+
+MAX_LOG_DEPTH = 32
+"""The deepest nesting of a plant's log (:func:`plain_log`)."""
+
+
+def plain_log(log: Any, where: str = "its log", depth: int = 0) -> Any:
+    """A copy of a plant's log of one trial as plain JSON data: ``None``, or a mapping of string keys
+    to strings, booleans, ``None``, finite numbers (numpy's included, as Python's), lists and such
+    mappings, at most :data:`MAX_LOG_DEPTH` deep; ``ValueError`` naming the first part that is not
+    (``where`` it is: ``its log["speeds"][3]``)."""
+    if log is None or (depth and isinstance(log, str)):
+        return log
+    if depth and isinstance(log, (bool, np.bool_)):
+        return bool(log)
+    if depth and isinstance(log, numbers.Integral):
+        return int(log)
+    if depth and isinstance(log, numbers.Real):
+        if not math.isfinite(log):
+            raise ValueError(f"{where} is {log!r}, not a finite number")
+        return float(log)
+    if depth >= MAX_LOG_DEPTH:
+        raise ValueError(f"{where} is nested deeper than {MAX_LOG_DEPTH}")
+    if isinstance(log, Mapping):
+        wrong = next((key for key in log if not isinstance(key, str)), None)
+        if wrong is not None:
+            raise ValueError(f"{where} has the key {show(wrong)}, not a string")
+        return {key: plain_log(value, f"{where}[{key!r}]", depth + 1) for key, value in log.items()}
+    if depth and isinstance(log, (list, tuple)):
+        return [plain_log(value, f"{where}[{i}]", depth + 1) for i, value in enumerate(log)]
+    kind = "JSON data" if depth else "a mapping or None"
+    raise ValueError(f"{where} is {show(log)} (type {type(log).__name__}), not {kind}")
+
+
+def run_external(plant: ExternalPlant, profile: InputProfile, x0: Array, c: Array, record: bool) -> ExternalTrials:
+    """``plant.run_trials`` behind the library's boundary. The plant gets read-only copies of ``x0``
+    and ``c`` (what it writes into them never reaches the env's ``info`` nor the learner). What it
+    raises is a :class:`~ilc_steering.errors.PlantError` naming the plant (:func:`users_plant`), and
+    so is what it returns that is not ``B`` trials of finite, real final states ``(B, state_dim)``
+    with a status ``OK`` or ``LEFT_CHART`` each (and with ``record``, ``times`` and ``states`` of
+    matching shapes), with no log or one log per trial of plain JSON data (:func:`plain_log`). The
+    trials returned are the library's own copies: the logs copied, a trial without one ``{}``."""
+    who = plant_name(plant)
+    batch = c.shape[0]
+    with users_plant(plant, "run_trials"):
+        trials = plant.run_trials(profile, _handed(x0), _handed(c), record)
 
     def refuse(problem: str) -> NoReturn:
         raise PlantError(f"{who}: run_trials returned {problem}; the trials are not counted")
@@ -225,20 +290,32 @@ def run_external(plant: ExternalPlant, profile: InputProfile, x0: Array, c: Arra
     if not isinstance(trials, Trials):
         refuse(f"a {type(trials).__name__}, not ExternalTrials")
     final = np.asarray(trials.final)
-    if final.shape != (batch, plant.state_dim) or not np.issubdtype(final.dtype, np.number):
+    if not (np.issubdtype(final.dtype, np.integer) or np.issubdtype(final.dtype, np.floating)):
+        refuse(f"final states of dtype {final.dtype}, not real numbers")
+    if final.shape != (batch, plant.state_dim):
         refuse(f"final states of shape {final.shape}, not ({batch}, {plant.state_dim})")
     if not np.all(np.isfinite(final)):
         refuse("a final state that is not finite (NaN or infinite)")
     status = np.asarray(trials.status)
     if status.shape != (batch,) or not np.all(np.isin(status, (OK, LEFT_CHART))):
         refuse(f"status {status.tolist()!r}, not {batch} of OK ({OK}) or LEFT_CHART ({LEFT_CHART})")
+    times, states = trials.times, trials.states
     if record:
-        times, states = trials.times, trials.states
         if times is None or states is None:
             refuse("no times or states though the trials were to be recorded")
         times, states = np.asarray(times), np.asarray(states)
         if times.ndim != 1 or states.shape != (batch, times.shape[0], plant.state_dim):
             refuse(f"times {times.shape} and states {states.shape} that do not match ({batch}, len(times), state_dim)")
-    if isinstance(trials, ExternalTrials):
-        return trials
-    return ExternalTrials(trials.final, trials.status, trials.times, trials.states)
+    logs = trials.logs if isinstance(trials, ExternalTrials) else []
+    if not isinstance(logs, (list, tuple)) or len(logs) not in (0, batch):
+        count = f"{len(logs)} logs" if isinstance(logs, (list, tuple)) else f"logs of type {type(logs).__name__}"
+        refuse(f"{count}, not a list of one log per trial ({batch})")
+    checked: list[dict[str, Any]] = []
+    for b, log in enumerate(logs):
+        try:
+            checked.append(plain_log(log, f"logs[{b}]"))
+        except ValueError as error:
+            refuse(f"a log that is not plain JSON data: {error}")
+    return ExternalTrials(
+        trials.final, trials.status, trials.times, trials.states, logs=checked or [{} for _ in range(batch)]
+    )

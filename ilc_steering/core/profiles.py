@@ -196,7 +196,9 @@ class PiecewiseProfile:
         """The bases as one matrix ``(q, p * D)`` that maps ``c2`` onto every piece's ``v2`` coefficients,
         and the shape ``(p, D)`` of those: the same for every trial, so built once."""
         bases = self.bases()  # (p, q, D): piece, coefficient, degree
-        return bases[:, 0].shape, np.ascontiguousarray(bases.transpose(1, 0, 2).reshape(bases.shape[1], -1))
+        matrix = np.ascontiguousarray(bases.transpose(1, 0, 2).reshape(bases.shape[1], -1))
+        matrix.flags.writeable = False  # shared by every trial, a user's plant's included: nobody writes it
+        return bases[:, 0].shape, matrix
 
     def evaluate(self, c: Array, t: Array) -> tuple[Array, Array]:
         """``v1(t)`` and ``v2(t)`` of one coefficient vector at times ``t`` [s] in ``[0, T]``."""

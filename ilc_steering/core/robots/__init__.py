@@ -49,6 +49,7 @@ __all__ = [
     "names",
     "nominal_plant",
     "register",
+    "saved_name",
     "skipped",
 ]
 
@@ -110,6 +111,16 @@ def names() -> list[str]:
     then the installed packages' entry points)."""
     _read_plugins()
     return list(ROBOTS)
+
+
+def saved_name(name: str) -> str:
+    """``plant.model`` as a record on disk (``run --json``) keeps robot ``name``: the name itself if
+    every process knows it (a packaged robot, an installed package's entry point), else the
+    ``"module:ConfigClass"`` it was registered from (a config's ``plant.model: module:ConfigClass``,
+    a script's :func:`register`), which loads it back in another process."""
+    if name in PACKAGED or name not in ROBOTS or _SOURCES.get(name, "").startswith("package "):
+        return name
+    return ROBOTS[name]
 
 
 def skipped() -> dict[str, str]:
