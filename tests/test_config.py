@@ -92,7 +92,10 @@ def test_every_packaged_config_loads():
         ({"task__goal": [-1.0, 1.0, 0.5, 0.0]}, r"task\.v1_fixed: the start and goal share z1"),
         ({"task__v1_fixed": [0.1]}, r"task\.v1_fixed: needs one value per piece"),
         ({"learning__tolerance": {"error": 1e-3}}, r"learning\.tolerance: a car needs"),
-        ({"task__frame": 100.0}, r"task\.frame: 100\.0 rad puts task\.start's heading"),  # was blamed on task.start
+        (
+            {"task__frame": 100.0},
+            r"task\.frame: 100\.0 rad puts task\.start at a heading of -99\.2",
+        ),  # was blamed on task.start
     ],
 )
 def test_bad_configs_name_the_key_and_the_file(tmp_path, changes, message):

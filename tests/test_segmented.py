@@ -65,8 +65,9 @@ def test_a_via_points_fault_names_its_own_key():
     with pytest.raises(ConfigError, match=r"task\.via\[0\] \(in task\.segments\[0\]'s frame\): phi = 1\.6 rad"):
         load_config(data)
     data = packaged()
-    data["task"]["segments"][1]["frame"] = 2.0
-    with pytest.raises(ConfigError, match=r"task\.via\[0\] \(in task\.segments\[1\]'s frame\): theta = -1\.7"):
+    data["task"]["segments"][1]["frame"] = 2.0  # the file's frame is named beside the point it puts off the chart
+    match = r"task\.segments\[1\]\.frame: 2\.0 rad puts task\.via\[0\] \(in task\.segments\[1\]'s frame\) at a heading"
+    with pytest.raises(ConfigError, match=match + r" of -1\.7"):
         load_config(data)
 
 

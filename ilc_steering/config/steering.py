@@ -165,8 +165,8 @@ class SteeringConfig:
                     require(
                         abs(turned) < np.pi / 2,
                         "task.frame",
-                        f"{frame} rad puts {key}'s heading {point[2]} rad at {turned:.6g} rad in the task frame, "
-                        "outside the chart's (-pi/2, pi/2); leave it out for frame_angle's",
+                        f"{frame} rad puts {key} at a heading of {turned:.6g} rad in the task frame ({point[2]:.6g} "
+                        "rad in the world's), outside the chart's (-pi/2, pi/2); leave it out for frame_angle's",
                     )
         object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
         model = self.plant.model

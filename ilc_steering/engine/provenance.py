@@ -132,7 +132,7 @@ CODE: dict[str, tuple[str, ...]] = {
     "ilc_steering.configs": ("rl/*.yaml",),
     "ilc_steering": (
         *("errors.py", "entries.py", "boxes.py", "schema.py", "yaml_reader.py", "config/*.py"),
-        *("loop.py", "runner.py", "oracle.py"),
+        *("loop.py", "runner.py", "preflight.py", "oracle.py"),
         *("compare/cells.py", "sweep/rows.py"),  # files, not imports: the engine names no command
     ),
 }

@@ -185,7 +185,8 @@ def config_class(name: str, folders: tuple[str, ...] = ()) -> Any:
 
 def _from_entry(entry: str, folders: tuple[str, ...] = ()) -> Any:
     """The config class an entry names, registered under its ``model`` literal."""
-    cls = _load(entry, "plant.model", None, folders)
+    cls = load_entry(entry, "robot", folders, example="ConfigClass")  # named under the config's plant.model
+    check_robot(cls, f"robot {entry}")
     name = model_name(cls)
     register(name, entry)  # a packaged name or another robot's is refused here
     _SOURCES.setdefault(name, f"entry {entry!r}")
