@@ -132,6 +132,8 @@ def test_compare_quick_runs_every_method(quick_comparison):
         ["tables", "docs/compare"],
         ["plot", "run.json"],
         ["plot", "run.json", "--out", ""],
+        ["compare", "--quick", "--out", ""],  # before: the working directory taken as the run folder
+        ["sweep", "forward_parking", "--out", ""],
     ],
 )
 def test_a_bad_argument_is_one_line_naming_it_and_exit_2(argv, capsys):

@@ -65,7 +65,7 @@ from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
 from ilc_steering.engine.options import add_cell_options
 from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
-from ilc_steering.output import write_json
+from ilc_steering.output import output_folder, write_json
 from ilc_steering.readers import is_file
 
 __all__ = ["main", "main_with_failures", "method_families", "parse", "run_all", "run_cells", "validate"]
@@ -273,7 +273,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"{QUICK['rl_trials']} RL, {QUICK['custom_trials']} custom trials) and, unless --seeds is given, seeds "
         f"{' '.join(map(str, QUICK_SEEDS))}: checks that everything runs",
     )
-    parser.add_argument("--out", type=Path, default=Args.out, help="run folder; an existing one is resumed")
+    parser.add_argument("--out", type=output_folder, default=Args.out, help="run folder; an existing one is resumed")
     parser.add_argument(
         "--against",
         type=Path,

@@ -28,7 +28,6 @@ import sys
 import time
 from dataclasses import asdict, dataclass, replace
 from dataclasses import fields as dataclass_fields
-from pathlib import Path
 from typing import Any, get_type_hints
 
 import numpy as np
@@ -40,7 +39,7 @@ from ilc_steering.core.external import is_external
 from ilc_steering.engine.options import add_cell_options, check_cell_options
 from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.output import MAX_RESULT_BYTES, content_hash, write_json
+from ilc_steering.output import MAX_RESULT_BYTES, content_hash, output_folder, write_json
 from ilc_steering.readers import read_json
 from ilc_steering.sweep.report import write_sweep_report
 from ilc_steering.sweep.rows import (
@@ -325,7 +324,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="ratios true / nominal on both axes",
     )
     parser.add_argument("--trials", type=int, default=SweepArgs.trials, help="budget per plant")
-    parser.add_argument("--out", type=Path, default=SweepArgs.out, help="run folder; an existing one is resumed")
+    parser.add_argument("--out", type=output_folder, default=SweepArgs.out, help="run folder; resumed if it exists")
     add_cell_options(parser, "row")
     parser.add_argument(
         "--axis",
