@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The first hour, again: a fresh clone of main, a fresh venv (no system packages), the README's two
-# commands, then pytest twice more; under the load of the round's final recomputation (3 processes).
+# commands, then pytest twice more; under the load of the round's final recomputation (3 processes), after the hostile pass's fixes.
 set -u
 cd /work/scratch/fh
 rm -rf clone venv figures
@@ -11,7 +11,7 @@ cd clone
 out=/work/scratch/fh/first_hour.txt
 {
 echo "# /work/scratch/fh/first_hour.sh: a fresh clone of main (commit below), a fresh venv (python -m venv, no system packages),"
-echo "# the README's two commands, then pytest twice more; under the load of the round's final recomputation (3 processes)"
+echo "# the README's two commands, then pytest twice more; under the load of the round's final recomputation (3 processes), after the hostile pass's fixes"
 git log --oneline -1
 } > $out
 run() {  # run NAME LOG COMMAND
