@@ -63,7 +63,6 @@ EXIT_CODES = {
 """The CLI's exit codes, as its ``--help`` prints them."""
 
 
-# Iterations the paper reports for "exact steering" (sections 4 and 6.2), and why ours may differ.
 def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
     """``--trials`` and ``--hold`` checked against each other and the configs; the ``--hold`` to use."""
     if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
