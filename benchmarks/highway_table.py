@@ -17,7 +17,6 @@ curve, ``docs/highway/highway_her.md``'s table); ``--check`` exits 1 if a file's
 from __future__ import annotations
 
 import json
-import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -25,12 +24,11 @@ from typing import Any
 from highway_parking import SUMMARY_HEADER, summary  # benchmarks/, the script's folder
 
 from ilc_steering.arguments import Parser
-from ilc_steering.tables import markdown_table
+from ilc_steering.tables import markdown_table, render_blocks, rewrite_blocks
 
-__all__ = ["BLOCK", "her_line", "render", "table", "tables"]
+__all__ = ["her_line", "render", "table", "tables"]
 
 FOLDER = Path("docs/highway")
-BLOCK = re.compile(r"(<!-- highway-table: ([a-z-]+) -->\n)(.*?)(<!-- /highway-table -->)", re.DOTALL)
 
 
 def her_line(her: dict[str, Any]) -> list[str]:
@@ -85,14 +83,8 @@ def tables(folder: Path = FOLDER) -> dict[str, str]:
 
 
 def render(text: str, blocks: dict[str, str], where: str) -> str:
-    """``text`` with each block rewritten; ``ValueError`` naming a block that is not known or not closed."""
-    found = BLOCK.findall(text)
-    if text.count("<!-- highway-table:") != len(found):
-        raise ValueError(f"{where}: a <!-- highway-table: NAME --> marker without its <!-- /highway-table -->")
-    for _, name, _, _ in found:
-        if name not in blocks:
-            raise ValueError(f"{where}: a highway-table block names {name!r}; choose from {list(blocks)}")
-    return BLOCK.sub(lambda m: m.group(1) + blocks[m.group(2)] + m.group(4), text)
+    """``text`` with each highway-table block rewritten (:func:`~ilc_steering.tables.render_blocks`)."""
+    return render_blocks(text, blocks, "highway-table", where)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -103,14 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         blocks = tables(args.folder)
-        stale = []
-        for path in args.into:
-            text = path.read_text()
-            new = render(text, blocks, str(path))
-            if new != text:
-                stale.append(path)
-                if not args.check:
-                    path.write_text(new)
+        stale = rewrite_blocks(args.into, blocks, "highway-table", args.check)
     except (OSError, ValueError, KeyError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

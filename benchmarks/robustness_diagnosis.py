@@ -9,7 +9,7 @@ reports what each explains; then, on the identified model, how near the goal eac
 ``robust_ilc`` gets (Newton along the homotopy of the last round; Gauss-Newton's minimum-norm
 steps); and the singular values of the model's Jacobian at the nominal solution. It also counts
 the trailer map's lost cells (solvable, not converged) of the committed ``robust_ilc`` rows, and
-``robust_ilc``'s share of the solvable plants on the rows of the servo and lag maps computed so far.
+each method's share of the solvable plants on the rows of the servo and lag maps computed so far.
 """
 
 from __future__ import annotations
@@ -124,10 +124,9 @@ def _trailer(folder: Path) -> dict[str, Any]:
     }
 
 
-def _map(folder: Path, method: str = "robust_ilc", oracle: Path | None = None) -> dict[str, Any]:
-    """``method``'s share of the oracle-solvable plants over the rows of a map computed so far (the
-    oracle of the folder ``oracle``, by default the map's own)."""
-    solvable = np.array(json.loads(((oracle or folder) / "oracle.json").read_text())["solvable"], dtype=bool)
+def _map(folder: Path, method: str) -> dict[str, Any]:
+    """``method``'s share of the oracle-solvable plants over the rows of a map computed so far."""
+    solvable = np.array(json.loads((folder / "oracle.json").read_text())["solvable"], dtype=bool)
     rows = {int(p.stem.rsplit("__", 1)[1]): json.loads(p.read_text()) for p in folder.glob(f"rows/{method}__*.json")}
     if not rows:
         return {"rows": 0}
@@ -146,10 +145,11 @@ def _map(folder: Path, method: str = "robust_ilc", oracle: Path | None = None) -
 
 def main(args: Args) -> dict[str, Any]:
     docs = args.trailer.parent
-    maps = {name: _map(docs / name) for name in ("parallel_parking_servo", "parallel_parking_lag")}
-    for method in ("ilc_paper", "newton_ilc"):
-        lag = docs / "parallel_parking_lag"
-        maps[f"parallel_parking_lag/{method}"] = _map(docs / "parallel_parking_lag_others", method, lag)
+    maps = {
+        f"{name}/{method}" if method != "robust_ilc" else name: _map(docs / name, method)
+        for name in ("parallel_parking_servo", "parallel_parking_lag")
+        for method in ("robust_ilc", "newton_ilc", "ilc_paper")
+    }
     result = {"parallel_parking_servo": _servo(), "trailer_bay": _trailer(args.trailer), "maps": maps}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "diagnosis.json").write_text(json.dumps(result, indent=1) + "\n")

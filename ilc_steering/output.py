@@ -271,11 +271,14 @@ def check_run_settings(
     already (a resume). Configs of new names are added: a resume may add scenarios. ``made_now``:
     what made the results (:func:`~ilc_steering.engine.provenance.provenance`), recorded; ``check_code``
     checks the recorded one before a resume of a folder that holds results: ``results/*.json`` or
-    any of ``reports`` (a report's results may be restored from it), ``ValueError``."""
+    any of ``reports`` (a report's results may be restored from it), ``ValueError``; a resume it
+    accepts keeps the recorded one (the same code; its commit is the one that made the first
+    results, each session's is in ``sessions``)."""
     stored_path = folder / "run.json"
     resumed = is_file(stored_path)
     known: dict[str, str] = {}
     sessions: list[Any] = []
+    made = made_now
     if resumed:
         stored = read_json(stored_path, MAX_RESULT_BYTES)
         if not isinstance(stored, dict):
@@ -297,6 +300,7 @@ def check_run_settings(
         held = (results.is_dir() and any(results.glob("*.json"))) or any(is_file(path) for path in reports)
         if held and check_code is not None:
             check_code(made_by, stored_path)  # a folder holds the results of one code
+            made = made_by  # that code, as first recorded (its commit); each session records its own
     elif results.is_dir() and any(results.glob("*.json")):
         raise ValueError(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
@@ -304,8 +308,8 @@ def check_run_settings(
         )
     merged = {**(known if isinstance(known, dict) else {}), **(configs or {})}
     record = {**settings, **({"configs": merged} if configs is not None else {})}
-    if made_now is not None:
-        record["provenance"] = made_now
+    if made is not None:
+        record["provenance"] = made
     write_json(stored_path, {**record, "sessions": sessions if isinstance(sessions, list) else []})
     return resumed
 

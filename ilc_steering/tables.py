@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import re
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -13,7 +14,7 @@ from typing import Any
 
 from ilc_steering.output import write_atomic
 
-__all__ = ["markdown_table", "median_seconds", "write_results"]
+__all__ = ["markdown_table", "median_seconds", "render_blocks", "rewrite_blocks", "write_results"]
 
 
 def median_seconds(fn: Callable[[], Any], repeats: int) -> float:
@@ -47,3 +48,30 @@ def write_results(
     writer.writerows(rows)
     write_atomic(out / f"{stem}.csv", table.getvalue())
     write_atomic(out / f"{stem}.md", markdown)
+
+
+def render_blocks(text: str, blocks: dict[str, str], kind: str, where: str) -> str:
+    """``text`` with each block between ``<!-- KIND: NAME -->`` and ``<!-- /KIND -->`` rewritten
+    to ``blocks[NAME]``: how a page quotes a table generated from an artifact. ``ValueError``
+    names a block that is not known or not closed."""
+    pattern = re.compile(rf"(<!-- {re.escape(kind)}: ([a-z0-9-]+) -->\n)(.*?)(<!-- /{re.escape(kind)} -->)", re.DOTALL)
+    found = pattern.findall(text)
+    if text.count(f"<!-- {kind}:") != len(found):
+        raise ValueError(f"{where}: a <!-- {kind}: NAME --> marker without its <!-- /{kind} -->")
+    for _, name, _, _ in found:
+        if name not in blocks:
+            raise ValueError(f"{where}: a {kind} block names {name!r}; choose from {list(blocks)}")
+    return pattern.sub(lambda m: m.group(1) + blocks[m.group(2)] + m.group(4), text)
+
+
+def rewrite_blocks(paths: Sequence[Path], blocks: dict[str, str], kind: str, check: bool = False) -> list[Path]:
+    """The files of ``paths`` whose ``kind`` blocks are not ``blocks``, each rewritten unless ``check``."""
+    stale = []
+    for path in paths:
+        text = path.read_text()
+        new = render_blocks(text, blocks, kind, str(path))
+        if new != text:
+            stale.append(path)
+            if not check:
+                write_atomic(path, new)
+    return stale

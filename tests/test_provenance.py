@@ -78,6 +78,22 @@ def test_a_resume_by_other_code_is_refused(tmp_path: Path) -> None:
         folder.prepare(settings, {})
 
 
+def test_a_resume_by_the_same_code_keeps_the_provenance_of_the_first_results(tmp_path: Path) -> None:
+    # a folder resumed from an install without git (commit None) still names the commit that made it
+    folder = RunFolder(tmp_path / "run", "cells", "compare")
+    settings = {"quick": True, "version": ilc_steering.__version__}
+    folder.prepare(settings, {})
+    write_json(folder.path("a_cell"), {"x": 1})
+    record = json.loads((tmp_path / "run" / "run.json").read_text())
+    record["provenance"] = {**record["provenance"], "commit": "a" * 40, "dirty": False}
+    write_json(tmp_path / "run" / "run.json", record)
+    assert folder.prepare(settings, {})
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["provenance"]["commit"] == "a" * 40
+    (folder.path("a_cell")).unlink()  # no results held: the folder is taken over by this process's code
+    folder.prepare(settings, {})
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["provenance"] == prov.provenance()
+
+
 def _installed_layout(tmp_path: Path) -> Path:
     """A copy of the package as a wheel lays it out (agents, envs, configs under ilc_steering)."""
     site = tmp_path / "site"

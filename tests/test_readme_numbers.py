@@ -163,3 +163,23 @@ def test_the_highway_tables_are_the_artifacts(monkeypatch):
         )
     assert "<!-- highway-table: summary -->" in README
     assert "<!-- highway-table: her-curve -->" in (ROOT / "docs/highway.md").read_text()
+
+
+def test_the_map_tables_are_the_artifacts(monkeypatch):
+    # issue 52 item 5: the robustness and sweep tables of the docs generated from the committed maps
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    import map_tables
+
+    from ilc_steering.tables import render_blocks
+
+    blocks = map_tables.tables(ROOT / "docs")
+    for path, names in (
+        (ROOT / "docs/robustness.md", ("robustness",)),
+        (ROOT / "docs/robustness/diagnosis.md", ("diagnosis-maps",)),
+    ):
+        text = path.read_text()
+        assert render_blocks(text, blocks, map_tables.KIND, str(path)) == text, (
+            f"python benchmarks/map_tables.py --into {path}"
+        )
+        for name in names:
+            assert f"<!-- map-table: {name} -->" in text

@@ -1,0 +1,100 @@
+"""The robustness maps' tables, from the committed map folders, into the pages that quote them.
+
+    python benchmarks/map_tables.py [--into docs/robustness.md docs/robustness/diagnosis.md] [--check]
+
+prints the blocks; ``--into`` rewrites each block between ``<!-- map-table: NAME -->`` and
+``<!-- /map-table -->`` in each file; ``--check`` exits 1 if a file's block differs. The blocks:
+``robustness`` (``docs/robustness/robustness.md``, written by ``python benchmarks/robustness.py
+--report --out docs/robustness``), ``sweep`` and ``sweep-blackbox`` (the ``sweep.md`` of
+``docs/sweep`` and ``docs/sweep_blackbox``), ``diagnosis-maps`` (the servo and lag maps of
+``docs/robustness/diagnosis.json``, written by ``python benchmarks/robustness_diagnosis.py --out
+docs/robustness``).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from ilc_steering.arguments import Parser
+from ilc_steering.tables import markdown_table, rewrite_blocks
+
+__all__ = ["KIND", "diagnosis_maps", "tables"]
+
+KIND = "map-table"
+DOCS = Path("docs")
+DIAGNOSIS_MAPS = {
+    "parallel_parking_servo": "servo (steering offset x wheel radius, lag 0.05 s)",
+    "parallel_parking_lag": "lag (steering lag 0-0.1 s x steering offset)",
+}
+
+
+def _table_lines(path: Path) -> str:
+    """The Markdown table of ``path`` (its lines that start with ``|``)."""
+    return "".join(line + "\n" for line in path.read_text().splitlines() if line.startswith("|"))
+
+
+def diagnosis_maps(diagnosis: dict[str, Any]) -> str:
+    """The servo and lag maps' shares of their solvable plants, each method a column."""
+    maps = diagnosis["maps"]
+
+    def share(line: dict[str, Any]) -> str:
+        if line["rows"] < line["of_rows"]:
+            raise ValueError(f"diagnosis.json: a map of {line['rows']} of {line['of_rows']} rows; run it to the end")
+        return f"{100 * line['converged_of_solvable']:.1f} %"
+
+    def count(value: float | None) -> str:
+        return "-" if value is None else f"{value:g}"
+
+    rows = [
+        [
+            label,
+            share(maps[name]),
+            count(maps[name]["median_trials"]),
+            count(maps[name]["max_trials"]),
+            share(maps[f"{name}/newton_ilc"]),
+            share(maps[f"{name}/ilc_paper"]),
+        ]
+        for name, label in DIAGNOSIS_MAPS.items()
+    ]
+    header = ["map", "`robust_ilc`: converged of solvable", "median trials", "most trials"]
+    header += ["`newton_ilc`", "eqs. 33-34"]
+    return markdown_table(header, rows, [False, True, True, True, True, True])
+
+
+def tables(docs: Path = DOCS) -> dict[str, str]:
+    """Every block's text by name, from the committed folders under ``docs``."""
+    return {
+        "robustness": _table_lines(docs / "robustness/robustness.md"),
+        "sweep": _table_lines(docs / "sweep/sweep.md"),
+        "sweep-blackbox": _table_lines(docs / "sweep_blackbox/sweep.md"),
+        "diagnosis-maps": diagnosis_maps(json.loads((docs / "robustness/diagnosis.json").read_text())),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = Parser(description=__doc__.splitlines()[0])
+    parser.add_argument("--into", type=Path, nargs="*", default=[])
+    parser.add_argument("--check", action="store_true", help="exit 1 if a file's block is not the table")
+    parser.add_argument("--docs", type=Path, default=DOCS, help="holds robustness/, sweep/, sweep_blackbox/")
+    args = parser.parse_args(argv)
+    try:
+        blocks = tables(args.docs)
+        stale = rewrite_blocks(args.into, blocks, KIND, args.check)
+    except (OSError, ValueError, KeyError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    if args.check:
+        for path in stale:
+            print(f"{path}: its map tables are not the artifacts' (python benchmarks/map_tables.py --into {path})")
+        return 1 if stale else 0
+    if not args.into:
+        for name, block in blocks.items():
+            print(f"{name}:\n{block}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
