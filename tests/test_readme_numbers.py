@@ -174,7 +174,7 @@ def test_the_map_tables_are_the_artifacts(monkeypatch):
 
     blocks = map_tables.tables(ROOT / "docs")
     for path, names in (
-        (ROOT / "docs/robustness.md", ("robustness",)),
+        (ROOT / "docs/robustness.md", ("robustness", "sweep", "sweep-blackbox")),
         (ROOT / "docs/robustness/diagnosis.md", ("diagnosis-maps",)),
     ):
         text = path.read_text()
