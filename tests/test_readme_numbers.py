@@ -141,7 +141,7 @@ def test_the_mujoco_page_quotes_its_artifacts():
     smooth = [r for r in runs if not r["config"].endswith("_scatter")]
     assert all(r["trials_to_1cm"] <= 2 and r["last_inside"] for r in smooth)
     scattered = [r["last_worst_m"] for r in runs if r["config"].endswith("_scatter")]
-    assert f"{1e3 * min(scattered):.0f}-{1e3 * max(scattered):.0f} mm" in page
+    assert f"{1e3 * min(scattered):.1f}-{1e3 * max(scattered):.1f} mm" in page
     speed = [
         r["simulated_per_wall"]
         for r in json.loads((ROOT / "docs/mujoco/mujoco_repeatability.json").read_text())["rows"]
