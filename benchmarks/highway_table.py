@@ -17,14 +17,13 @@ curve, ``docs/highway/highway_her.md``'s table); ``--check`` exits 1 if a file's
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 from highway_parking import SUMMARY_HEADER, summary  # benchmarks/, the script's folder
 
 from ilc_steering.arguments import Parser
-from ilc_steering.tables import markdown_table, render_blocks, rewrite_blocks
+from ilc_steering.tables import markdown_table, render_blocks, update_pages
 
 __all__ = ["her_line", "render", "table", "tables"]
 
@@ -93,18 +92,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="exit 1 if a file's block is not the table")
     parser.add_argument("--folder", type=Path, default=FOLDER)
     args = parser.parse_args(argv)
-    try:
-        blocks = tables(args.folder)
-        stale = rewrite_blocks(args.into, blocks, "highway-table", args.check)
-    except (OSError, ValueError, KeyError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    if args.check:
-        for path in stale:
-            print(f"{path}: its highway table is not the artifacts' (python benchmarks/highway_table.py --into {path})")
-        return 1 if stale else 0
-    print(blocks["summary"], end="")
-    return 0
+    code, blocks = update_pages(
+        args.into, args.check, lambda: tables(args.folder), "highway-table", "benchmarks/highway_table.py"
+    )
+    if not (code or args.check):
+        print(blocks["summary"], end="")
+    return code
 
 
 if __name__ == "__main__":

@@ -14,12 +14,11 @@ docs/robustness``).
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 from ilc_steering.arguments import Parser
-from ilc_steering.tables import markdown_table, rewrite_blocks
+from ilc_steering.tables import markdown_table, update_pages
 
 __all__ = ["KIND", "diagnosis_maps", "tables"]
 
@@ -80,20 +79,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="exit 1 if a file's block is not the table")
     parser.add_argument("--docs", type=Path, default=DOCS, help="holds robustness/, sweep/, sweep_blackbox/")
     args = parser.parse_args(argv)
-    try:
-        blocks = tables(args.docs)
-        stale = rewrite_blocks(args.into, blocks, KIND, args.check)
-    except (OSError, ValueError, KeyError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    if args.check:
-        for path in stale:
-            print(f"{path}: its map tables are not the artifacts' (python benchmarks/map_tables.py --into {path})")
-        return 1 if stale else 0
-    if not args.into:
+    code, blocks = update_pages(args.into, args.check, lambda: tables(args.docs), KIND, "benchmarks/map_tables.py")
+    if not (code or args.check or args.into):
         for name, block in blocks.items():
             print(f"{name}:\n{block}")
-    return 0
+    return code
 
 
 if __name__ == "__main__":

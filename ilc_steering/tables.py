@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import re
+import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -14,7 +15,7 @@ from typing import Any
 
 from ilc_steering.output import write_atomic
 
-__all__ = ["markdown_table", "median_seconds", "render_blocks", "rewrite_blocks", "write_results"]
+__all__ = ["markdown_table", "median_seconds", "render_blocks", "rewrite_blocks", "update_pages", "write_results"]
 
 
 def median_seconds(fn: Callable[[], Any], repeats: int) -> float:
@@ -75,3 +76,21 @@ def rewrite_blocks(paths: Sequence[Path], blocks: dict[str, str], kind: str, che
             if not check:
                 write_atomic(path, new)
     return stale
+
+
+def update_pages(
+    paths: Sequence[Path], check: bool, blocks: Callable[[], dict[str, str]], kind: str, script: str
+) -> tuple[int, dict[str, str]]:
+    """What a script that quotes generated tables does with ``--into paths`` and ``--check``: build
+    ``blocks()`` and rewrite (with ``check``: compare) the ``kind`` blocks of ``paths``. Returns the
+    exit code and the blocks: 2 with the error on stderr, 1 when ``check`` found a file whose blocks
+    differ (each named on stdout with ``script``'s command that rewrites it), else 0."""
+    try:
+        made = blocks()
+        stale = rewrite_blocks(paths, made, kind, check)
+    except (OSError, ValueError, KeyError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2, {}
+    for path in stale if check else []:
+        print(f"{path}: its {kind} blocks are not the artifacts' (python {script} --into {path})")
+    return (1 if check and stale else 0), made
