@@ -94,6 +94,10 @@ def test_every_failed_cell_is_named_on_stderr(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "raising_learners:make seed 0: FAILED" in err and "no learner here" in err
     assert "1 of 2 cells failed" in err
+    from ilc_steering.engine import provenance as prov
+
+    session = prov.read_run(tmp_path / "run")[1].sessions[-1]  # read back through its schema
+    assert session.packages == prov.provenance()["packages"] and session.computed == 1
 
 
 def _server(behaviour):

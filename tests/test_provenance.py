@@ -89,6 +89,7 @@ def test_a_resume_by_the_same_code_keeps_the_provenance_of_the_first_results(tmp
     write_json(tmp_path / "run" / "run.json", record)
     assert folder.prepare(settings, {})
     assert json.loads((tmp_path / "run" / "run.json").read_text())["provenance"]["commit"] == "a" * 40
+    assert prov.read_run(tmp_path / "run")[1].provenance.commit == "a" * 40  # and it reads back
     (folder.path("a_cell")).unlink()  # no results held: the folder is taken over by this process's code
     folder.prepare(settings, {})
     assert json.loads((tmp_path / "run" / "run.json").read_text())["provenance"] == prov.provenance()

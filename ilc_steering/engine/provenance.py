@@ -86,6 +86,9 @@ class Session:
     backend: str
     commit: str | None
     machine: Machine
+    packages: dict[str, str | None] | None = None
+    """The numerical packages' versions of this session (None in records written before it was
+    kept): a resume keeps the provenance of the first results, and each session says its own."""
 
 
 @dataclass(frozen=True)

@@ -266,5 +266,6 @@ def _session(
                 "backend": backend,
                 "commit": provenance()["commit"],
                 "machine": machine(),
+                "packages": provenance()["packages"],
             },
         )
