@@ -18,7 +18,7 @@ import numpy.typing as npt
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.scatter import FLOOR, MIN_SCATTER, MIN_TRIALS, estimate
+from ilc_steering.core.scatter import FLOOR, MIN_SCATTER, MIN_TRIALS, estimate, repeats
 
 __all__ = [
     "BAND",
@@ -34,6 +34,7 @@ __all__ = [
     "measure",
     "newton_solve",
     "scatter_groups",
+    "shown_to_repeat",
     "trial_scatter",
     "trust_box",
     "within_scatter",
@@ -288,10 +289,11 @@ def trial_scatter(
 ) -> Array | None:
     """The plant's scatter per group [m or rad] from the residuals of ``trials`` against the family's
     model ``theta`` (one batched simulation, no trial), or None: too few trials qualify, the errors
-    still fall, or the scatter is below :data:`~ilc_steering.core.scatter.MIN_SCATTER` (a plant that
-    repeats itself)."""
+    still fall, or the plant repeats itself (two trials of one action measured alike,
+    :func:`~ilc_steering.core.scatter.repeats`, or a scatter below
+    :data:`~ilc_steering.core.scatter.MIN_SCATTER`)."""
     ok = [t for t in trials if t.ok]
-    if not ok:
+    if not ok or shown_to_repeat(ok):
         return None
     q, inside = family.configurations(theta, np.array([t.c for t in ok]))
     residuals = np.where(inside[:, None], np.array([t.q for t in ok]) - q, np.nan)
@@ -299,6 +301,12 @@ def trial_scatter(
     if found is None or float(np.min(found[0])) < MIN_SCATTER:
         return None
     return found[0]
+
+
+def shown_to_repeat(trials: list[Trial]) -> bool:
+    """Whether two of ``trials`` ran one action and were measured alike: the plant repeats itself,
+    and what a model leaves of its trials is the model's error, not a scatter to average."""
+    return len(trials) > 1 and repeats(np.array([t.c for t in trials]), np.array([t.q for t in trials]))
 
 
 def within_scatter(q: Array, goal_q: Array, sigma: Array, groups: tuple[tuple[int, ...], ...], factor: float) -> bool:
@@ -337,11 +345,12 @@ def in_scatter_band(
     the MuJoCo car). Trials farther apart in action are left out: outside the model's family its
     error changes with the action, and their offsets would bias the mean (``newton_ilc`` on the
     simulated lab robot held a heading bias of 6-9 mrad). Once the band has begun, ``last`` (the estimate the
-    learner last had) stands in when the trials give none: a few lucky draws in a row read as
+    learner last had) stands in when the trials give none (not once two trials of one action were
+    measured alike: that plant has no scatter, and the band ends): a few lucky draws in a row read as
     errors that still fall, and a band ended by them sent the learner to chase the next draw."""
     groups = scatter_groups(model)
     scatter = trial_scatter(family, theta, trials, groups)
-    if scatter is None and band:
+    if scatter is None and band and not shown_to_repeat([t for t in trials if t.ok]):
         scatter = last
     inside = scatter is not None and (
         within_scatter(trial.q, goal_q, scatter, groups, BAND)

@@ -39,7 +39,8 @@ after each one:
    tolerance fails it); when the smallest step fails as well, the best trial's error was likely
    a lucky draw of the plant's scatter, and the best trial itself is run again (a repeat it asks
    for and counts, ``NewtonILC.repeats``): its measurements are averaged, and the learner goes
-   on from the mean. So no failed trial is sent again as it was. When a trial left the chart,
+   on from the mean; a plant that has measured one action alike twice has no such luck, and the
+   step from the best trial halves on. So no failed trial is sent again as it was. When a trial left the chart,
    the next one halves its step from the best trial (eqs. 33-34 from it if there is no best yet).
 
 5. **The plant's scatter.** A robot that does not repeat itself scatters the final pose of one
@@ -59,7 +60,8 @@ after each one:
    trials (their steps are of the scatter's size); it cannot hold a tolerance that single draws
    leave (heavy tails: the MuJoCo car's friction draws) nor one below about three times the
    scatter. A plant that repeats itself (every packaged noiseless config) has no scatter to
-   estimate, and this step never runs.
+   estimate, and this step never runs; where a model's misfit reads as one (the trailer with a
+   hitch, outside the family), the band's first repeat measures the same outcome and ends it.
 
 On the nominal plant :math:`\hat\theta = 0`, :math:`d = 0` and step 3 is an exact inversion:
 one update lands on the goal to the integrator's accuracy (``tests/test_newton_ilc.py``).
@@ -84,6 +86,7 @@ from ilc_steering.agents.model_based import (
     law_step,
     levenberg_marquardt,
     newton_solve,
+    shown_to_repeat,
     trust_box,
 )
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
@@ -192,7 +195,8 @@ class NewtonILC:
             self._D[:] = 0.0
             self._previous = None
             z_model, ok = self._final_z(np.array([t.c for t in self._band]))
-            self._next = self._newton(trial, np.mean((np.array([t.z for t in self._band]) - z_model)[ok], axis=0))
+            offsets = (np.array([t.z for t in self._band]) - z_model)[ok]
+            self._next = self._newton(trial, offsets.mean(axis=0) if ok.any() else None)
             self.update_seconds.append(time.perf_counter() - began)
             return
         best = self._best
@@ -204,7 +208,8 @@ class NewtonILC:
             self._previous = None
             if self._failures == 1 or best.error < REACHED:
                 self._next = self._fallback(best)
-            elif self._failures <= FALLBACK_HALVINGS + 1:
+            elif self._failures <= FALLBACK_HALVINGS + 1 or shown_to_repeat(self._trials):
+                # (a plant that repeated an action alike has no luck to measure again: the step halves on)
                 self._next = best.c + 0.5 ** (self._failures - 1) * (self._fallback(best) - best.c)
             else:  # the smallest step failed too: the best trial's error may be the scatter's luck
                 self._measured = self._measured or [best]
@@ -244,13 +249,11 @@ class NewtonILC:
         c = np.array([t.c for t in self._trials])
         y = np.array([t.q for t in self._trials])
 
-        def residuals(thetas: Array) -> Array:
-            rows = []
-            for th in thetas:
-                q, ok = self.family.configurations(th, c)
-                r = np.where(ok[:, None], q - y, 1.0)  # a halted model trial is a poor fit, not a NaN
-                rows.append(np.concatenate([r.ravel(), RIDGE * th]))
-            return np.array(rows)
+        def residuals(thetas: Array) -> Array:  # every hypothesis's trials in one kernel call
+            m, k = thetas.shape[0], c.shape[0]
+            q, ok = self.family.configurations_many(np.repeat(thetas, k, axis=0), np.tile(c, (m, 1)))
+            r = np.where(ok[:, None], q - np.tile(y, (m, 1)), 1.0)  # a halted model trial is a poor fit, not a NaN
+            return np.concatenate([r.reshape(m, -1), RIDGE * thetas], axis=1)
 
         bound = np.full(theta.size, MAX_LOG_RATIO)
         return levenberg_marquardt(residuals, theta, -bound, bound, _FIT_ITERATIONS)[0]

@@ -178,7 +178,8 @@ def test_docstring_example_runs():
 
 @pytest.mark.parametrize("servo", [{"steering_offset": 0.002}, {"steering_lag": 0.05}, {"speed_lag": 0.05}])
 def test_the_cycle_runs_every_servo_plant_the_config_accepts(servo):
-    """A servo car's state has six entries (the wheel and drive lags): the cycle carries them from
+    """A servo car's state has the lab kernel's twelve entries (the wheel and drive lags fifth and sixth,
+    play and encoders off): the cycle carries them from
     segment to segment, a reset starts them at rest, and the cycle still learns (the lag makes it slower)."""
     data = dataclasses.asdict(load_config("cyclic_home_goal"))
     data["plant"].update(servo)
@@ -186,7 +187,7 @@ def test_the_cycle_runs_every_servo_plant_the_config_accepts(servo):
     agent = CyclicILCAgent(env.unwrapped.nominal_models, 1.0, 1.0)
     for options in (None, {"start": [0.05, -0.02, 0.1, 0.0]}):
         obs, _ = env.reset(seed=0, options=options)
-        assert env.unwrapped._x.shape == (6,) and env.unwrapped._x[5] == 0.0  # at rest: the wheel's speed 0
+        assert env.unwrapped._x.shape == (12,) and env.unwrapped._x[5] == 0.0  # at rest: the wheel's speed 0
         truncated, errors = False, []
         while not truncated:
             obs, _, _, truncated, info = env.step(agent.act(obs))

@@ -178,7 +178,7 @@ SERVOS = [
 
 @pytest.mark.parametrize("name", ["forward_parking", "forward_parking_saturated"])
 @pytest.mark.parametrize("servo", SERVOS, ids=lambda s: "+".join(s))
-@pytest.mark.slow  # tight solve_ivp references, and the servo kernel's compilation
+@pytest.mark.slow  # tight solve_ivp references, and the lab kernel's compilation
 def test_the_servo_perturbations_within_1e9_of_a_tight_solve_ivp(name, servo):
     import dataclasses
 
@@ -187,7 +187,7 @@ def test_the_servo_perturbations_within_1e9_of_a_tight_solve_ivp(name, servo):
     config = load_config(name)
     config = dataclasses.replace(config, plant=dataclasses.replace(config.plant, **servo))
     scenario = Scenario.from_config(config)
-    assert scenario.plant.state_dim == 6
+    assert scenario.plant.state_dim == 12  # the lab robot's kernel, its play and encoders off
     c = scenario.nominal.solve()
     trial = scenario.run(c[None])
     assert trial.status[0] == OK
@@ -289,3 +289,32 @@ def test_a_batch_of_plants_must_be_one_per_trial_of_one_kind():
         scenario.run(c, plant=[scenario.plant] * 2)
     with pytest.raises(ValueError, match="one kind"):
         scenario.run(c, plant=[scenario.plant, scenario.plant, ChainedPlant(4)])
+
+
+def test_a_simulator_s_compilation_is_announced_once_per_process(tmp_path, capsys, monkeypatch):
+    """Two entry points of one simulator (its serial and its batched runners) compiling in one process
+    say so once, not once each; another simulator says so too."""
+    from ilc_steering.core import stepper
+
+    monkeypatch.setattr(stepper, "_READY", set())
+    monkeypatch.setattr(stepper, "_ANNOUNCED", set())
+    source = tmp_path / "robot_kernel.py"  # no numba cache beside it
+    source.write_text("def f(): pass\n")
+    code = compile(source.read_text(), str(source), "exec")
+
+    class EntryPoint:  # what announce_compile reads of a numba dispatcher
+        def __init__(self):
+            namespace = {}
+            exec(code, namespace)
+            self.py_func, self.overloads = namespace["f"], {}
+
+    def entry_point(_):
+        return EntryPoint()
+
+    for function, name in ((entry_point(1), "car"), (entry_point(2), "car"), (entry_point(3), "unicycle")):
+        stepper.announce_compile(function, name)
+    lines = capsys.readouterr().err.splitlines()
+    assert [line.split(" simulator")[0] for line in lines] == [
+        "ilc-steering: compiling the car",
+        "ilc-steering: compiling the unicycle",
+    ]

@@ -37,7 +37,7 @@ def plants_of_every_kind():
 
 
 def servo_car():
-    """The car with every unmodeled servo perturbation on: the six-state kernel."""
+    """The car with every unmodeled servo perturbation on: the lab kernel, its play and encoders off."""
     config = CONFIGS["forward_parking_saturated"]
     plant = dataclasses.replace(config.plant.plant(), steering_offset=0.02, steering_lag=0.05, speed_lag=0.1)
     return plant, config

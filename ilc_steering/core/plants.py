@@ -104,7 +104,7 @@ class Kernel:
     them among numba's threads. Built once in the robot's module, where its field is."""
 
     name: str
-    """What the simulator is called in messages ("unicycle", "car-servo", ...)."""
+    """What the simulator is called in messages ("unicycle", "car-lab", ...)."""
     layout: KernelLayout
     serial: Callable[..., Any]
     parallel: Callable[..., Any]

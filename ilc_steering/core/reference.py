@@ -91,7 +91,7 @@ def steering_entry(plant: Plant, limit: float) -> int:
 
 
 def lab_car_trial(plant: CarPlant, profile: InputProfile, x0: Array, c: Array, rtol: float = 1e-12) -> Array:
-    """The final state of one trial of the lab robot ``plant`` (``plant.lab``) from the kernel's
+    """The final state of one trial of the lab robot ``plant`` (or a servo car) from the kernel's
     initial state ``x0``, in the kernel's layout, by DOP853 at ``rtol`` restarted at every event.
 
     Internally the wheel angle ``phi_w`` is integrated with a mode: 0 resting, +1 / -1 pushed by

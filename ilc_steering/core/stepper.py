@@ -258,6 +258,7 @@ def drive(rhs, step, chart, n, params, x0, durations, steps, v1c, v2c, out, traj
 
 
 _READY: set[Any] = set()  # compiled functions this process has run: no announcement to consider
+_ANNOUNCED: set[str] = set()  # simulators whose compilation this process has said
 
 
 def announce_compile(function: Any, name: str) -> None:
@@ -275,6 +276,9 @@ def announce_compile(function: Any, name: str) -> None:
     folder = Path(cache_dir) if cache_dir else module.parent / "__pycache__"
     if folder.is_dir() and any(folder.rglob(f"{module.stem}.{cached}-*.nbi")):
         return
+    if name in _ANNOUNCED:  # another entry point of the same simulator (its serial and its batched runners)
+        return
+    _ANNOUNCED.add(name)
     print(
         f"ilc-steering: compiling the {name} simulator once for this install (numba), then it is cached ...",
         file=sys.stderr,

@@ -169,8 +169,9 @@ class CarPlant(FactorFamily):
       ``domega/dt = (u1 - omega) / speed_lag``, from rest at the start of a trial; the trial is
       measured at ``T``, before the wheel has spun down.
 
-    With any of them on, the state is ``(x, y, theta, phi_c, phi_w, omega)`` (the servo kernel of
-    :mod:`~ilc_steering.core.robots.car_fields`); without, it is ``(x, y, theta, phi_c)``.
+    With any of them on, the state has the twelve entries of the lab robot's kernel
+    (:mod:`~ilc_steering.core.robots.car_lab`, its play and encoders off), the servo's output
+    ``phi_w`` fifth and the wheel's speed ``omega`` sixth; without, it is ``(x, y, theta, phi_c)``.
 
     Two imperfections of section 5's lab robot, each 0 (off) by default:
 
@@ -181,8 +182,8 @@ class CarPlant(FactorFamily):
       the controller uses in eqs. 4-5 is then dead-reckoned, stepping by the nominal odometry of
       one pitch of travel at each pulse, from the true one at the start of a trial.
 
-    With either on, the state has twelve entries (the lab kernel of
-    :mod:`~ilc_steering.core.robots.car_lab`); the final
+    With either on, the play's anchor, the wheel's rotation and the controller's estimate move in
+    the state's last six entries; the final
     configuration is measured externally (true pose, the servo's steering angle), as in the paper.
     """
 
@@ -197,7 +198,7 @@ class CarPlant(FactorFamily):
     steering_backlash: float = 0.0
     encoder_pulses: int = 0
     servo_kernel: bool = False
-    """Run on the six-state servo kernel even with every servo perturbation off: a model family
+    """Run on the servo's kernel even with every servo perturbation off: a model family
     whose hypotheses vary the actuator's parameters keeps one kernel for all of them."""
 
     @classmethod
@@ -231,29 +232,27 @@ class CarPlant(FactorFamily):
 
     @property
     def lab(self) -> bool:
-        """Whether a lab-robot imperfection is on (the twelve-state kernel)."""
+        """Whether a lab-robot imperfection is on (play or encoders)."""
         return bool(self.steering_backlash or self.encoder_pulses)
 
     @property
     def servo(self) -> bool:
-        """Whether a servo perturbation is on (the six-state kernel, or the lab's)."""
+        """Whether a servo perturbation is on and no lab-robot imperfection (the lab's kernel either way)."""
         return bool(self.servo_kernel or self.steering_offset or self.steering_lag or self.speed_lag) and not self.lab
 
     @property
     def state_dim(self) -> int:
-        return 12 if self.lab else 6 if self.servo else 4
+        return 12 if self.lab or self.servo else 4
 
     def initial_state(self, q: Array) -> Array:
         """At rest at ``q``: the commanded and the measured wheel angles are ``phi``, the wheel speed 0;
-        on the lab robot also the play's anchor, the wheel's rotation 0, the estimate ``q``, no pulses."""
+        with a servo or the lab robot's imperfections also the play's anchor, the wheel's rotation 0,
+        the estimate ``q``, no pulses."""
         q = np.asarray(q, dtype=np.float64)
         if not self.servo and not self.lab:
             return q.copy()
         zero = np.zeros_like(q[..., :1])
-        servo = [q, q[..., 3:4], zero]
-        if not self.lab:
-            return np.concatenate(servo, axis=-1)
-        return np.concatenate([*servo, q[..., 3:4], zero, q[..., :3], zero], axis=-1)
+        return np.concatenate([q, q[..., 3:4], zero, q[..., 3:4], zero, q[..., :3], zero], axis=-1)
 
     def configuration(self, x: Array) -> Array:
         """The measured configurations ``q`` of states ``x``: the wheel angle is the clipped command,
@@ -332,7 +331,10 @@ class CarPlant(FactorFamily):
                 return np.array([dx, dy, dtheta, u2])
             dphi_w = (commanded - q[4]) / steering_lag if steering_lag else 0.0
             domega = (u1 - q[5]) / speed_lag if speed_lag else 0.0
-            return np.array([dx, dy, dtheta, u2, dphi_w, domega])
+            # The lab kernel's other entries, its play and encoders off: the wheel (the play's anchor)
+            # follows the servo's output, the wheel turns, the estimate rests at the start, no pulse.
+            dwheel = dphi_w if steering_lag else (0.0 if abs(q[3]) >= limit else u2)
+            return np.array([dx, dy, dtheta, u2, dphi_w, domega, dwheel, omega, 0.0, 0.0, 0.0, 0.0])
 
         def chart(t: float, x: Array) -> float:
             return float(np.pi / 2 - CHART_MARGIN - abs(x[2]))

@@ -1,7 +1,7 @@
-"""The car's compiled fields beyond the batched kernel: the car with servo perturbations and the car
-in ``(x, y, theta, phi)`` (the kernel :mod:`ilc_steering.core.tangent`
-replaced, kept as :data:`ANGLE_KERNEL` for ``benchmarks/throughput.py``). :func:`car_kernel`
-picks a car plant's kernel (section 5's lab robot's among them) and builds its parameter row.
+"""The car's compiled field in ``(x, y, theta, phi)`` (the kernel :mod:`ilc_steering.core.tangent`
+replaced, kept as :data:`ANGLE_KERNEL` for ``benchmarks/throughput.py``), and :func:`car_kernel`,
+which picks a car plant's kernel (the batched one, or section 5's lab robot's for a servo) and
+builds its parameter row.
 
 Steering limit: the steering servo integrates the commanded rate ``u2`` into a commanded angle
 ``phi_c`` (the fourth state), and the wheel turns to ``phi = clip(phi_c, -steering_limit,
@@ -11,12 +11,11 @@ of the paper's 45-degree case comes close to its seven iterations (eight to 0.5 
 discards the command learns far more slowly. The kink of the field where ``|phi_c|`` crosses the
 limit is located inside the step (:func:`~ilc_steering.core.stepper.step_with_stop`).
 
-Servo perturbations (:data:`SERVO_KERNEL`): a misaligned wheel and first-order steering and drive
-servos, six states ``(x, y, theta, phi_c, phi_w, omega)``. A lag adds a stable linear mode of rate
-``1 / lag``; the fixed step resolves it when ``lag`` is not much below the step (the config
-requires ``lag >= max_step``).
-
-The lab robot, the servo car with play and encoders, is :mod:`ilc_steering.core.robots.car_lab`.
+Servo perturbations (a misaligned wheel and first-order steering and drive servos) run on the lab
+robot's kernel, :mod:`ilc_steering.core.robots.car_lab`, with its play and encoders off (one
+compiled servo car; tested against ``solve_ivp`` in ``tests/test_integrate.py``). A lag adds a
+stable linear mode of rate ``1 / lag``; the fixed step resolves it when ``lag`` is not much below
+the step (the config requires ``lag >= max_step``).
 """
 
 from __future__ import annotations
@@ -29,19 +28,16 @@ from numba import njit
 
 from ilc_steering.core import tangent
 from ilc_steering.core.kernels import trial_kernel
-from ilc_steering.core.plants import Kernel, KernelLayout
-from ilc_steering.core.robots.car_lab import LAB_KERNEL, LAB_LAYOUT, SERVO_PARAMS
+from ilc_steering.core.plants import Kernel
+from ilc_steering.core.robots.car_lab import LAB_KERNEL, LAB_LAYOUT
 from ilc_steering.core.stepper import CHART_LIMIT, step_with_stop
 from ilc_steering.core.tangent import CAR_LAYOUT
 
-__all__ = ["ANGLE_KERNEL", "LAB_KERNEL", "SERVO_KERNEL", "car_kernel", "closed_loop_velocity"]
+__all__ = ["ANGLE_KERNEL", "LAB_KERNEL", "car_kernel", "closed_loop_velocity"]
 
 Array = npt.NDArray[np.float64]
 
-SERVO_LAYOUT = KernelLayout(("x", "y", "theta", "phi_c", "phi_w", "omega"), SERVO_PARAMS)
-# Where the fields read their parameters: one layout extends the other, so the indices are shared.
-_ELL, _RHO, _TRUE_ELL, _TRUE_RHO, _LIMIT = (SERVO_LAYOUT.index(name) for name in CAR_LAYOUT.params)
-_OFFSET, _STEERING_LAG, _SPEED_LAG = (SERVO_LAYOUT.index(n) for n in ("steering_offset", "steering_lag", "speed_lag"))
+_ELL, _RHO, _TRUE_ELL, _TRUE_RHO, _LIMIT = (CAR_LAYOUT.index(name) for name in CAR_LAYOUT.params)
 _PHI_C = CAR_LAYOUT.state.index("phi_c")
 
 
@@ -73,26 +69,6 @@ def _car_field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _servo_field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
-    limit, offset, steering_lag, speed_lag = params[_LIMIT], params[_OFFSET], params[_STEERING_LAG], params[_SPEED_LAG]
-    commanded = min(max(x[3], -limit), limit)
-    phi = x[4] if steering_lag > 0 else commanded
-    s, c = np.sin(x[2]), np.cos(x[2])
-    s_phi, c_phi = np.sin(phi), np.cos(phi)
-    ell = params[_ELL]
-    u1 = v1 / (params[_RHO] * c)
-    u2 = -3.0 / ell * s / (c * c) * s_phi * s_phi * v1 + ell * c * c * c * c_phi * c_phi * v2
-    omega = x[5] if speed_lag > 0 else u1
-    speed = params[_TRUE_RHO] * omega
-    out[0] = c * speed
-    out[1] = s * speed
-    out[2] = np.tan(phi + offset) * speed / params[_TRUE_ELL]
-    out[3] = u2
-    out[4] = (commanded - x[4]) / steering_lag if steering_lag > 0 else 0.0
-    out[5] = (u1 - x[5]) / speed_lag if speed_lag > 0 else 0.0
-
-
-@njit(cache=True, inline="always")
 def _limit_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe):  # type: ignore[no-untyped-def]
     step_with_stop(rhs, n, params, x, tau, h, v1c, v2c, out, work, probe, _PHI_C, params[_LIMIT])
 
@@ -102,15 +78,8 @@ def _car_chart(params, x):  # type: ignore[no-untyped-def]
     return abs(x[2]) < CHART_LIMIT and min(abs(x[3]), params[_LIMIT]) < CHART_LIMIT
 
 
-@njit(cache=True, inline="always")
-def _servo_chart(params, x):  # type: ignore[no-untyped-def]
-    phi = x[4] if params[_STEERING_LAG] > 0 else min(max(x[3], -params[_LIMIT]), params[_LIMIT])
-    return abs(x[2]) < CHART_LIMIT and abs(phi) < CHART_LIMIT and abs(phi + params[_OFFSET]) < CHART_LIMIT
-
-
 ANGLE_KERNEL = trial_kernel("car (angles)", CAR_LAYOUT, __name__, _car_field, _car_chart, _limit_step)
 """The car without servo perturbations in ``(x, y, theta, phi_c)``: the kernel the batched one replaced."""
-SERVO_KERNEL = trial_kernel("car-servo", SERVO_LAYOUT, __name__, _servo_field, _servo_chart, _limit_step)
 
 
 def car_kernel(plant: Any) -> tuple[Kernel, Array]:
@@ -125,9 +94,7 @@ def car_kernel(plant: Any) -> tuple[Kernel, Array]:
         steering_limit=limit,
     )
     servo = dict(steering_offset=plant.steering_offset, steering_lag=plant.steering_lag, speed_lag=plant.speed_lag)
-    if plant.lab:
+    if plant.lab or plant.servo:
         lab = dict(steering_backlash=plant.steering_backlash, encoder_pulses=float(plant.encoder_pulses))
         return LAB_KERNEL, LAB_LAYOUT.row(**values, **servo, **lab)
-    if plant.servo:
-        return SERVO_KERNEL, SERVO_LAYOUT.row(**values, **servo)
     return tangent.KERNEL, CAR_LAYOUT.row(**values)

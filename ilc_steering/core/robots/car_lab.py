@@ -42,8 +42,8 @@ from ilc_steering.core.tangent import CAR_LAYOUT
 __all__ = ["LAB_KERNEL", "LAB_LAYOUT", "SERVO_PARAMS"]
 
 SERVO_PARAMS = (*CAR_LAYOUT.params, "steering_offset", "steering_lag", "speed_lag")
-"""The servo car's parameter row (:data:`~ilc_steering.core.robots.car_fields.SERVO_KERNEL`), which
-the lab robot's extends."""
+"""The servo car's parameters, which the lab robot's row extends (a servo car runs on this kernel
+with its play and encoders off)."""
 LAB_LAYOUT = KernelLayout(
     ("x", "y", "theta", "phi_c", "phi_s", "omega", "A", "psi", "x_hat", "y_hat", "theta_hat", "k"),
     (*SERVO_PARAMS, "steering_backlash", "encoder_pulses"),
@@ -376,7 +376,7 @@ def _lab_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, _probe):  # type: 
         if remaining <= 0.0:
             break
     out[:6] = cur[:6]
-    out[6], out[7] = cur[_ANCHOR], cur[_PSI]
+    out[6], out[7] = _lab_wheel(p, cur[_ANCHOR], _lab_servo(p, cur)), cur[_PSI]  # the wheel angle at the end
     out[8:] = cur[_HAT:]
     out[2] = np.arctan(cur[2])
 
