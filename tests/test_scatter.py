@@ -215,6 +215,29 @@ def test_a_model_s_misfit_on_a_plant_that_repeats_itself_is_not_averaged_away(le
     assert shown_to_repeat(same) and not shown_to_repeat([same[0], Trial(c, z, z + 1e-3, 1.0)])
 
 
+def test_outcomes_that_creep_are_not_draws_of_the_estimated_scatter():
+    from ilc_steering.verdict import APART, apart
+
+    rng = np.random.default_rng(0)
+    groups = ((0, 1), (2,))
+    sigma = np.array([2e-3, 1e-3])
+    draws = rng.normal(size=(5, 3)) * np.array([2e-3, 2e-3, 1e-3])
+    assert apart(draws, sigma, groups) and apart(draws[:1], sigma, groups)  # one outcome says nothing
+    creeping = np.linspace(0.2, 0.16, 5)[:, None] * np.array([1.0, 0.0, 2.0])  # 1 cm a trial: sigma 0.34 m
+    assert not apart(creeping, np.array([0.34, 0.21]), groups)
+    # at the bound: half the mean square of the differences equals APART sigma^2 in every coordinate
+    steps = np.cumsum(np.full((5, 3), np.sqrt(2 * APART)) * np.array([2e-3, 2e-3, 1e-3]), axis=0)
+    assert apart(steps * (1 + 1e-9), sigma, groups) and not apart(steps * (1 - 1e-6), sigma, groups)
+
+
+def test_run_does_not_call_a_diverging_run_on_a_deterministic_plant_converged_to_its_floor(capsys):
+    """Eqs. 33-34 on the trailer with a hitch creep away from the goal; the residuals of the nominal
+    model once read as a scatter of 8.8 m, and `run` said "converged to the plant's floor" (exit 5)."""
+    code = main(["run", "trailer_hitch", "--learner", "ilc", "--trials", "30"])
+    out = capsys.readouterr().out
+    assert code == 1 and "floor" not in out and "repeatability" not in out
+
+
 # 2. "Converged" means it stays -------------------------------------------------------------------
 
 
