@@ -75,8 +75,9 @@ def test_the_every_robot_table_is_robots_json():
 def test_the_first_runs_and_frame_times_quoted_are_the_artifacts():
     text = section("## Every robot, against the car")
     firsts = json.loads((ROOT / "docs/benchmarks/robots.json").read_text())["first_run_s"]
-    lab = sorted(v for k, v in firsts.items() if k.startswith("experiment_"))
-    others = sorted(v for k, v in firsts.items() if not k.startswith("experiment_"))
+    on_lab_kernel = {"parallel_parking_servo", "parallel_parking_lag"}  # the servo cars run on the lab robot's kernel
+    lab = sorted(v for k, v in firsts.items() if k.startswith("experiment_") or k in on_lab_kernel)
+    others = sorted(v for k, v in firsts.items() if not (k.startswith("experiment_") or k in on_lab_kernel))
     assert f"{others[0]:.1f}-{others[-1]:.1f} s" in text
     assert f"{lab[0]:.1f} and {lab[-1]:.1f} s" in text
     frames = json.loads((ROOT / "docs/benchmarks/render.json").read_text())["rows"]
