@@ -111,10 +111,12 @@ def apart(outcomes: Any, sigma: Any, groups: Sequence[Sequence[int]]) -> bool:
     Two draws of a plant that scatters by ``sigma`` differ by ``sqrt(2) sigma`` on average, whatever
     the learner sends between them; trials that land within a quarter of that of one another, trial
     after trial, show a plant that repeats itself, and an estimate from a model's residuals is the
-    model's misfit (a run far off and creeping, on a deterministic MuJoCo car: 0.02 of ``sigma**2``;
-    runs on the noisy packaged configs: 0.3-3.6). With fewer than two outcomes it says nothing
-    (true). Draws of a normal scatter fall below the bound with a probability of 7e-6 over five
-    trials of a pose, 1.5e-3 over three (2e6 simulated runs each)."""
+    model's misfit (``robust_ilc`` creeping far off on a deterministic MuJoCo car: 0.02 of
+    ``sigma**2``; single runs on ``forward_parking_noisy`` and ``mujoco_forward_parking_scatter``,
+    per group of coordinates: 0.3-3.6). It sits beside ``core.scatter.consistent`` in spirit; it is
+    here, not there, because it judges ``run``'s claim and not a learner's estimate. With fewer
+    than two outcomes it says nothing (true). Draws of a normal scatter fall below the bound with a
+    probability of 7e-6 over five trials of a pose, 1.5e-3 over three (2e6 simulated runs each)."""
     import numpy as np
 
     outcomes = np.asarray(outcomes, dtype=np.float64)
