@@ -11,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium.wrappers import TimeLimit
 
+from ilc_steering.boxes import action_box
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.frames import Scene, draw_scene
@@ -130,8 +131,8 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._scenario.refuse_disturbances("the cyclic env")
         models = self._scenario.nominals
         size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
-        high = self._high = self._scenario.action_high.astype(np.float32)
-        self.action_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        self.action_space = action_box(self._scenario.action_high)
+        self._high = self.action_space.high
         self.num_segments = len(models)
         n = models[0].dimension
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(n + self.num_segments,), dtype=np.float64)

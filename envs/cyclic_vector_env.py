@@ -12,6 +12,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ilc_steering.boxes import action_box
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.cyclic_env import check_cycles
@@ -88,8 +89,8 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         models = self._scenario.nominals
         self.num_segments = len(models)
         self.max_episode_steps = (self.config.learning.trials if cycles is None else int(cycles)) * self.num_segments
-        high = self._high = self._scenario.action_high.astype(np.float32)
-        self.single_action_space = spaces.Box(-high, high, dtype=np.float32)
+        self.single_action_space = action_box(self._scenario.action_high)
+        high = self._high = self.single_action_space.high
         n = models[0].dimension
         self.single_observation_space = spaces.Box(-np.inf, np.inf, shape=(n + self.num_segments,), dtype=np.float64)
         self.action_space = batch_space(self.single_action_space, self.num_envs)

@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.boxes import action_box
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.nominal import ChainedMap, NominalModel
@@ -101,11 +102,10 @@ def trial_info(measured: dict[str, Array], applied: Array, requested: Array) -> 
 def task_spaces(scenario: Scenario) -> tuple[gym.spaces.Box, gym.spaces.Box, npt.NDArray[np.float32]]:
     """The action space, observation space and (constant) observation of a one-trial task."""
     model = scenario.nominal
-    high = scenario.action_high.astype(np.float32)
     observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
     limit = np.float32(10.0 * (np.abs(observation).max() + 1.0))
     observation_space = gym.spaces.Box(-limit, limit, shape=observation.shape, dtype=np.float32)
-    return gym.spaces.Box(-high, high, dtype=np.float32), observation_space, observation
+    return action_box(scenario.action_high), observation_space, observation
 
 
 def action_names(model: NominalModel) -> str:

@@ -18,7 +18,7 @@ from gymnasium import spaces
 
 from ilc_steering.core.nominal import NominalModel
 
-__all__ = ["RESIDUAL_SCALE", "SearchBox", "residual_box"]
+__all__ = ["RESIDUAL_SCALE", "SearchBox", "action_box", "residual_box"]
 
 Array = npt.NDArray[np.float64]
 
@@ -26,6 +26,22 @@ RESIDUAL_SCALE = 0.3
 """Half-width of the residual search box under ``prior="nominal"``, in units of
 ``NominalModel.action_scale()``: the true solution of every packaged task lies within 0.21 of it
 (forward parking 0.10, the saturated task 0.21, parallel parking 0.09, the chained plant 0.09)."""
+
+
+def action_box(high: npt.ArrayLike) -> spaces.Box:
+    """The env's action box ``[-high, high]`` [physical units] as a float32 ``Box`` that holds every
+    float64 value of it: each bound rounded *outward* to float32, never inward.
+
+    A bound such as ``10 * action_scale()`` is computed in float64, and its last bits differ from
+    one CPU to another (the BLAS kernel, FMA). Rounded to the nearest float32, it falls below the
+    float64 value on some machines, and an action on the documented edge (``ResidualAction`` with
+    ``scale=9``) would be clipped there and not here. Rounded outward, the edge is inside the box on
+    every machine; what lies past it by more than a float32 step is clipped everywhere."""
+    bound = np.asarray(high, dtype=np.float64)
+    rounded = bound.astype(np.float32)
+    below = rounded.astype(np.float64) < bound
+    rounded[below] = np.nextafter(rounded[below], np.float32(np.inf))
+    return spaces.Box(-rounded, rounded, dtype=np.float32)
 
 
 def residual_box(model: NominalModel, action_space: spaces.Box) -> tuple[Array, Array]:

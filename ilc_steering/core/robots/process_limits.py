@@ -19,9 +19,15 @@ from ilc_steering.core.checks import require
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.errors import LimitError
 
-__all__ = ["ProcessLimits", "check_path", "steering_index"]
+__all__ = ["LIMIT_RTOL", "ProcessLimits", "check_path", "steering_index"]
 
 Array = npt.NDArray[np.float64]
+
+LIMIT_RTOL = 1e-9
+"""[-] how far past a limit a nominal path may computably be and still be within it: a fraction of
+the limit (of the workspace's width for its walls). A path that meets a limit exactly (a task
+driven at the robot's top speed) is computed with last bits that differ from one CPU to another;
+this tolerance, far below anything a robot could tell apart, makes the refusal the same on all."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,7 @@ def check_path(limits: ProcessLimits, kind: PlantKind, times: Array, world: Arra
     ``kind`` that steers, its steering angle and rate."""
     h = np.diff(times)
     x_min, x_max, y_min, y_max = limits.workspace
+    x_tol, y_tol = LIMIT_RTOL * (x_max - x_min), LIMIT_RTOL * (y_max - y_min)
 
     def refuse(key: str, needs: str, where: int, limit: str) -> None:
         raise LimitError(
@@ -74,7 +81,10 @@ def check_path(limits: ProcessLimits, kind: PlantKind, times: Array, world: Arra
         )
 
     outside = np.flatnonzero(
-        (world[:, 0] < x_min) | (world[:, 0] > x_max) | (world[:, 1] < y_min) | (world[:, 1] > y_max)
+        (world[:, 0] < x_min - x_tol)
+        | (world[:, 0] > x_max + x_tol)
+        | (world[:, 1] < y_min - y_tol)
+        | (world[:, 1] > y_max + y_tol)
     )
     if outside.size:
         i = int(outside[0])
@@ -83,17 +93,17 @@ def check_path(limits: ProcessLimits, kind: PlantKind, times: Array, world: Arra
             f"workspace x in [{x_min:g}, {x_max:g}] m, y in [{y_min:g}, {y_max:g}] m",
         )  # fmt: skip
     speed = np.hypot(np.diff(world[:, 0]), np.diff(world[:, 1])) / h
-    if speed.size and float(speed.max()) > limits.speed:
+    if speed.size and float(speed.max()) > limits.speed * (1 + LIMIT_RTOL):
         i = int(np.argmax(speed))
         refuse("speed", f"{speed[i]:.4g} m/s", i, f"top speed {limits.speed:g} m/s")
     index = steering_index(kind)
     if index is None or limits.steering is None or limits.steering_rate is None:
         return
     phi = world[:, index]
-    if float(np.abs(phi).max()) > limits.steering:
+    if float(np.abs(phi).max()) > limits.steering * (1 + LIMIT_RTOL):
         i = int(np.argmax(np.abs(phi)))
         refuse("steering", f"|phi| = {abs(phi[i]):.4g} rad", i, f"steering angle {limits.steering:g} rad")
     rate = np.abs(np.diff(phi)) / h
-    if rate.size and float(rate.max()) > limits.steering_rate:
+    if rate.size and float(rate.max()) > limits.steering_rate * (1 + LIMIT_RTOL):
         i = int(np.argmax(rate))
         refuse("steering_rate", f"{rate[i]:.4g} rad/s", i, f"steering rate {limits.steering_rate:g} rad/s")
