@@ -134,6 +134,16 @@ class LearnerSpec:
             return load_factory(self.entry_point, self.option)
         return load_entry(self.entry_point, f"learner {self.id}")  # type: ignore[no-any-return]
 
+    def sources(self) -> tuple[str, ...]:
+        """Where its learner's code starts, as roots of a result's closure
+        (:func:`~ilc_steering.engine.closure.closure`): the entries it is built from, which no
+        import statement reaches, and for RL its hyperparameter file."""
+        if self.family == "RL":
+            return (f"{_RL}:make_learner", f"{_RL_SETTINGS}:hyperparameters", f"ilc_steering.configs/rl/{self.id}.yaml")
+        if self.family == "black-box":
+            return (self.entry_point, f"{_BLACKBOX}:make_learner")
+        return (self.entry_point,)
+
     def expected_seconds(self, budget: int) -> float:
         """A cell's rough cost [s]: its budget times :attr:`trial_seconds`."""
         return self.trial_seconds * budget

@@ -40,10 +40,10 @@ from statistics import median
 from typing import Any
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering import segmented
+from ilc_steering.agents.registry import lookup
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
-from ilc_steering.engine.provenance import code_files, code_hash, packages
+from ilc_steering.engine.provenance import code, packages
 from ilc_steering.envs.highway import highway_config
 from ilc_steering.errors import ConfigError
 from ilc_steering.output import write_atomic
@@ -95,11 +95,19 @@ def fingerprint(learner: str, task: dict[str, Any] | str, code: str, carried: di
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def _code() -> str:
-    """The hash of the code that makes a cell (the engine's files, and the manoeuvre's learner)."""
-    files = code_files()
-    files["ilc_steering/segmented.py"] = hashlib.sha256(Path(segmented.__file__).read_bytes()).hexdigest()[:16]
-    return code_hash(files)
+def roots(learner: str) -> tuple[str, ...]:
+    """Where a cell of ``learner`` starts (:mod:`ilc_steering.engine.closure`): this script, the
+    learner's sources and highway-env's plant."""
+    return (
+        "benchmarks/highway_parking.py",
+        *lookup(learner.removesuffix(CARRY)).sources(),
+        "ilc_steering.envs.highway_plant",
+    )
+
+
+def _code(learner: str) -> str:
+    """The hash of the code that makes a cell of ``learner``: its import closure."""
+    return code(roots(learner))[0]
 
 
 def _steps_to(flags: list[bool], steps: list[int]) -> int | None:
@@ -205,13 +213,13 @@ def main(args: Args) -> list[dict[str, Any]]:
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
-    code = _code()
     for learner in learners:
+        made_by = _code(learner)
         carried: dict[str, Any] | None = None  # what the last served goal handed on (``+carry``)
         for seed in seeds:
             path = cells / f"{learner}_seed{seed}_trials{trials}.json"
             task = _task(seed, trials)
-            mark = fingerprint(learner, task, code, carried)
+            mark = fingerprint(learner, task, made_by, carried)
             if path.is_file():
                 row = json.loads(path.read_text())
                 theirs = row.get("fingerprint") if isinstance(row, dict) else None

@@ -131,8 +131,9 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._scenario.refuse_disturbances("the cyclic env")
         models = self._scenario.nominals
         size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
-        self.action_space = action_box(self._scenario.action_high)
-        self._high = self.action_space.high
+        box = action_box(self._scenario.action_high)
+        self.action_space = box  # type: ignore[assignment]  # Box is Gymnasium's Space of arrays
+        self._high = box.high
         self.num_segments = len(models)
         n = models[0].dimension
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(n + self.num_segments,), dtype=np.float64)

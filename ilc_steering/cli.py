@@ -251,7 +251,9 @@ def _parser() -> argparse.ArgumentParser:
     current = sub.add_parser(
         "current", help="is a run folder current for the code in this tree? exit 0 if it is, 1 if it is stale"
     )
-    current.add_argument("folders", type=Path, nargs="+", metavar="DIR", help="compare or sweep run folders")
+    current.add_argument(
+        "folders", type=Path, nargs="+", metavar="DIR", help="compare or sweep run folders, or folders that hold them"
+    )
     current.set_defaults(handler=_current)
     tables = sub.add_parser("tables", help="rewrite the comparison tables of Markdown files from a compare run")
     tables.add_argument("folder", type=Path, metavar="DIR", help="the compare run folder, e.g. docs/compare")
@@ -262,14 +264,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _current(args: argparse.Namespace) -> int:
-    from ilc_steering.engine.provenance import freshness
+    from ilc_steering.current import check_folders
 
-    stale = 0
-    for folder in args.folders:
-        current, lines = freshness(folder)
-        stale += not current
-        print("\n  ".join(lines), flush=True)
-    return 1 if stale else 0
+    current, lines = check_folders(args.folders)
+    print("\n".join(lines), flush=True)
+    return 0 if current else 1
 
 
 def _tables(args: argparse.Namespace) -> int:

@@ -19,13 +19,14 @@ import os
 import re
 import stat
 import tempfile
-from collections.abc import Callable, Collection
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
 from ilc_steering.readers import describe, is_file, kind_of, read_json
 
 __all__ = [
+    "RECORD_KEYS",
     "check_output_dir",
     "check_output_file",
     "check_reports",
@@ -255,61 +256,61 @@ def differences(stored: dict[str, Any], settings: dict[str, Any]) -> str:
     )
 
 
+RECORD_KEYS = ("provenance", "configs", "sessions", "codes", "report", "command")
+"""The keys of a ``run.json`` that are not its command's settings (the engine's run record)."""
+
+
 def check_run_settings(
     folder: Path,
     settings: dict[str, Any],
     results: Path,
     configs: dict[str, str] | None = None,
     made_now: dict[str, Any] | None = None,
-    check_code: Callable[[Any, Path], None] | None = None,
     reports: Collection[Path] = (),
+    command: str | None = None,
 ) -> bool:
-    """Record ``settings`` and the content hash of each config (``configs``: name -> hash) in
-    ``folder/run.json``; ``ValueError``, saying which setting or config differs, if the folder was
-    written with other settings or another config of one of these names, or holds results
-    (``results/*.json``) but no record of their settings. Returns whether the folder was a run
-    already (a resume). Configs of new names are added: a resume may add scenarios. ``made_now``:
-    what made the results (:func:`~ilc_steering.engine.provenance.provenance`), recorded; ``check_code``
-    checks the recorded one before a resume of a folder that holds results: ``results/*.json`` or
-    any of ``reports`` (a report's results may be restored from it), ``ValueError``; a resume it
-    accepts keeps the recorded one (the same code; its commit is the one that made the first
-    results, each session's is in ``sessions``)."""
+    """Record ``settings``, the content hash of each config (``configs``: name -> hash) and the
+    ``command`` in ``folder/run.json``; ``ValueError``, saying which setting differs, if the folder
+    was written with other settings, or holds results (``results/*.json``) but no record of their
+    settings. Returns whether the folder was a run already (a resume). A config's hash is the one
+    of this run: a result of another content is stale, and the engine computes it again
+    (:mod:`~ilc_steering.engine.runs`). ``made_now``: what makes the results
+    (:func:`~ilc_steering.engine.provenance.provenance`), recorded; a resume of a folder that holds
+    results (``results/*.json`` or any of ``reports``) keeps the recorded one (the commit of the
+    first results; each session records its own)."""
     stored_path = folder / "run.json"
     resumed = is_file(stored_path)
-    known: dict[str, str] = {}
-    sessions: list[Any] = []
+    kept: dict[str, Any] = {}
     made = made_now
     if resumed:
         stored = read_json(stored_path, MAX_RESULT_BYTES)
         if not isinstance(stored, dict):
             raise ValueError(f"{stored_path}: not a run record (a JSON object); use another --out folder")
-        known = stored.pop("configs", {})
-        made_by = stored.pop("provenance", None)
-        sessions = stored.pop("sessions", [])
+        kept = {key: stored.pop(key) for key in RECORD_KEYS if key in stored}
         if stored != settings:
             raise ValueError(
                 f"{stored_path} was written with other settings: {differences(stored, settings)}; "
                 "use another --out folder"
             )
-        for name, digest in (configs or {}).items():
-            if isinstance(known, dict) and known.get(name, digest) != digest:
-                raise ValueError(
-                    f"{stored_path}: its results are of another config named {name!r} (content hash "
-                    f"{known[name]}, not {digest}): the same name, another content; use another --out folder"
-                )
         held = (results.is_dir() and any(results.glob("*.json"))) or any(is_file(path) for path in reports)
-        if held and check_code is not None:
-            check_code(made_by, stored_path)  # a folder holds the results of one code
-            made = made_by  # that code, as first recorded (its commit); each session records its own
+        if held and isinstance(kept.get("provenance"), dict):
+            made = kept["provenance"]  # the provenance of the first results, as first recorded
     elif results.is_dir() and any(results.glob("*.json")):
         raise ValueError(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
             "use another --out folder"
         )
-    merged = {**(known if isinstance(known, dict) else {}), **(configs or {})}
-    record = {**settings, **({"configs": merged} if configs is not None else {})}
+    found = kept.get("configs")
+    known: dict[str, Any] = found if isinstance(found, dict) else {}
+    record = {**settings, **({"configs": {**known, **configs}} if configs is not None else {})}
+    for key in ("codes", "report"):
+        if key in kept:
+            record[key] = kept[key]
     if made is not None:
         record["provenance"] = made
+    if command is not None:
+        record["command"] = command
+    sessions = kept.get("sessions")
     write_json(stored_path, {**record, "sessions": sessions if isinstance(sessions, list) else []})
     return resumed
 

@@ -39,12 +39,13 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric
 def write_results(
     rows: list[dict[str, Any]], out: Path, stem: str, markdown: str, extra: dict[str, Any] | None = None
 ) -> None:
-    """Write ``stem.json`` (``{"rows": rows, **extra}``), ``stem.csv`` (the rows) and ``stem.md`` to
-    ``out``, each through :func:`~ilc_steering.output.write_atomic`."""
+    """Write ``stem.json`` (``{"rows": rows, **extra}``), ``stem.csv`` (the rows: a column for every
+    key any row has, empty where a row lacks it) and ``stem.md`` to ``out``, each through
+    :func:`~ilc_steering.output.write_atomic`."""
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / f"{stem}.json", json.dumps({"rows": rows, **(extra or {})}, indent=1, default=str))
     table = io.StringIO(newline="")
-    writer = csv.DictWriter(table, fieldnames=list(rows[0]))
+    writer = csv.DictWriter(table, fieldnames=list(dict.fromkeys(key for row in rows for key in row)))
     writer.writeheader()
     writer.writerows(rows)
     write_atomic(out / f"{stem}.csv", table.getvalue())

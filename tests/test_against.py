@@ -95,6 +95,9 @@ def test_against_computes_only_the_new_cells_and_writes_the_joint_report(committ
     ours, theirs = (json.loads((folder / "run.json").read_text()) for folder in (mine, committed))
     assert ours.pop("sessions")[-1]["computed"] == 4  # the sessions of work differ; what made the cells does not
     theirs.pop("sessions")
+    assert ours.pop("report") != theirs.pop("report")  # the joint report is of more cells
+    mine_codes, their_codes = ours.pop("codes"), theirs.pop("codes")
+    assert their_codes.items() <= mine_codes.items() and len(mine_codes) == len(their_codes) + 1  # yours: one code
     assert ours == theirs
     for scenario in ("parallel_parking", "my_bay"):
         assert (mine / f"compare_{scenario}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

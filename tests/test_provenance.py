@@ -1,5 +1,6 @@
-"""What made a run (issue 35): the code hash in run.json, resume refused across codes, and
-``ilc-steering current`` saying a run is stale when a learner or the simulator changes."""
+"""What made a result (issue 67): each cell and row records the hash of its import closure, a
+change stales exactly the results whose closure holds it, a resume recomputes exactly those, and
+``ilc-steering current`` says which and why."""
 
 from __future__ import annotations
 
@@ -12,87 +13,144 @@ from pathlib import Path
 
 import pytest
 
-import ilc_steering
+from ilc_steering.cli import main
+from ilc_steering.compare.args import Args
+from ilc_steering.compare.cells import cell_roots, run_cell
+from ilc_steering.compare.command import run_cells
+from ilc_steering.current import check_folders
+from ilc_steering.engine import closure as closure_module
 from ilc_steering.engine import provenance as prov
-from ilc_steering.engine.runs import RunFolder
-from ilc_steering.output import write_json
 
 ROOT = Path(__file__).resolve().parent.parent
+CAR = "ilc_steering.core.robots.car"
+TINY = {"priors": ("nominal",), "scenarios": ("forward_parking",), "seeds": (0, 1), "model_trials": 3, "workers": 1}
 
 
-def test_the_code_hash_covers_the_simulator_the_envs_the_learners_and_the_rl_settings() -> None:
-    files = prov.code_files()
-    for path in ("core/plants.py", "core/simulate.py", "envs/steering_env.py", "agents/ilc.py", "agents/rl.py"):
-        assert path in files
-    assert "configs/rl/td3.yaml" in files
-    assert "ilc_steering/loop.py" in files and "ilc_steering/compare/cells.py" in files
-    # what only arranges results is not hashed: a table drawn otherwise does not make a run stale
-    assert not any(path.endswith(("compare/report.py", "cli.py", "plots.py", "engine.py")) for path in files)
+def files_of(method: str) -> dict[str, str]:
+    return prov.code(cell_roots(method, CAR))[1]
 
 
-def test_changing_one_file_changes_its_hash_and_the_code_hash(tmp_path: Path) -> None:
-    agents = Path(prov.util.find_spec("ilc_steering.agents").submodule_search_locations[0])  # type: ignore[union-attr]
-    copy = tmp_path / "agents"
-    shutil.copytree(agents, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    before = prov.code_files({"ilc_steering.agents": copy})
-    assert before == prov.code_files()  # the copy hashes as the installed package does
-    (copy / "ilc.py").write_text((copy / "ilc.py").read_text() + "\n# a change\n")
-    after = prov.code_files({"ilc_steering.agents": copy})
-    assert prov.changed(before, after) == ["agents/ilc.py"]
-    assert prov.code_hash(before) != prov.code_hash(after)
+def test_a_cell_s_code_is_the_closure_of_its_learner_its_env_and_its_robot() -> None:
+    newton_ilc, ilc, ppo = files_of("newton_ilc"), files_of("ilc"), files_of("ppo")
+    for files in (newton_ilc, ilc, ppo):  # every cell: the trial loop, the env, the integrator, the car
+        for path in ("loop.py", "envs/steering_env.py", "core/integrate.py", "core/robots/car.py"):
+            assert f"ilc_steering/{path}" in files, path
+    assert "ilc_steering/agents/newton_ilc.py" in newton_ilc
+    assert "ilc_steering/agents/newton_ilc.py" not in ilc and "ilc_steering/agents/newton_ilc.py" not in ppo
+    assert "ilc_steering/configs/rl/ppo.yaml" in ppo and "ilc_steering/configs/rl/sac.yaml" not in ppo
+    # what only arranges results is not in a cell's closure: a table drawn otherwise stales nothing
+    assert not any(path.endswith(("compare/report.py", "cli.py", "plots.py", "current.py")) for path in ilc)
+    assert "ilc_steering/core/robots/unicycle.py" not in ilc  # another robot's module
 
 
-def _fake_run(folder: Path, record: dict[str, object]) -> None:
-    folder.mkdir()
-    write_json(folder / "run.json", {"quick": True, "version": ilc_steering.__version__, "configs": {}, **record})
+@pytest.fixture
+def changed(monkeypatch: pytest.MonkeyPatch):
+    """``changed(name)``: make the file whose key ends with ``name`` hash as if it had been edited."""
+    edited: list[str] = []
+    digest = closure_module._digest
+
+    def fake(path: Path) -> str:
+        real = digest(path)
+        return "e" * 16 if any(path.as_posix().endswith(name) for name in edited) else real
+
+    monkeypatch.setattr(closure_module, "_digest", fake)
+
+    def change(name: str) -> None:
+        edited.append(name)
+        prov._closure.cache_clear()
+
+    yield change
+    prov._closure.cache_clear()
 
 
-def test_current_and_stale_are_told_apart(tmp_path: Path) -> None:
-    made = prov.provenance()
-    _fake_run(tmp_path / "now", {"provenance": made})
-    current, lines = prov.freshness(tmp_path / "now")
-    assert current and "current" in lines[0]
-    files = {**made["files"], "core/plants.py": "0" * 16}
-    _fake_run(tmp_path / "then", {"provenance": {**made, "code": prov.code_hash(files), "files": files}})
-    current, lines = prov.freshness(tmp_path / "then")
-    assert not current and "STALE" in lines[0]
-    assert any("core/plants.py" in line for line in lines)
-    _fake_run(tmp_path / "old", {})
-    assert not prov.freshness(tmp_path / "old")[0]
+def _run(out: Path, methods: tuple[str, ...], ran: list[tuple[str, int]] | None = None) -> list[dict]:
+    def runner(args, prior, method, scenario, seed):  # in this process: the test's patches hold
+        if ran is not None:
+            ran.append((method, seed))
+        return run_cell(args, prior, method, scenario, seed)
+
+    return run_cells(Args(out=out, methods=methods, **TINY), runner)
 
 
-def test_a_resume_by_other_code_is_refused(tmp_path: Path) -> None:
-    folder = RunFolder(tmp_path / "run", "cells", "compare")
-    settings = {"quick": True, "version": ilc_steering.__version__}
-    assert not folder.prepare(settings, {})
-    write_json(folder.path("a_cell"), {"x": 1})
-    assert folder.prepare(settings, {})  # the same code resumes
-    record = json.loads((tmp_path / "run" / "run.json").read_text())
-    record["provenance"] = {**record["provenance"], "code": "0" * 16, "files": {"agents/ilc.py": "0" * 16}}
-    write_json(tmp_path / "run" / "run.json", record)
-    with pytest.raises(ValueError, match="made by other code"):
-        folder.prepare(settings, {})
-    del record["provenance"]
-    write_json(tmp_path / "run" / "run.json", record)
-    with pytest.raises(ValueError, match="records no hash of the code"):
-        folder.prepare(settings, {})
+def test_a_change_to_one_learner_stales_its_cells_and_nothing_else(tmp_path: Path, changed, capsys) -> None:
+    first = _run(tmp_path, ("ilc", "newton_ilc"))
+    assert check_folders([tmp_path])[0]
+    changed("agents/newton_ilc.py")
+    current, lines = check_folders([tmp_path])
+    assert not current
+    assert lines[0] == f"{tmp_path}: STALE: 2 of 4 results stale"
+    assert lines[1] == "  2 of newton_ilc: 1 file changed: ilc_steering/agents/newton_ilc.py"
+    assert main(["current", str(tmp_path)]) == 1
+    ran: list[tuple[str, int]] = []
+    again = _run(tmp_path, ("ilc", "newton_ilc"), ran)
+    assert ran == [("newton_ilc", 0), ("newton_ilc", 1)]  # exactly the stale cells, and each once
+    kept = [cell for cell in again if cell["method"] == "ilc"]
+    assert kept == [cell for cell in first if cell["method"] == "ilc"]  # the others as they were
+    assert all(cell["code"] != old["code"] for cell, old in zip(again[2:], first[2:]))
+    assert check_folders([tmp_path])[0]
+    assert main(["current", str(tmp_path)]) == 0
 
 
-def test_a_resume_by_the_same_code_keeps_the_provenance_of_the_first_results(tmp_path: Path) -> None:
-    # a folder resumed from an install without git (commit None) still names the commit that made it
-    folder = RunFolder(tmp_path / "run", "cells", "compare")
-    settings = {"quick": True, "version": ilc_steering.__version__}
-    folder.prepare(settings, {})
-    write_json(folder.path("a_cell"), {"x": 1})
-    record = json.loads((tmp_path / "run" / "run.json").read_text())
-    record["provenance"] = {**record["provenance"], "commit": "a" * 40, "dirty": False}
-    write_json(tmp_path / "run" / "run.json", record)
-    assert folder.prepare(settings, {})
-    assert json.loads((tmp_path / "run" / "run.json").read_text())["provenance"]["commit"] == "a" * 40
-    assert prov.read_run(tmp_path / "run")[1].provenance.commit == "a" * 40  # and it reads back
-    (folder.path("a_cell")).unlink()  # no results held: the folder is taken over by this process's code
-    folder.prepare(settings, {})
-    assert json.loads((tmp_path / "run" / "run.json").read_text())["provenance"] == prov.provenance()
+def test_a_change_to_the_integrator_stales_every_cell_that_integrates(tmp_path: Path, changed) -> None:
+    _run(tmp_path / "run", ("ilc", "newton_ilc"))
+    changed("core/integrate.py")
+    current, lines = check_folders([tmp_path])  # a folder of run folders
+    assert not current and lines[0].endswith("STALE: 4 of 4 results stale")
+    assert all("ilc_steering/core/integrate.py" in line for line in lines[1:3])
+
+
+def test_a_stale_cell_is_never_reused(tmp_path: Path, changed) -> None:
+    first = _run(tmp_path, ("ilc",))
+    path = next((tmp_path / "cells").glob("*__0.json"))
+    cell = json.loads(path.read_text())
+    path.write_text(json.dumps({**cell, "best_error": 123.0}))  # a stale cell's result is not looked at again
+    changed("agents/ilc.py")
+    ran: list[tuple[str, int]] = []
+    again = _run(tmp_path, ("ilc",), ran)
+    assert ran == [("ilc", 0), ("ilc", 1)]
+    assert again[0]["best_error"] == first[0]["best_error"] != 123.0
+    assert json.loads(path.read_text())["code"] == again[0]["code"] != cell["code"]
+
+
+def test_a_dry_run_says_what_a_resume_would_compute_and_writes_nothing(tmp_path: Path, changed, capsys) -> None:
+    _run(tmp_path, ("ilc", "newton_ilc"))
+    changed("agents/newton_ilc.py")
+    before = {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()}
+    capsys.readouterr()
+    argv = ["compare", "--out", str(tmp_path), "--methods", "ilc", "newton_ilc", "robust_ilc", "--priors", "nominal"]
+    argv += ["--scenarios", "forward_parking", "--seeds", "0", "1", "--model-trials", "3", "--workers", "1"]
+    assert main([*argv, "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "4 to compute (2 missing, 2 stale)" in out
+    assert "newton_ilc    seed 0: its code differs" in out and "missing: nominal forward_parking" in out
+    assert {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()} == before
+
+
+def test_a_sweep_s_rows_and_oracle_record_their_code(tmp_path: Path, changed, capsys) -> None:
+    argv = ["sweep", "forward_parking", "--methods", "ilc", "newton_ilc", "--grid", "2", "--trials", "2"]
+    argv += ["--workers", "1", "--oracle", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    assert check_folders([tmp_path])[0]
+    changed("agents/newton_ilc.py")
+    current, lines = check_folders([tmp_path])
+    assert not current and lines[1:] == ["  2 of newton_ilc: 1 file changed: ilc_steering/agents/newton_ilc.py"]
+    changed("ilc_steering/oracle.py")
+    assert "  1 of oracle: 1 file changed: ilc_steering/oracle.py" in check_folders([tmp_path])[1]
+
+
+def test_a_report_made_from_other_results_is_stale(tmp_path: Path) -> None:
+    from ilc_steering.compare.command import main as compare
+
+    compare(Args(out=tmp_path, methods=("ilc",), **TINY))
+    assert check_folders([tmp_path])[0]
+    path = next((tmp_path / "cells").glob("*__1.json"))
+    path.write_text(json.dumps({**json.loads(path.read_text()), "wall_s": 99.0}))  # the report holds the old
+    current, lines = check_folders([tmp_path])
+    assert not current and "report compare.json: made from other results" in lines[-1]
+
+
+def test_current_refuses_a_folder_without_a_run_record(tmp_path: Path) -> None:
+    assert main(["current", str(tmp_path)]) == 2
 
 
 def _installed_layout(tmp_path: Path) -> Path:
@@ -111,55 +169,29 @@ def _installed_layout(tmp_path: Path) -> Path:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not (ROOT / "agents").is_dir(), reason="needs the source tree")
-def test_the_current_command_reports_a_run_stale_after_a_learner_or_the_simulator_changes(tmp_path: Path) -> None:
+def test_the_current_command_reports_cells_stale_after_a_learner_or_the_simulator_changes(tmp_path: Path) -> None:
     site = _installed_layout(tmp_path)
     env = {**os.environ, "PYTHONPATH": str(site)}
 
-    def python(*args: str) -> subprocess.CompletedProcess[str]:
+    def ilc_steering(*args: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
-            [sys.executable, *args], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300
-        )
+            [sys.executable, "-m", "ilc_steering", *args], capture_output=True, text=True, env=env, cwd=tmp_path,
+            timeout=600,
+        )  # fmt: skip
 
     run = tmp_path / "run"
-    made = python(
-        "-c",
-        "import ilc_steering, json, sys; from ilc_steering.engine.provenance import provenance; "
-        "assert ilc_steering.__file__.startswith(sys.argv[1]), ilc_steering.__file__; "
-        "print(json.dumps({'quick': True, 'version': ilc_steering.__version__, 'configs': {}, "
-        "'provenance': provenance()}))",
-        str(site),
-    )
-    assert made.returncode == 0, made.stderr
-    run.mkdir()
-    (run / "run.json").write_text(made.stdout)
-    current = python("-m", "ilc_steering", "current", str(run))
-    assert current.returncode == 0, current.stdout + current.stderr
-    assert "current" in current.stdout
-    for edited in ("agents/ilc.py", "core/plants.py"):
-        path = site / "ilc_steering" / edited
-        path.write_text(path.read_text() + "\n# changed\n")
-    stale = python("-m", "ilc_steering", "current", str(run))
+    made = ilc_steering(
+        "compare", "--out", str(run), "--methods", "ilc", "newton_ilc", "--priors", "nominal", "--scenarios",
+        "forward_parking", "--seeds", "0", "--model-trials", "3", "--workers", "1",
+    )  # fmt: skip
+    assert made.returncode == 0, made.stdout + made.stderr
+    assert ilc_steering("current", str(run)).returncode == 0
+    path = site / "ilc_steering" / "agents" / "newton_ilc.py"
+    path.write_text(path.read_text() + "\n# changed\n")
+    stale = ilc_steering("current", str(run))
     assert stale.returncode == 1, stale.stdout + stale.stderr
-    assert "STALE" in stale.stdout and "agents/ilc.py" in stale.stdout and "core/plants.py" in stale.stdout
-
-
-def test_current_refuses_a_folder_without_a_run_record(tmp_path: Path) -> None:
-    from ilc_steering.cli import main
-
-    assert main(["current", str(tmp_path)]) == 2
-
-
-def test_a_report_whose_cells_a_resume_would_restore_counts_as_results_of_its_code(tmp_path: Path) -> None:
-    """A clone's run folder holds compare.json and no cells/: a resume restores its cells, so they
-    must be of this code too."""
-    folder = RunFolder(tmp_path / "run", "cells", "compare")
-    settings = {"quick": True, "version": ilc_steering.__version__}
-    folder.prepare(settings, {}, ["compare.json"])
-    record = json.loads((tmp_path / "run" / "run.json").read_text())
-    record["provenance"] = {**record["provenance"], "code": "0" * 16, "files": {"agents/ilc.py": "0" * 16}}
-    write_json(tmp_path / "run" / "run.json", record)
-    assert folder.prepare(settings, {}, ["compare.json"])  # nothing held yet: the folder is taken over
-    write_json(tmp_path / "run" / "run.json", record)
-    write_json(tmp_path / "run" / "compare.json", {"cells": []})
-    with pytest.raises(ValueError, match="made by other code"):
-        folder.prepare(settings, {}, ["compare.json"])
+    assert "1 of 2 results stale" in stale.stdout and "1 of newton_ilc: 1 file changed" in stale.stdout
+    path = site / "ilc_steering" / "core" / "integrate.py"
+    path.write_text(path.read_text() + "\n# changed\n")
+    stale = ilc_steering("current", str(run))
+    assert "2 of 2 results stale" in stale.stdout and "ilc_steering/core/integrate.py" in stale.stdout

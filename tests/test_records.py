@@ -29,6 +29,8 @@ CASES = {
     "provenance.dirty": ("no", "provenance.dirty: must be true or false"),
     "provenance.packages": (None, "provenance.packages: must be a mapping"),
     "provenance.evil": (1, "provenance.evil: unknown key"),
+    "codes": ([1], "codes: must be a mapping"),
+    "report": (5, "report: must be a string"),
     "configs": ([1], "configs: must be a mapping"),
     "configs.forward_parking": (3, "configs.forward_parking: must be a string"),
 }
@@ -61,9 +63,10 @@ def test_a_tampered_run_record_is_refused_in_one_line(tmp_path, capsys, key):
 
 
 def test_a_record_whose_code_hash_is_not_its_files_hash_contradicts_itself(tmp_path, capsys):
-    folder, _ = tampered(tmp_path, "provenance.code", "0123456789abcdef")
+    forged = {"0123456789abcdef": {"roots": ["ilc_steering.loop"], "files": {"ilc_steering/loop.py": "0" * 16}}}
+    folder, _ = tampered(tmp_path, "codes", forged)
     assert main(["current", str(folder)]) == 2
-    assert "contradicts itself" in capsys.readouterr().err
+    assert "codes.0123456789abcdef: not the hash of its files" in capsys.readouterr().err
 
 
 # Forged records x the commands that read them ------------------------------------------------------

@@ -278,6 +278,7 @@ FLOORS = (
             "ilc_steering.reproduce",
             "ilc_steering.session",
             "ilc_steering.session_cli",
+            "ilc_steering.current",
             "ilc_steering.cli",
         ),
     ),

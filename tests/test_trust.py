@@ -161,7 +161,9 @@ def test_outputs_keep_the_umask_and_a_replaced_file_its_mode(tmp_path, mask, mod
 TINY = {"priors": ("nominal",), "scenarios": ("forward_parking",), "seeds": (0,), "model_trials": 3, "workers": 1}
 
 
-def test_a_compare_resumed_with_another_config_of_the_same_name_is_refused(tmp_path, capsys):
+def test_a_compare_resumed_with_another_config_of_the_same_name_recomputes_its_cells(tmp_path, capsys):
+    """A config's content is part of what made a cell: a resume with another content under the same
+    name never takes the old cell, it computes the cell again (the config's cells only)."""
     from ilc_steering.compare.args import Args
     from ilc_steering.compare.command import run_cells
 
@@ -172,11 +174,11 @@ def test_a_compare_resumed_with_another_config_of_the_same_name_is_refused(tmp_p
     assert first[0]["config_sha"] and len(first) == 1
     assert run_cells(args) == first  # the same content resumes
     scenario.write_text(FORWARD.replace("true_wheelbase: 0.22", "true_wheelbase: 0.3"))
-    with pytest.raises(ValueError, match=r"another config named 'forward_parking' \(content hash"):
-        run_cells(args)
-    argv = ["compare", "--out", str(tmp_path / "run"), "--methods", "ilc", "--priors", "nominal"]
-    assert main([*argv, "--scenarios", str(scenario), "--seeds", "0", "--model-trials", "3", "--workers", "1"]) == 2
-    assert "another config named 'forward_parking'" in capsys.readouterr().err
+    capsys.readouterr()
+    again = run_cells(args)
+    assert again[0]["config_sha"] != first[0]["config_sha"] and again[0]["curve"] != first[0]["curve"]
+    assert "its config differs" in capsys.readouterr().out
+    assert run_cells(args) == again
 
 
 def test_a_resume_by_another_version_is_refused_saying_so(tmp_path, monkeypatch):
@@ -189,17 +191,20 @@ def test_a_resume_by_another_version_is_refused_saying_so(tmp_path, monkeypatch)
         compare.run_cells(args)
 
 
-def test_a_sweep_resumed_with_another_config_of_the_same_name_is_refused(tmp_path):
+def test_a_sweep_resumed_with_another_config_of_the_same_name_recomputes_its_rows(tmp_path, capsys):
     from ilc_steering.sweep.command import run_rows
     from ilc_steering.sweep.rows import SweepArgs
 
     scenario = tmp_path / "same.yaml"
     scenario.write_text(FORWARD)
     args = SweepArgs(config=str(scenario), grid=2, trials=2, workers=1, out=tmp_path / "s")
-    run_rows(args)
+    first = run_rows(args)
     scenario.write_text(FORWARD.replace("nu_a: 1.0 ", "nu_a: 0.3 "))
-    with pytest.raises(ValueError, match="another config named 'forward_parking'"):
-        run_rows(args)
+    capsys.readouterr()
+    again = run_rows(args)
+    assert "2 finished results are stale" in capsys.readouterr().out
+    (rows,) = again.values()
+    assert all(row["config_sha"] != old["config_sha"] for row, old in zip(rows, next(iter(first.values()))))
 
 
 @pytest.mark.parametrize(("option", "values"), [("--methods", ["ilc", "ilc"]), ("--nu-b", ["1", "1.0"])])
@@ -264,7 +269,6 @@ def _one_cell(tmp_path: Path) -> tuple[Any, Path]:
         ({"curve": [[1, -1.0]]}, "curve is not increasing in trials with finite errors >= 0"),
         ({"curve": [[99, 1.0]]}, "curve holds a trial outside"),
         ({"fragile": ["2cm"]}, "fragile holds a level"),
-        ({"config_sha": "0" * 16}, "holds the content hash of its config"),
     ],
 )
 def test_a_hand_edited_cell_is_refused_naming_the_file(tmp_path, edit, message):

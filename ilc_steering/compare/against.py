@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from ilc_steering.compare.cells import CellRecord, read_report
-from ilc_steering.engine.provenance import read_run
+from ilc_steering.engine.provenance import CodeRecord, read_run
+from ilc_steering.output import RECORD_KEYS
 from ilc_steering.readers import is_file, read_json
 from ilc_steering.schema import check_record
 
@@ -57,8 +58,8 @@ class CommittedRun:
     """``(where, cell)``: each cell as read, ``where`` naming its file (or its place in ``compare.json``)."""
     failed: int = 0
     """How many cells the committed run recorded as failed (they are not taken)."""
-    made_by: dict[str, Any] | None = None
-    """What made its cells (``run.json``'s provenance, :mod:`~ilc_steering.engine.provenance`)."""
+    codes: dict[str, CodeRecord] = field(default_factory=dict)
+    """The codes its cells record (``run.json``'s ``codes``, :mod:`~ilc_steering.engine.provenance`)."""
     label: str = ""
     """How refusals name the run: ``--against DIR`` (or ``DIR`` for ``tables``)."""
 
@@ -81,13 +82,13 @@ def read_committed(folder: Path, label: str | None = None, cell_files: bool = Tr
     if not is_file(record_path):  # a FIFO, a link loop, ...: there, and refused by name when read
         raise _refuse(name, "no run.json, so this is not a compare run folder")
     try:
-        stored, _ = read_run(folder)  # checked against its schema (engine.provenance.RunRecord)
+        stored, run = read_run(folder)  # checked against its schema (engine.provenance.RunRecord)
     except ValueError as error:
         raise _refuse(name, str(error)) from None
     record = dict(stored)
     configs = record.pop("configs", None)
-    made_by = record.pop("provenance", None)
-    record.pop("sessions", None)
+    for key in RECORD_KEYS:
+        record.pop(key, None)
     if "version" not in record or not isinstance(configs, dict):
         missing = "package version" if "version" not in record else "content hashes of its configs"
         raise _refuse(
@@ -121,7 +122,7 @@ def read_committed(folder: Path, label: str | None = None, cell_files: bool = Tr
     if not cells:
         raise _refuse(name, "holds no cells (neither cells/*.json nor compare.json)")
     failed = len(list((folder / "failed").glob("*.json")))
-    return CommittedRun(folder, record, configs, list(cells.values()), failed, made_by, name)
+    return CommittedRun(folder, record, configs, list(cells.values()), failed, run.codes, name)
 
 
 def _identity(cell: Any, where: str) -> str:

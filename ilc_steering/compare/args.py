@@ -72,6 +72,8 @@ class Args:
     cell_timeout: float | None = None
     """[s] a cell still running after this is stopped and recorded as failed; None:
     :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`."""
+    dry_run: bool = False
+    """Compute and write nothing: say which cells a run would compute, and its cost."""
 
 
 def seeds_of(args: Args, prior: str) -> tuple[int, ...]:

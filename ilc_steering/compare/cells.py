@@ -44,6 +44,7 @@ __all__ = [
     "budgets",
     "cell_name",
     "cell_path",
+    "cell_roots",
     "check_cell",
     "first_within",
     "fragile_levels",
@@ -56,6 +57,8 @@ __all__ = [
 ]
 
 ENV_ID = "ilc_steering/ChainedSteering-v0"
+CONFIGS = "ilc_steering.configs"
+"""The package of the packaged configs, which the config loader reads by name (a root of every cell)."""
 
 FRAGILE = 1e-6
 """A count is fragile when scaling every error by ``1 - FRAGILE`` or ``1 + FRAGILE`` would move it."""
@@ -178,6 +181,16 @@ def run_cell(
     return {"prior": prior, "method": method, "scenario": context.task, "seed": seed, "budget": trials, **result}
 
 
+def cell_roots(method: str, robot: str) -> tuple[str, ...]:
+    """Where the computation of a cell of ``method`` on a scenario of the robot whose config class
+    lives in module ``robot`` starts (:mod:`~ilc_steering.engine.closure`): this module and the
+    settings it is handed, the env that :data:`ENV_ID` names, the learner's sources, the robot's
+    module and the packaged configs' package. Their import closure is the cell's code."""
+    entry = gym.spec(ENV_ID).entry_point
+    env = entry if isinstance(entry, str) else ENV_ID
+    return (__name__, "ilc_steering.compare.args", env, *registry.lookup(method).sources(), robot, CONFIGS)
+
+
 def cell_name(prior: str, method: str, scenario: str, seed: int) -> str:
     """The file name (without ``.json``) of a cell: injective in (prior, method, scenario, seed)."""
     return f"{prior}__{injective_name(method, registry.METHODS)}__{scenario}__{seed}"
@@ -214,6 +227,7 @@ class CellRecord:
     update_s: float | None = None  # [s] the median update of a learner that times its updates
     clipped_fraction: Number = 0.0
     implementation: str | None = None  # what made it (RL: the backend and its version)
+    code: str | None = None  # the hash of its code (engine.provenance); None: a cell made before cells kept it
 
 
 @dataclass(frozen=True)

@@ -56,7 +56,6 @@ from ilc_steering.compare.args import MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, A
 from ilc_steering.compare.cells import (
     cell_name,
     cell_path,
-    implementation,
     read_cell,
     read_report,
     run_cell,
@@ -64,7 +63,8 @@ from ilc_steering.compare.cells import (
 from ilc_steering.compare.plan import Plan, plan
 from ilc_steering.compare.report import write_report
 from ilc_steering.engine.options import add_cell_options
-from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
+from ilc_steering.engine.provenance import copy_codes, record_report
+from ilc_steering.engine.runs import Cells, RunFolder, compute_cells, dry_run
 from ilc_steering.output import output_folder, write_json
 from ilc_steering.readers import is_file
 
@@ -88,6 +88,14 @@ def validate(args: Args) -> dict[str, str]:
     """Check every argument and scenario before the first cell (:func:`~ilc_steering.compare.plan.plan`);
     returns scenario -> config name."""
     return plan(args).names
+
+
+def _report_cells(folder: Path) -> dict[str, dict[str, Any]]:
+    """The cells the folder's ``compare.json`` holds, by file name (none without one)."""
+    report = folder / "compare.json"
+    if not is_file(report):
+        return {}
+    return {cell_name(c["prior"], c["method"], c["scenario"], c["seed"]): c for c in read_report(report)["cells"]}
 
 
 def _restore_cells(folder: Path) -> None:
@@ -162,8 +170,6 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     reports = [f"compare.{suffix}" for suffix in ("csv", "json", "md")]
     reports += [f"compare_{name}.png" for name in dict.fromkeys(cell[2] for cell in the_plan.grid)]
     reports.append("compare_profile.png")
-    if folder.prepare(the_plan.settings, the_plan.configs, reports):
-        _restore_cells(args.out)
     inline = runner is not run_cell
     progress_bar = args.progress_bar  # SB3's bar only where one process runs every cell (see before)
 
@@ -178,12 +184,6 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         key = the_plan.key(cell)
         return {**{name: key[name] for name in ("prior", "method", "scenario", "seed", "budget")}, "error": message}
 
-    def made_by(cell: Cell) -> dict[str, Any]:
-        # A resumed RL cell must be of the backend this run uses (ILC_STEERING_RL_BACKEND, SBX or SB3):
-        # its trials depend on it. A committed cell of --against is taken as it was made.
-        key = the_plan.key(cell)
-        return {**key, "implementation": implementation(cell[1])} if registry.lookup(cell[1]).family == "RL" else key
-
     def describe_cell(cell: Cell) -> str:
         prior, method, name, seed = cell
         return f"{prior:7s} {name:26s} {method:13s} seed {seed}"
@@ -191,15 +191,25 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
     cells = Cells(
         keys=the_plan.grid,
         name=lambda cell: cell_name(*cell),
-        read=lambda path, cell: read_cell(path, the_plan.key(cell) if cell in the_plan.held else made_by(cell)),
+        read=lambda path, cell: read_cell(path, the_plan.identity(cell)),
         call=call,
-        stamp=lambda cell: {"config_sha": the_plan.configs[cell[2]], "version": the_plan.key(cell)["version"]},
+        stamp=the_plan.stamp,
+        roots=the_plan.roots,
         failure=failure,
         describe=describe_cell,
         progress=_progress,
         cost=lambda cell: expected_seconds(cell[1], the_plan.budgets[cell[:3]]),
+        taken=frozenset(the_plan.held),
     )
     committed = the_plan.committed
+    if args.dry_run:
+        folder.check(the_plan.settings)
+        held = {cell_name(*cell): found for cell, found in the_plan.held.items()}
+        for line in dry_run(folder, cells, workers(args), {**_report_cells(args.out), **held}):
+            print(line, flush=True)
+        return [], []
+    if folder.prepare(the_plan.settings, the_plan.configs, reports):
+        _restore_cells(args.out)
 
     def before(todo: Mapping[Cell, Path]) -> None:
         nonlocal progress_bar
@@ -215,6 +225,8 @@ def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, A
         paths = {cell: folder.path(cell_name(*cell)) for cell in the_plan.grid}
         with folder.locked():
             copy_committed(the_plan.held, paths, lambda path, cell: read_cell(path, the_plan.key(cell)))
+            held_codes = {cell.get("code") for cell in the_plan.held.values()}
+            copy_codes(args.out, {k: v for k, v in committed.codes.items() if k in held_codes} if committed else {})
     outcome = compute_cells(
         folder,
         cells,
@@ -238,12 +250,15 @@ def main_with_failures(args: Args) -> tuple[list[dict[str, Any]], list[dict[str,
     the_plan = plan(args)
     args, committed = the_plan.args, the_plan.committed
     cells, failed = execute(the_plan)
+    if args.dry_run:
+        return cells, failed
     names = list(the_plan.names.values())
     if committed is not None:
         names = list(dict.fromkeys([*(c["scenario"] for c in cells), *names]))
     if cells:
         groups = method_families(c["method"] for c in cells)
         text = write_report(cells, names, args.out, {"black-box": BLACKBOX, "RL": RL}, failed, groups)
+        record_report(args.out, cells)
         print(text)
         where = f"{args.out}/compare.{{csv,json,md}}, compare_<scenario>.png"
         print(f"wrote {where} and one file per cell in {args.out}/cells")
@@ -341,6 +356,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         progress_bar=ns.progress_bar,
         backend=ns.backend,
         cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
+        dry_run=ns.dry_run,
     )
     return replace(args, **budgets)
 

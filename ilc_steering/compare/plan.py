@@ -20,7 +20,7 @@ from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
 from ilc_steering.compare.against import Cell, CommittedRun
 from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, SEEDS, Args, seeds_of
-from ilc_steering.compare.cells import ENV_ID, budgets
+from ilc_steering.compare.cells import ENV_ID, budgets, cell_roots
 from ilc_steering.config import SteeringConfig
 from ilc_steering.engine.options import check_cell_options
 from ilc_steering.output import content_hash
@@ -44,7 +44,8 @@ def run_settings(args: Args) -> dict[str, Any]:
     """What ``run.json`` records and a resume (or ``--against``) must match: the budgets, the seeds,
     ``quick`` and the package version; not the grid's axes (a resume may add cells), nor how or
     where cells run."""
-    skip = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
+    skip: tuple[str, ...] = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers")
+    skip += ("backend", "cell_timeout", "dry_run")
     settings = {k: v for k, v in asdict(args).items() if k not in skip}
     settings["seeds"] = list(settings["seeds"])
     settings["version"] = __version__
@@ -71,6 +72,8 @@ class Plan:
     """The committed run of ``--against``."""
     held: dict[Cell, dict[str, Any]] = field(default_factory=dict)
     """The committed run's cells, each checked."""
+    robots: dict[str, str] = field(default_factory=dict)
+    """Each config name of this run -> the module of its robot (a root of its cells' code)."""
 
     @property
     def settings(self) -> dict[str, Any]:
@@ -88,6 +91,23 @@ class Plan:
             "config_sha": self.configs[name],
             "version": __version__,
         }
+
+    def identity(self, cell: Cell) -> dict[str, Any]:
+        """What a finished cell must hold to be this cell at all (:meth:`key` without its stamp)."""
+        return {k: v for k, v in self.key(cell).items() if k not in ("config_sha", "version")}
+
+    def stamp(self, cell: Cell) -> dict[str, Any]:
+        """What a cell computed by this run records besides its result: its config's content hash,
+        the version and, for RL, the backend that trained it. A finished cell that records other
+        values (or another code) is stale: a resume computes it again."""
+        key = self.key(cell)
+        stamp = {"config_sha": key["config_sha"], "version": key["version"]}
+        spec = registry.lookup(cell[1])
+        return {**stamp, "implementation": spec.implementation()} if spec.family == "RL" else stamp
+
+    def roots(self, cell: Cell) -> tuple[str, ...]:
+        """Where a cell's computation starts (:func:`~ilc_steering.compare.cells.cell_roots`)."""
+        return cell_roots(cell[1], self.robots[cell[2]])
 
     def scenario_of(self, name: str) -> str:
         """The scenario as given (a name or a YAML path) of a config name."""
@@ -191,7 +211,8 @@ def plan(args: Args) -> Plan:
         grid = joint_cells(args, list(names.values()), held)
         for cell in grid:
             budget(*cell[:3])
-    return Plan(args, names, configs, tuple(grid), table, warnings, committed, held)
+    robots = {name: type(config.plant).__module__ for name, config in loaded.items()}
+    return Plan(args, names, configs, tuple(grid), table, warnings, committed, held, robots)
 
 
 def against_args(args: Args) -> tuple[Args, CommittedRun]:
@@ -247,20 +268,19 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
 
 
 def _warn_if_stale(committed: CommittedRun) -> None:
-    """Say on stderr when the committed run was made by other code than this tree's: its cells are
-    taken as they were made, beside cells this code computes (``ilc-steering current`` says more)."""
+    """Say on stderr how many of the committed run's cells are stale for the code in this tree:
+    they are taken as they were made, beside cells this code computes (``ilc-steering current``
+    says more)."""
     import sys
 
-    from ilc_steering.engine.provenance import changed, provenance
+    from ilc_steering.engine.staleness import staleness
 
-    made_by, now = committed.made_by, provenance()
-    if isinstance(made_by, dict) and made_by.get("code") == now["code"]:
-        return
-    files = changed(made_by.get("files") or {}, now["files"]) if isinstance(made_by, dict) else []
-    why = f"{len(files)} files of its code differ ({', '.join(files[:3])}...)" if files else "it records no code hash"
-    print(
-        f"ilc-steering: warning: --against {committed.folder}: made by other code than this tree's ({why}); its cells "
-        f"are taken as they were made (ilc-steering current {committed.folder})",
-        file=sys.stderr,
-        flush=True,
-    )
+    stale = sum(bool(staleness(cell, committed.codes, {})) for _, cell in committed.cells)
+    if stale:
+        print(
+            f"ilc-steering: warning: --against {committed.folder}: {stale} of its {len(committed.cells)} cells are "
+            "stale for the code in this tree (made by other code); they are taken as they were made "
+            f"(ilc-steering current {committed.folder} says what changed)",
+            file=sys.stderr,
+            flush=True,
+        )

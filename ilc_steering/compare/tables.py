@@ -121,12 +121,13 @@ def _run_line(run: dict[str, Any]) -> str:
     wall = sum(session.wall_s for session in sessions)
     machine = sessions[-1].machine if sessions else None
     commit = (made.commit if made else None) or "no commit"
+    codes = f"code {made.code}" if made and made.code else f"{len(record.codes)} codes (one per learner and robot)"
     seeds, ablation = run.get("seeds"), run.get("ablation_seeds")
     if not (isinstance(seeds, list) and all(type(seed) is int for seed in seeds)) or type(ablation) is not int:
         raise ValueError("run.json: seeds: a list of integers and ablation_seeds: an integer, as compare writes them")
     return (
-        f"Made by ilc-steering {made.version if made else None}, code {made.code if made else None} "
-        f"(commit {commit[:12]}), in {len(sessions)} session(s) of {wall / 60:.0f} min of wall time in all on "
+        f"Made by ilc-steering {made.version if made else None}, {codes} (commit {commit[:12]}), in "
+        f"{len(sessions)} session(s) of {wall / 60:.0f} min of wall time in all on "
         f"{machine.cpus if machine else None} cores ({machine.processor if machine else None}, Python "
         f"{machine.python if machine else None}); seeds {seeds} under prior=nominal, "
         f"the first {min(len(seeds), ablation)} under prior=none.\n"

@@ -43,7 +43,8 @@ def timeout_help(what: str) -> str:
 
 def add_cell_options(parser: argparse.ArgumentParser, what: str) -> None:
     """The options every command over a grid of cells shares, with one help each: ``--backend``,
-    ``--workers`` and ``--cell-timeout`` (``what``: the command's unit of work, a cell or a row)."""
+    ``--workers``, ``--cell-timeout`` and ``--dry-run`` (``what``: the command's unit of work, a
+    cell or a row)."""
     from ilc_steering.engine.backends import MAX_WORKERS
 
     parser.add_argument(
@@ -60,6 +61,12 @@ def add_cell_options(parser: argparse.ArgumentParser, what: str) -> None:
         default=argparse.SUPPRESS,  # the engine's bound, DEFAULT_CELL_TIMEOUT, stated in the help
         metavar="SECONDS",
         help=timeout_help(what),
+    )
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help=f"compute nothing, write nothing: print which {what}s a run would compute (missing, or stale: made by "
+        "other code or another config) and its estimated cost",
     )
 
 

@@ -1,54 +1,65 @@
 """What made a run's results, and whether the code in the tree would make them again.
 
-Every run folder's ``run.json`` (``compare`` and ``sweep``, :class:`~ilc_steering.engine.runs.RunFolder`)
-records under ``"provenance"``:
+Every result of a run folder (a comparison's cell, a map's row, its oracle) records under
+``"code"`` the hash of the files its computation depends on: the import closure of its roots
+(:mod:`~ilc_steering.engine.closure`: the cell maker, the env, its learner, its robot, an RL
+method's hyperparameter file). ``run.json`` (:class:`~ilc_steering.engine.runs.RunFolder`) holds
 
-- ``code``: a content hash of the code that makes the results (:data:`CODE`: the simulator and
-  the robots, the envs, the learners, the RL hyperparameter files, the trial loop and the cell
-  and row makers), and ``files``, each of those files' own hash, so that a stale run names what
-  changed;
-- ``commit``: the git commit of the tree it ran from (None outside a git checkout) and whether
-  those files differed from it (``dirty``);
-- ``packages``: the versions of the numerical packages the results depend on.
+- ``codes``: each code its results record -> its roots and every file's own hash, so that a stale
+  result names what changed;
+- ``provenance``: the package version, the git commit of the tree the first results came from
+  (None outside a git checkout) and whether the package differed from it (``dirty``), and the
+  versions of the numerical packages;
+- ``sessions``: one line per session of work on the folder (when, the wall time, the cells
+  computed and failed, the workers, the machine, its commit and packages);
+- ``report``: the content hash of the results its report (``compare.json``, ``sweep.json``) was
+  made from.
 
-Each session of work on the folder adds a line to ``"sessions"``: when, the wall time, the cells
-computed and failed, the workers and the machine. A resume is refused when the code differs
-(:func:`check_code`): a folder holds the results of one code. ``ilc-steering current DIR``
-(:func:`freshness`) says whether a committed run is current for the code in the tree.
-
-The code that only arranges results (the command line, the reports and figures, the engine, the
-backends) is not hashed: changing how a table is drawn does not make a run stale.
+A result is *current* when the closure of its roots hashes today as it did (and its packaged
+config has the content it had): a change to ``agents/newton_ilc.py`` stales the results
+``newton_ilc`` computed and nothing else; a change to the integrator stales every result it
+integrated. A resume recomputes exactly the stale results and keeps the others
+(:func:`~ilc_steering.engine.runs.compute_cells`); ``ilc-steering current DIR``
+(:mod:`~ilc_steering.engine.staleness`) says which are stale and why, and whether the report is
+of the results. A folder a script made (a benchmark's artifacts) records its command and code in
+``made.json`` (:func:`record_made`).
 """
 
 from __future__ import annotations
 
-import hashlib
 import os
 import platform
 import subprocess
 import sys
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from functools import lru_cache
-from importlib import metadata, util
+from functools import cache, lru_cache
 from pathlib import Path
 from typing import Any
 
 from ilc_steering import __version__
+from ilc_steering.engine.closure import closure, code_of
+from ilc_steering.output import RECORD_KEYS
 
 __all__ = [
-    "CODE",
+    "MADE",
     "PACKAGES",
+    "CodeRecord",
     "Machine",
     "Provenance",
     "ProvenanceRecord",
     "RunRecord",
     "Session",
-    "check_code",
-    "code_files",
-    "freshness",
+    "changed",
+    "code",
+    "copy_codes",
     "machine",
     "provenance",
     "read_run",
+    "record_codes",
+    "record_made",
+    "record_report",
+    "results_hash",
 ]
 
 
@@ -57,10 +68,20 @@ class ProvenanceRecord:
     """A ``run.json``'s ``provenance``, as read back (the schema: :mod:`ilc_steering.schema`)."""
 
     version: str
-    code: str
     commit: str | None
     dirty: bool | None
     packages: dict[str, str]
+    code: str | None = None
+    """Records written before each result kept its own: one hash of every file (stale today)."""
+    files: dict[str, str] = field(default_factory=dict)
+    """As ``code``: the files of that hash."""
+
+
+@dataclass(frozen=True)
+class CodeRecord:
+    """One code of a run's results: where its computation starts, and the hash of each file it reached."""
+
+    roots: tuple[str, ...]
     files: dict[str, str]
 
 
@@ -89,23 +110,29 @@ class Session:
     packages: dict[str, str | None] | None = None
     """The numerical packages' versions of this session (None in records written before it was
     kept): a resume keeps the provenance of the first results, and each session says its own."""
+    stale: int | None = None
+    """The results it found stale and computed again (None in records written before)."""
 
 
 @dataclass(frozen=True)
 class RunRecord:
     """What every ``run.json`` holds besides its command's settings, checked when read back: what
-    made it, the packaged configs it used (name -> content hash) and its sessions."""
+    made it, the packaged configs it used (name -> content hash), the codes of its results, its
+    sessions and the results its report was made from."""
 
     provenance: ProvenanceRecord | None = None
     configs: dict[str, str] = field(default_factory=dict)
     sessions: tuple[Session, ...] = ()
+    codes: dict[str, CodeRecord] = field(default_factory=dict)
+    report: str | None = None
+    command: str | None = None
 
 
 def read_run(folder: Path) -> tuple[dict[str, Any], RunRecord]:
     """``folder/run.json`` as read (the command's settings with it) and its :class:`RunRecord`,
     checked: ``ValueError`` naming the file and the key if it is not a run record or a key is of
-    the wrong type, or if its provenance contradicts itself (a code hash that is not the hash of
-    its files). A record is a file on disk: hostile until checked."""
+    the wrong type, or if it contradicts itself (a code that is not the hash of its files). A
+    record is a file on disk: hostile until checked."""
     from ilc_steering.errors import ConfigError
     from ilc_steering.readers import read_json
     from ilc_steering.schema import validate
@@ -114,33 +141,20 @@ def read_run(folder: Path) -> tuple[dict[str, Any], RunRecord]:
     stored = read_json(path, 1 << 24)
     if not isinstance(stored, dict):
         raise ValueError(f"{path}: not a run record (a JSON object)")
-    parts = {key: stored[key] for key in ("provenance", "configs", "sessions") if key in stored}
+    parts = {key: stored[key] for key in RECORD_KEYS if key in stored}
     try:
         record: RunRecord = validate(RunRecord, parts)
     except ConfigError as error:
         raise ValueError(f"{path}: {error}") from None
-    made = record.provenance
-    if made is not None and made.files and code_hash(made.files) != made.code:
-        raise ValueError(
-            f"{path}: provenance.code: {made.code} is not the hash of its provenance.files ({code_hash(made.files)}): "
-            "the record contradicts itself"
-        )
+    for digest, made in record.codes.items():
+        if code_of(made.files) != digest:
+            raise ValueError(
+                f"{path}: codes.{digest}: not the hash of its files ({code_of(made.files)}): the record contradicts "
+                "itself"
+            )
     return stored, record
 
 
-CODE: dict[str, tuple[str, ...]] = {
-    "ilc_steering.core": ("**/*.py",),
-    "ilc_steering.agents": ("**/*.py",),
-    "ilc_steering.envs": ("**/*.py",),
-    "ilc_steering.configs": ("rl/*.yaml",),
-    "ilc_steering": (
-        *("errors.py", "entries.py", "boxes.py", "schema.py", "yaml_reader.py", "config/*.py"),
-        *("loop.py", "runner.py", "preflight.py", "oracle.py"),
-        *("compare/cells.py", "sweep/rows.py"),  # files, not imports: the engine names no command
-    ),
-}
-"""The code that makes a run's results: package -> glob patterns of its files. The scenario
-configs are not here: each run records the content hash of every config it used."""
 PACKAGES = (
     "numpy",
     "scipy",
@@ -154,46 +168,32 @@ PACKAGES = (
     "botorch",
     "cma",
     "highway-env",
+    "mujoco",
 )
 """The distributions whose versions a run records (those installed)."""
 
 Provenance = dict[str, Any]
 
 
-def _folder(package: str) -> Path:
-    spec = util.find_spec(package)
-    if spec is None or not spec.submodule_search_locations:
-        raise RuntimeError(f"{package}: not an installed package")
-    return Path(next(iter(spec.submodule_search_locations)))
+@cache
+def _closure(roots: tuple[str, ...]) -> tuple[str, tuple[tuple[str, str], ...]]:
+    files = closure(roots)
+    return code_of(files), tuple(files.items())
 
 
-def _label(package: str) -> str:
-    return package.removeprefix("ilc_steering").lstrip(".") or "ilc_steering"
-
-
-def code_files(roots: dict[str, Path] | None = None) -> dict[str, str]:
-    """Each file of :data:`CODE` -> the first 16 hex digits of its SHA-256, keyed by a path that
-    is the same in a checkout and an installed wheel (``agents/ilc.py``, ``ilc_steering/loop.py``).
-    ``roots``: a folder per package of :data:`CODE` instead of the installed one (a test's copy)."""
-    found: dict[str, str] = {}
-    for package, patterns in CODE.items():
-        root = (roots or {}).get(package) or _folder(package)
-        for pattern in patterns:
-            for path in sorted(root.glob(pattern)):
-                if path.is_file() and "__pycache__" not in path.parts:
-                    key = f"{_label(package)}/{path.relative_to(root).as_posix()}"
-                    found[key] = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    return dict(sorted(found.items()))
-
-
-def code_hash(files: dict[str, str]) -> str:
-    """One hash of every file's path and hash."""
-    text = "\n".join(f"{path} {digest}" for path, digest in sorted(files.items()))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+def code(roots: Iterable[str]) -> tuple[str, dict[str, str]]:
+    """The code of a result whose computation starts at ``roots`` (computed once per process), and its files."""
+    digest, files = _closure(tuple(roots))
+    return digest, dict(files)
 
 
 def _git(*args: str) -> str | None:
-    root = _folder("ilc_steering").parent
+    from importlib import util
+
+    spec = util.find_spec("ilc_steering")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    root = Path(next(iter(spec.submodule_search_locations))).parent
     if not (root / ".git").exists():
         return None
     try:
@@ -207,13 +207,14 @@ def _commit() -> dict[str, Any]:
     commit = _git("rev-parse", "HEAD")
     if commit is None:
         return {"commit": None, "dirty": None}
-    paths = ["ilc_steering/core", "agents", "envs", "configs/rl", *(f"ilc_steering/{f}" for f in CODE["ilc_steering"])]
-    status = _git("status", "--porcelain", "--", *paths)
+    status = _git("status", "--porcelain", "--", "ilc_steering", "agents", "envs", "configs")
     return {"commit": commit, "dirty": bool(status)}
 
 
 def packages() -> dict[str, str]:
     """The installed versions of :data:`PACKAGES`."""
+    from importlib import metadata
+
     versions = {}
     for name in PACKAGES:
         try:
@@ -225,14 +226,12 @@ def packages() -> dict[str, str]:
 
 @lru_cache(maxsize=1)
 def _provenance() -> tuple[tuple[str, Any], ...]:
-    files = code_files()
-    record = {"version": __version__, "code": code_hash(files), **_commit(), "packages": packages(), "files": files}
-    return tuple(record.items())
+    return tuple({"version": __version__, **_commit(), "packages": packages()}.items())
 
 
 def provenance() -> Provenance:
-    """What :mod:`this module <ilc_steering.engine.provenance>` records of the code in this process
-    (computed once per process)."""
+    """The package version, the commit (and whether the package differs from it) and the packages
+    of this process (computed once per process)."""
     return dict(_provenance())
 
 
@@ -246,71 +245,99 @@ def machine() -> dict[str, Any]:
     }
 
 
-def changed(then: dict[str, str], now: dict[str, str]) -> list[str]:
-    """The files of :data:`CODE` added, removed or changed between two ``files`` records."""
+def changed(then: Mapping[str, str], now: Mapping[str, str]) -> list[str]:
+    """The files added, removed or changed between two ``files`` records."""
     return sorted(path for path in then.keys() | now.keys() if then.get(path) != now.get(path))
 
 
-def check_code(stored: Provenance | None, where: Path) -> None:
-    """``ValueError`` unless ``stored`` (a ``run.json``'s provenance) is of the code in this
-    process: a resume never mixes the results of two codes."""
-    now = provenance()
-    if not isinstance(stored, dict) or "code" not in stored:
-        raise ValueError(
-            f"{where}: records no hash of the code that made its results, so a resume cannot prove it is the same "
-            "computation; use another --out folder"
-        )
-    if stored["code"] != now["code"]:
-        files = changed(stored.get("files") or {}, now["files"])
-        shown = ", ".join(files[:5]) + (f" and {len(files) - 5} more" if len(files) > 5 else "")
-        raise ValueError(
-            f"{where}: its results were made by other code (code {stored['code']}, now {now['code']}; changed: "
-            f"{shown or 'unknown files'}); use another --out folder"
-        )
+def record_codes(folder: Path, codes: Mapping[str, Iterable[str]], keep: Iterable[str] | None = None) -> None:
+    """Add each code of ``codes`` (code -> its roots) to ``folder/run.json``'s ``codes``, with its
+    files; with ``keep`` (the codes the folder's results on disk record), drop every code that is
+    neither in ``codes`` nor in ``keep``."""
+    from ilc_steering.output import MAX_RESULT_BYTES, write_json
+    from ilc_steering.readers import read_json
+
+    path = folder / "run.json"
+    stored = read_json(path, MAX_RESULT_BYTES)
+    if not isinstance(stored, dict):
+        return
+    found = stored.get("codes")
+    table: dict[str, Any] = found if isinstance(found, dict) else {}
+    for digest, roots in codes.items():
+        now, files = code(roots)
+        if now == digest:
+            table[digest] = {"roots": list(roots), "files": files}
+    wanted = set(table) if keep is None else {*codes, *keep}
+    write_json(path, {**stored, "codes": {k: v for k, v in sorted(table.items()) if k in wanted}})
 
 
-def freshness(folder: Path) -> tuple[bool, list[str]]:
-    """Whether the run in ``folder`` is current for the code in this process (and every packaged
-    config it used), and the lines that say why."""
+def copy_codes(folder: Path, codes: Mapping[str, CodeRecord]) -> None:
+    """Add ``codes`` (another run's table: the codes of the results copied from it) to
+    ``folder/run.json``'s ``codes`` as they were recorded."""
     from dataclasses import asdict
 
-    from ilc_steering.config import load_config, packaged_configs
+    from ilc_steering.output import MAX_RESULT_BYTES, write_json
+    from ilc_steering.readers import read_json
+
+    path = folder / "run.json"
+    stored = read_json(path, MAX_RESULT_BYTES)
+    if isinstance(stored, dict) and codes:
+        found = stored.get("codes")
+        table: dict[str, Any] = found if isinstance(found, dict) else {}
+        table.update({digest: {**asdict(made), "roots": list(made.roots)} for digest, made in codes.items()})
+        write_json(path, {**stored, "codes": dict(sorted(table.items()))})
+
+
+MADE = "made.json"
+"""The record of a folder a script made (a benchmark's artifacts): its command and its code."""
+
+
+def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterable[str] = ()) -> str:
+    """Write ``out/made.json``: the command that made the folder (``script``, a path relative to the
+    checkout such as ``benchmarks/noisy.py``, and its arguments ``argv``) and its code, the import
+    closure of the script, of every module of the library this process imported (the learners and
+    robots a registry named by string among them) and of ``roots``; returns the code."""
+    from datetime import datetime, timezone
+
+    from ilc_steering.output import write_json
+
+    imported = sorted(name for name, module in sys.modules.items() if _library(name, module))
+    everything = (script, *imported, *roots)
+    digest, files = code(everything)
+    record = {
+        "command": " ".join(["python", script, *argv]),
+        "made": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "code": digest,
+        "roots": list(everything),
+        "files": files,
+        "provenance": provenance(),
+        "machine": machine(),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / MADE, record)
+    return digest
+
+
+def _library(name: str, module: Any) -> bool:
+    """A module of the library with a source file (not a namespace, not a built-in)."""
+    return (name == "ilc_steering" or name.startswith("ilc_steering.")) and str(
+        getattr(module, "__file__", "") or ""
+    ).endswith(".py")
+
+
+def record_report(folder: Path, results: Iterable[dict[str, Any]]) -> None:
+    """Record in ``folder/run.json`` which results its report was just made from (their content hash)."""
+    from ilc_steering.output import MAX_RESULT_BYTES, write_json
+    from ilc_steering.readers import read_json
+
+    path = folder / "run.json"
+    stored = read_json(path, MAX_RESULT_BYTES)
+    if isinstance(stored, dict):
+        write_json(path, {**stored, "report": results_hash(results)})
+
+
+def results_hash(results: Iterable[dict[str, Any]]) -> str:
+    """One hash of a set of results, whatever their order (the timings of the run included)."""
     from ilc_steering.output import content_hash
 
-    _, run = read_run(folder)
-    record = run.provenance
-    now = provenance()
-    lines: list[str] = []
-    current = True
-    if record is None:
-        return False, [f"{folder}: STALE: its run.json records no hash of the code that made it (an older run)"]
-    if record.code != now["code"]:
-        current = False
-        files = changed(record.files, now["files"])
-        differ = ", ".join(files)
-        lines.append(f"code: made by {record.code}, the tree's is {now['code']}; {len(files)} files differ: {differ}")
-    if record.version != now["version"]:
-        current = False
-        lines.append(f"version: made by ilc-steering {record.version}, the tree is {now['version']}")
-    packaged = packaged_configs()
-    for name, digest in sorted(run.configs.items()):
-        if name not in packaged:
-            lines.append(f"config {name}: not a packaged config, not checked")
-            continue
-        today = content_hash(asdict(load_config(name)))
-        if today != digest:
-            current = False
-            lines.append(f"config {name}: made with content {digest}, the packaged one is {today}")
-    before, after = record.packages, now["packages"]
-    moved = [
-        f"{p} {before.get(p)} -> {after.get(p)}"
-        for p in sorted(before.keys() | after.keys())
-        if before.get(p) != after.get(p)
-    ]
-    if moved:
-        lines.append("packages (results may differ, the code is not stale for them): " + ", ".join(moved))
-    commit = record.commit
-    made = f"commit {commit[:12]}{' with local changes' if record.dirty else ''}" if commit else "no commit"
-    head = "current" if current else "STALE"
-    lines.insert(0, f"{folder}: {head}: made by code {record.code} ({made}); the code in this tree is {now['code']}")
-    return current, lines
+    return content_hash(sorted(content_hash(result) for result in results))

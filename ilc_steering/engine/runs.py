@@ -11,8 +11,10 @@ every config loaded and hashed, every cell's key and budget known. The engine th
    (:func:`~ilc_steering.output.check_run_settings`);
 2. holds an exclusive lock on it (:meth:`RunFolder.locked`): two runs never share a folder;
 3. reads every finished result back through the command's checker (a resume never trusts a file
-   it did not check) and runs only the others (:func:`compute_cells`), in worker processes or Ray
-   tasks (:mod:`~ilc_steering.engine.backends`);
+   it did not check), keeps those that are current (each records its code, the hash of the
+   files its computation depends on, and what the command stamps on it: its config's content
+   hash; :mod:`~ilc_steering.engine.provenance`) and computes the others, missing or stale
+   (:func:`compute_cells`), in worker processes or Ray tasks (:mod:`~ilc_steering.engine.backends`);
 4. writes each result the moment it arrives (finish), or its error under ``failed/`` (fail,
    named on stderr too); a resume computes the failed ones again.
 """
@@ -23,7 +25,7 @@ import fcntl
 import os
 import sys
 import time
-from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Hashable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -32,22 +34,30 @@ from typing import Any, Generic, TypeVar
 
 from ilc_steering.engine.backends import run_calls
 from ilc_steering.engine.options import cell_bound
-from ilc_steering.engine.provenance import check_code, machine, provenance
+from ilc_steering.engine.provenance import code, machine, provenance, record_codes
 from ilc_steering.output import (
+    MAX_RESULT_BYTES,
+    RECORD_KEYS,
     check_output_dir,
     check_output_file,
     check_run_settings,
+    differences,
     open_lock,
     record_session,
     write_json,
 )
+from ilc_steering.readers import is_file, read_json
 
 __all__ = [
     "Cells",
     "Outcome",
     "Progress",
     "RunFolder",
+    "Survey",
     "compute_cells",
+    "dry_run",
+    "stale_lines",
+    "survey",
 ]
 
 K = TypeVar("K", bound=Hashable)
@@ -67,7 +77,7 @@ class RunFolder:
     def prepare(self, settings: dict[str, Any], configs: dict[str, str], reports: Sequence[str] = ()) -> bool:
         """Check the folder (``--out``), the files the report will write there (``reports``: each
         absent or a regular file, checked now, not after every cell has run) and its ``run.json``
-        against ``settings`` and the configs' content hashes, record them, and make the results
+        against ``settings``, record them with the configs' content hashes, and make the results
         folder; True if it resumes a run."""
         check_output_dir(self.out, "--out")
         for name in reports:
@@ -76,9 +86,21 @@ class RunFolder:
         if results.exists() and not results.is_dir():
             raise ValueError(f"{results}: exists and is not a folder; this is not a {self.command} run folder")
         written = [self.out / name for name in reports]
-        resumed = check_run_settings(self.out, settings, results, configs, provenance(), check_code, written)
+        resumed = check_run_settings(self.out, settings, results, configs, provenance(), written, self.command)
         results.mkdir(exist_ok=True)
         return resumed
+
+    def check(self, settings: dict[str, Any]) -> None:
+        """:meth:`prepare`'s check of ``run.json`` against ``settings``, reading only (``--dry-run``)."""
+        path = self.out / "run.json"
+        if not is_file(path):
+            return
+        stored = read_json(path, MAX_RESULT_BYTES)
+        if not isinstance(stored, dict):
+            raise ValueError(f"{path}: not a run record (a JSON object); use another --out folder")
+        stored = {k: v for k, v in stored.items() if k not in RECORD_KEYS}
+        if stored != settings:
+            raise ValueError(f"{path} was written with other settings: {differences(stored, settings)}")
 
     @contextmanager
     def locked(self) -> Iterator[None]:
@@ -114,7 +136,11 @@ class Cells(Generic[K]):
     call: Callable[[K], tuple[Any, ...]]
     """The arguments of ``function`` for a cell."""
     stamp: Callable[[K], dict[str, Any]]
-    """What every finished cell records besides its result (its config's hash, the version)."""
+    """What every finished cell records besides its result (its config's hash, the version): a
+    finished cell that records other values is stale, and computed again."""
+    roots: Callable[[K], Sequence[str]]
+    """Where a cell's computation starts (:func:`~ilc_steering.engine.closure.closure`): its code,
+    the hash of its closure, is stamped on it, and a cell of another code is stale."""
     failure: Callable[[K, str], dict[str, Any]]
     """The record of a failed cell."""
     describe: Callable[[K], str]
@@ -124,6 +150,9 @@ class Cells(Generic[K]):
     cost: Callable[[K], float] | None = None
     """A cell's expected cost [s]: the cells run longest first (no worker left alone with a long
     cell at the end), and the time left is estimated from it."""
+    taken: Collection[K] = ()
+    """Cells whose finished result is taken as it is, whatever its code (a committed run's, under
+    ``compare --against``): never stale, never computed."""
 
 
 class Progress:
@@ -190,15 +219,16 @@ def compute_cells(
     timeout = cell_bound(timeout)
     outcome: Outcome[K] = Outcome()
     with folder.locked():
-        todo: dict[K, Path] = {}
-        for key in cells.keys:
-            path = folder.path(cells.name(key))
-            if path.exists():
-                outcome.done[key] = cells.read(path, key)
-            else:
-                todo[key] = path
+        found = survey(folder, cells, outcome)
+        todo, stale, stamps = found.todo, found.stale, found.stamps
+        computed = {stamp["code"]: cells.roots(key) for key, stamp in stamps.items() if "code" in stamp}
+        record_codes(folder.out, computed, found.held)
         if before is not None:
             before(todo)
+        if stale:
+            print(f"{len(stale)} finished results are stale, computed again:", flush=True)
+            for line in stale_lines(stale, cells.describe):
+                print(f"  {line}", flush=True)
         if cells.cost is not None:  # the longest first
             expected = {key: float(cells.cost(key)) for key in todo}
             todo = dict(sorted(todo.items(), key=lambda item: -expected[item[0]]))
@@ -209,7 +239,7 @@ def compute_cells(
         started, clock = datetime.now(timezone.utc), time.monotonic()
 
         def finish(key: K, result: dict[str, Any]) -> None:
-            cell = {**result, **cells.stamp(key)}
+            cell = {**result, **stamps[key]}
             write_json(folder.path(cells.name(key)), cell)
             folder.path(cells.name(key), failed=True).unlink(missing_ok=True)
             outcome.done[key] = cell
@@ -240,8 +270,90 @@ def compute_cells(
             try:
                 run_calls(function, calls, finish, backend, workers, fail, timeout)
             finally:
-                _session(folder, todo, outcome, started, clock, count, backend)
+                _session(folder, todo, outcome, started, clock, count, backend, len(stale))
     return outcome
+
+
+@dataclass
+class Survey(Generic[K]):
+    """A run folder's cells against this run: what is left to compute and why."""
+
+    todo: dict[K, Path] = field(default_factory=dict)
+    """The cells still to compute, missing or stale, in order."""
+    stale: dict[K, list[str]] = field(default_factory=dict)
+    """Each stale cell -> the stamp keys it records otherwise (``code``, ``config_sha``)."""
+    stamps: dict[K, dict[str, Any]] = field(default_factory=dict)
+    """Every cell's stamp under this run: its code and what the command stamps."""
+    held: set[str] = field(default_factory=set)
+    """The codes the finished cells on disk record (current or stale)."""
+    wall: dict[K, float] = field(default_factory=dict)
+    """Each stale cell's wall time when it was computed [s]: what computing it again costs."""
+
+
+def survey(
+    folder: RunFolder,
+    cells: Cells[K],
+    outcome: Outcome[K] | None = None,
+    held: Mapping[str, dict[str, Any]] | None = None,
+) -> Survey[K]:
+    """Every cell of ``cells`` in ``folder``, read back through ``cells.read`` where it is finished,
+    against the stamp this run gives it; the current ones go into ``outcome.done``. ``held``: cells
+    by name that a run would restore before it starts (a report's), taken where no file is."""
+    found: Survey[K] = Survey()
+    for key in cells.keys:
+        if key in cells.taken:  # taken as it is: its code is not this run's to judge
+            stamp = found.stamps[key] = cells.stamp(key)
+        else:
+            stamp = found.stamps[key] = {**cells.stamp(key), "code": code(cells.roots(key))[0]}
+        path = folder.path(cells.name(key))
+        restored = (held or {}).get(cells.name(key))
+        if not path.exists() and restored is None:
+            found.todo[key] = path
+            continue
+        cell = cells.read(path, key) if restored is None or path.exists() else restored
+        if isinstance(cell.get("code"), str):
+            found.held.add(cell["code"])
+        differ = [] if key in cells.taken else [name for name, value in stamp.items() if cell.get(name) != value]
+        if differ:
+            found.stale[key], found.todo[key] = differ, path
+            if isinstance(cell.get("wall_s"), (int, float)):
+                found.wall[key] = float(cell["wall_s"])
+        elif outcome is not None:
+            outcome.done[key] = cell
+    return found
+
+
+def dry_run(
+    folder: RunFolder, cells: Cells[K], workers: int, held: Mapping[str, dict[str, Any]] | None = None
+) -> list[str]:
+    """What a run on ``folder`` would compute, and its estimated cost: the lines ``--dry-run``
+    prints (``held``: as :func:`survey`)."""
+    found = survey(folder, cells, held=held)
+    missing = [key for key in found.todo if key not in found.stale]
+    costs = [found.wall.get(key) for key in found.stale]
+    costs += [None if cells.cost is None else float(cells.cost(key)) for key in missing]
+    known = [c for c in costs if c is not None]
+    cost = f"about {sum(known) / 60 / max(1, workers):.1f} min on {workers} workers"
+    if len(known) < len(costs):
+        cost += f" for {len(known)} of them (the others' cost unknown)"
+    lines = [
+        f"{folder.out}: {len(cells.keys) - len(found.todo)} of {len(cells.keys)} results current; {len(found.todo)} to "
+        f"compute ({len(missing)} missing, {len(found.stale)} stale)" + (f", {cost}" if found.todo else "")
+    ]
+    lines += [f"  stale: {line}" for line in stale_lines(found.stale, cells.describe)]
+    lines += [f"  missing: {cells.describe(key)}" for key in missing[:10]]
+    return lines + ([f"  ... and {len(missing) - 10} more missing"] if len(missing) > 10 else [])
+
+
+def stale_lines(stale: Mapping[Any, list[str]], describe: Callable[[Any], str], most: int = 10) -> list[str]:
+    """The stale cells, a line each (at most ``most``, then how many more), with what differs."""
+    names = {"code": "code", "config_sha": "config", "version": "version", "implementation": "RL backend"}
+
+    def said(why: list[str]) -> str:
+        return " and ".join(names.get(name, name) for name in why) + (" differ" if len(why) > 1 else " differs")
+
+    lines = [f"{describe(key)}: its {said(why)}" for key, why in list(stale.items())[:most]]
+    return lines + ([f"... and {len(stale) - most} more"] if len(stale) > most else [])
 
 
 def _session(
@@ -252,6 +364,7 @@ def _session(
     clock: float,
     count: int,
     backend: str,
+    stale: int = 0,
 ) -> None:
     """Record a session of work on the folder in its ``run.json`` (an interrupted one too)."""
     if todo:
@@ -267,5 +380,6 @@ def _session(
                 "commit": provenance()["commit"],
                 "machine": machine(),
                 "packages": provenance()["packages"],
+                "stale": stale,
             },
         )

@@ -24,6 +24,7 @@ and the others are finished.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
@@ -37,7 +38,8 @@ from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom, lookup
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import is_external
 from ilc_steering.engine.options import add_cell_options, check_cell_options
-from ilc_steering.engine.runs import Cells, RunFolder, compute_cells
+from ilc_steering.engine.provenance import code, record_codes, record_report
+from ilc_steering.engine.runs import Cells, RunFolder, compute_cells, dry_run
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, output_folder, write_json
 from ilc_steering.readers import read_json
@@ -49,10 +51,12 @@ from ilc_steering.sweep.rows import (
     axis_values,
     gain_text,
     map_name,
+    oracle_roots,
     read_oracle,
     read_row,
     row_name,
     row_plants,
+    row_roots,
     run_oracle,
     run_row,
 )
@@ -83,7 +87,7 @@ class Plan:
     @property
     def settings(self) -> dict[str, Any]:
         """What ``run.json`` records and a resume must match."""
-        skip = ("out", "methods", "nu_b", "backend", "workers", "cell_timeout", "oracle")
+        skip = ("out", "methods", "nu_b", "backend", "workers", "cell_timeout", "oracle", "dry_run")
         settings = {k: v for k, v in asdict(self.args).items() if k not in skip}
         settings["axes"] = [list(axis) for axis in self.args.axes]
         settings["config"] = self.config.name
@@ -91,8 +95,20 @@ class Plan:
         return settings
 
     def key(self, row: Row) -> dict[str, Any]:
+        """What a finished row must hold to be this row at all."""
         method, gain, index = row
-        return {"method": method, "nu_b": gain, "row": index, "config_sha": self.digest, "version": __version__}
+        return {"method": method, "nu_b": gain, "row": index}
+
+    @property
+    def stamp(self) -> dict[str, Any]:
+        """What every row (and the oracle) this run computes records besides its result: a finished
+        one that records other values (or another code) is stale, and computed again."""
+        return {"config_sha": self.digest, "version": __version__}
+
+    @property
+    def robot(self) -> str:
+        """The module of the config's robot, a root of every row's code."""
+        return type(self.config.plant).__module__
 
 
 def plan(args: SweepArgs) -> Plan:
@@ -237,28 +253,37 @@ def execute(the_plan: Plan) -> tuple[dict[tuple[str, float], list[dict[str, Any]
     reports = [f"sweep.{suffix}" for suffix in ("csv", "json", "md")]
     reports += [f"sweep_{map_name(m, g)}.png" for m, g in dict.fromkeys((m, g) for m, g, _ in the_plan.rows)]
     reports += ["oracle.json"] if args.oracle else []
-    folder.prepare(the_plan.settings, {the_plan.config.name: the_plan.digest}, reports)
 
     def oracle(todo: Any) -> None:
         if not args.oracle:
             return
         path = args.out / "oracle.json"
-        key = {"method": ORACLE, "config_sha": the_plan.digest, "version": __version__}
-        if path.exists():
-            read_oracle(path, key, args.grid)
-        else:
-            print(f"{ORACLE}: where the true plant can reach the goal (it knows the true plant) ...", flush=True)
-            write_json(path, {**key, **run_oracle(args)})
+        roots = oracle_roots(the_plan.robot)
+        stamp = {"method": ORACLE, **the_plan.stamp, "code": code(roots)[0]}
+        record_codes(args.out, {stamp["code"]: roots})
+        found = read_oracle(path, {"method": ORACLE}, args.grid) if path.exists() else None
+        if found is not None and all(found.get(k) == v for k, v in stamp.items()):
+            return
+        why = "" if found is None else " (the one on disk is stale: another code or config)"
+        print(f"{ORACLE}: where the true plant can reach the goal (it knows the true plant){why} ...", flush=True)
+        write_json(path, {**stamp, **run_oracle(args)})
 
     cells = Cells(
         keys=the_plan.rows,
         name=lambda row: row_name(*row),
         read=lambda path, row: read_row(path, the_plan.key(row), args.grid, args.trials),
         call=lambda row: (args, row[0], the_plan.given[row[1]], row[2]),
-        stamp=lambda row: {"config_sha": the_plan.digest, "version": __version__},
+        stamp=lambda row: the_plan.stamp,
+        roots=lambda row: row_roots(row[0], the_plan.robot),
         failure=lambda row, message: {"method": row[0], "nu_b": row[1], "row": row[2], "error": message},
         describe=lambda row: f"{row[0]} nu_b {gain_text(row[1])} row {row[2]}",
     )
+    if args.dry_run:
+        folder.check(the_plan.settings)
+        for line in dry_run(folder, cells, args.workers or os.cpu_count() or 1):
+            print(line, flush=True)
+        return {}, []
+    folder.prepare(the_plan.settings, {the_plan.config.name: the_plan.digest}, reports)
     outcome = compute_cells(
         folder, cells, run_row, backend=args.backend, workers=args.workers, timeout=args.cell_timeout, before=oracle
     )
@@ -279,12 +304,15 @@ def main_with_failures(args: SweepArgs) -> tuple[list[dict[str, Any]], list[dict
     start = time.perf_counter()
     the_plan = plan(args)
     maps, failed = execute(the_plan)
+    if args.dry_run:
+        return [], failed
     total = args.grid * len(args.methods) * max(1, len(args.nu_b))
     if maps:
         solvable = None
         if args.oracle:
             solvable = np.array(read_json(args.out / "oracle.json", MAX_RESULT_BYTES)["solvable"], dtype=np.bool_)
         table, lines = write_sweep_report(args, the_plan.config, the_plan.names, maps, failed, solvable)
+        record_report(args.out, [row for rows in maps.values() for row in rows])
         print(table)
         print(
             f"{args.grid} x {args.grid} plants per map, {len(maps)} maps in {time.perf_counter() - start:.1f} s; "
@@ -363,4 +391,5 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         backend=ns.backend,
         workers=ns.workers,
         cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
+        dry_run=ns.dry_run,
     )

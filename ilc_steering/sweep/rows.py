@@ -90,6 +90,8 @@ class SweepArgs:
     oracle: bool = False
     """Also map where the true plant can reach the goal at all (:mod:`ilc_steering.oracle`, which
     knows the true plant: never a learner), and report every map's share of that region."""
+    dry_run: bool = False
+    """Compute and write nothing: say which rows a run would compute, and its cost."""
 
 
 def lockstep(
@@ -232,10 +234,23 @@ class RowRecord:
     wall_s: float  # [s]
     config_sha: str  # the content hash of its config
     version: str  # the ilc-steering version that computed it
+    code: str | None = None  # the hash of its code (engine.provenance); None: a row made before rows kept it
+
+
+def row_roots(method: str, robot: str) -> tuple[str, ...]:
+    """Where the computation of a row of ``method`` on a robot whose config class lives in module
+    ``robot`` starts: this module, the learner's sources, the robot's module and the packaged
+    configs' package (their import closure is the row's code, :mod:`~ilc_steering.engine.closure`)."""
+    return (__name__, *lookup(method).sources(), robot, "ilc_steering.configs")
+
+
+def oracle_roots(robot: str) -> tuple[str, ...]:
+    """Where the oracle's map of a robot whose config class lives in module ``robot`` starts."""
+    return (__name__, "ilc_steering.oracle", robot, "ilc_steering.configs")
 
 
 def read_row(path: Path, key: dict[str, Any], size: int, trials: int) -> dict[str, Any]:
-    """A finished row, checked against its ``key`` (method, gain, row, config hash, version) and
+    """A finished row, checked against its ``key`` (method, gain, row) and
     value by value: ``size`` plants, ``trials_to`` in ``[0, trials]``, errors >= 0 (not NaN),
     off-chart fractions in [0, 1], a wall time >= 0 s. ``ValueError`` names the file."""
     hint = "delete it to recompute it"
