@@ -19,12 +19,12 @@ Every trial counts, the initial design included: the first is the context's star
 ``prior="nominal"`` the nominal solution), then ``2 d`` scrambled-Sobol points in the first
 region. When the region has shrunk below ``min_length``, TuRBO restarts from a new seeded start
 with fresh data. The GP sees at most ``max_points`` trials, those nearest the region's centre:
-TuRBO's model is local, and this bounds the cost of a trial (``docs/benchmarks/baselines.md``).
+TuRBO's model is local, and this bounds the cost of a trial (``results/benchmarks/baselines.md``).
 
 Fitting the hyperparameters is most of a trial's cost (an L-BFGS run on the marginal likelihood);
 between refits the GP keeps its fitted length scales, output scale and noise and is only
 conditioned on the new data, as BoTorch's own loops allow. ``refit_every=1`` fits before every
-trial, as the first version did (``docs/benchmarks/bayes_opt_refit.md`` measures both).
+trial, as the first version did (``results/benchmarks/bayes_opt_refit.md`` measures both).
 """
 
 from __future__ import annotations

@@ -268,7 +268,7 @@ REGISTRY: dict[str, LearnerSpec] = {
         _rl("td3", RLAlgorithm("TD3", "stable_baselines3", "deterministic")),
         # CrossQ gives NaN actions at trial 5 on unicycle_parking and trailer_bay under prior=nominal,
         # and at trial 110 (10 trials after it starts learning) under prior=none, measured at full
-        # budget (docs/tuning/sweep2/crossq.md): run only when named.
+        # budget (results/tuning/sweep2/crossq.md): run only when named.
         _rl("crossq", RLAlgorithm("CrossQ", "sb3_contrib", "squashed"), by_default=False),
         _rl("tqc", RLAlgorithm("TQC", "sb3_contrib", "squashed")),
     )

@@ -19,7 +19,7 @@ read. :func:`implementation` names what ran (``"sbx-rl 0.28.0"``), and a compari
 records it. On the SB3 path, :func:`train` runs torch with :data:`TORCH_THREADS` thread(s) and
 gives the caller's thread count back when it returns: torch's default (one thread per core)
 makes TD3's small updates several times slower on a 2-core machine
-(``docs/benchmarks/rl_speed.md``), and a library call should not change its caller's setting
+(``results/benchmarks/rl_speed.md``), and a library call should not change its caller's setting
 for good. On the SBX path it turns on JAX's persistent compilation cache, unless one is configured
 (:func:`_jax_compilation_cache`).
 

@@ -9,8 +9,8 @@ clear), ``traceback``, ``hang`` (no bound in time), ``blow-up`` (peak memory abo
 bound, :data:`MEMORY_BOUND`), ``silent`` (bad input taken without a word, a wrong result, a
 result lost), ``unclear`` (an error that names no file), ``late`` (found after work was done) or
 ``refused a valid input``. Point ``--python`` at another install (an older version in its own
-virtual environment, or a source tree on ``PYTHONPATH``) to compare: ``docs/bad_inputs/before``
-holds the run against the commit before issue 26's changes (373f0ec), ``docs/bad_inputs`` the
+virtual environment, or a source tree on ``PYTHONPATH``) to compare: ``results/bad_inputs/before``
+holds the run against the commit before issue 26's changes (373f0ec), ``results/bad_inputs`` the
 run after.
 
     python benchmarks/bad_inputs.py [--quick] [--python PY] [--out DIR]

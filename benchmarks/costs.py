@@ -8,7 +8,7 @@ against the 45-degree stop instead of a path.
 
     python benchmarks/costs.py [--quick] [--out DIR]
 
-writes ``costs.{csv,json,md}`` and ``costs_<task>_<cost>.png`` (committed in ``docs/costs``).
+writes ``costs.{csv,json,md}`` and ``costs_<task>_<cost>.png`` (committed in ``results/costs``).
 """
 
 from __future__ import annotations

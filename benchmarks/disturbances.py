@@ -8,7 +8,7 @@ budget meet 0.5 mm / 0.5 mrad.
 
     python benchmarks/disturbances.py [--quick] [--out DIR]
 
-writes ``disturbances.{csv,json,md}`` (committed in ``docs/disturbances``).
+writes ``disturbances.{csv,json,md}`` (committed in ``results/disturbances``).
 """
 
 from __future__ import annotations

@@ -88,7 +88,7 @@ class Args:
     """Steps between two points of the curve (a chunk: checkpointed, resumable)."""
     goals: tuple[int, ...] = tuple(range(20))
     """parking-v0's reset seeds evaluated: the goals."""
-    out: Path = Path("docs/highway")
+    out: Path = Path("results/highway")
     """Where the curve's points and tables go."""
     models: Path = Path("results/highway_her")
     """Where the checkpoints go (not committed: hundreds of MB)."""

@@ -18,7 +18,7 @@ steps, every step of the trials up to the first that passes.
 
     python benchmarks/highway_parking.py [--quick] [--seeds 0-19] [--learners A,B+carry] [--out DIR]
 
-writes ``highway_parking.{csv,json,md}`` (committed in ``docs/highway``), one JSON per (learner,
+writes ``highway_parking.{csv,json,md}`` (committed in ``results/highway``), one JSON per (learner,
 seed) under ``OUT/cells`` as it finishes: a second call resumes from them. Each cell carries the
 fingerprint of what made it (:func:`fingerprint`: the goal's generated config, the library's code,
 the packages' versions); a cell of another fingerprint is refused (exit 2, one line), never mixed in
@@ -70,7 +70,7 @@ class Args:
     """``run --learner`` names."""
     trials: int = 15
     """Trials per goal."""
-    out: Path = Path("docs/highway")
+    out: Path = Path("results/highway")
     """Where the tables go (cells under ``OUT/cells``)."""
 
 

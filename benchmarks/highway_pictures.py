@@ -10,7 +10,7 @@ with the car's path over the trial drawn on it (white; the dot is the start):
     python benchmarks/highway_pictures.py [--quick] [--seed N] [--learner robust_ilc] [--trials 8] [--out DIR]
 
 writes ``highway_first_trial[_seedN].png`` and ``highway_last_trial[_seedN].png`` (committed in
-``docs/highway``).
+``results/highway``).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ class Args:
     """``run --learner``."""
     trials: int = 8
     """Trials of the run."""
-    out: Path = Path("docs/highway")
+    out: Path = Path("results/highway")
     """Where the pictures go."""
     seed: int | None = None
     """parking-v0's seed: the library's generated task for it (None: the packaged ``highway_parking``)."""

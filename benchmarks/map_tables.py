@@ -1,14 +1,14 @@
 """The robustness maps' tables, from the committed map folders, into the pages that quote them.
 
-    python benchmarks/map_tables.py [--into docs/robustness.md docs/robustness/diagnosis.md] [--check]
+    python benchmarks/map_tables.py [--into docs/robustness.md docs/diagnosis.md] [--check]
 
 prints the blocks; ``--into`` rewrites each block between ``<!-- map-table: NAME -->`` and
 ``<!-- /map-table -->`` in each file; ``--check`` exits 1 if a file's block differs. The blocks:
-``robustness`` (``docs/robustness/robustness.md``, written by ``python benchmarks/robustness.py
---report --out docs/robustness``), ``sweep`` and ``sweep-blackbox`` (the ``sweep.md`` of
-``docs/sweep`` and ``docs/sweep_blackbox``), ``diagnosis-maps`` (the servo and lag maps of
-``docs/robustness/diagnosis.json``, written by ``python benchmarks/robustness_diagnosis.py --out
-docs/robustness``).
+``robustness`` (``results/robustness/robustness.md``, written by ``python benchmarks/robustness.py
+--report --out results/robustness``), ``sweep`` and ``sweep-blackbox`` (the ``sweep.md`` of
+``results/sweep`` and ``results/sweep_blackbox``), ``diagnosis-maps`` (the servo and lag maps of
+``results/robustness/diagnosis.json``, written by ``python benchmarks/robustness_diagnosis.py --out
+results/robustness``).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from ilc_steering.tables import markdown_table, update_pages
 __all__ = ["KIND", "diagnosis_maps", "tables"]
 
 KIND = "map-table"
-DOCS = Path("docs")
+RESULTS = Path("results")
 DIAGNOSIS_MAPS = {
     "parallel_parking_servo": "servo (steering offset x wheel radius, lag 0.05 s)",
     "parallel_parking_lag": "lag (steering lag 0-0.1 s x steering offset)",
@@ -63,13 +63,13 @@ def diagnosis_maps(diagnosis: dict[str, Any]) -> str:
     return markdown_table(header, rows, [False, True, True, True, True, True])
 
 
-def tables(docs: Path = DOCS) -> dict[str, str]:
-    """Every block's text by name, from the committed folders under ``docs``."""
+def tables(results: Path = RESULTS) -> dict[str, str]:
+    """Every block's text by name, from the committed folders under ``results``."""
     return {
-        "robustness": _table_lines(docs / "robustness/robustness.md"),
-        "sweep": _table_lines(docs / "sweep/sweep.md"),
-        "sweep-blackbox": _table_lines(docs / "sweep_blackbox/sweep.md"),
-        "diagnosis-maps": diagnosis_maps(json.loads((docs / "robustness/diagnosis.json").read_text())),
+        "robustness": _table_lines(results / "robustness/robustness.md"),
+        "sweep": _table_lines(results / "sweep/sweep.md"),
+        "sweep-blackbox": _table_lines(results / "sweep_blackbox/sweep.md"),
+        "diagnosis-maps": diagnosis_maps(json.loads((results / "robustness/diagnosis.json").read_text())),
     }
 
 
@@ -77,9 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--into", type=Path, nargs="*", default=[])
     parser.add_argument("--check", action="store_true", help="exit 1 if a file's block is not the table")
-    parser.add_argument("--docs", type=Path, default=DOCS, help="holds robustness/, sweep/, sweep_blackbox/")
+    parser.add_argument("--results", type=Path, default=RESULTS, help="holds robustness/, sweep/, sweep_blackbox/")
     args = parser.parse_args(argv)
-    code, blocks = update_pages(args.into, args.check, lambda: tables(args.docs), KIND, "benchmarks/map_tables.py")
+    code, blocks = update_pages(args.into, args.check, lambda: tables(args.results), KIND, "benchmarks/map_tables.py")
     if not (code or args.check or args.into):
         for name, block in blocks.items():
             print(f"{name}:\n{block}")

@@ -25,7 +25,7 @@ Four tables, on the packaged MuJoCo configs:
     python benchmarks/mujoco_car.py [--quick] [--out DIR]
 
 writes ``mujoco_repeatability``, ``mujoco_learners``, ``mujoco_spread`` and ``mujoco_floor``
-``.{csv,json,md}`` (committed in ``docs/mujoco``, quoted by ``docs/mujoco.md``).
+``.{csv,json,md}`` (committed in ``results/mujoco``, quoted by ``docs/mujoco.md``).
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ class Args:
     floor_within: int = 6
     """The trial by which a run must be within the tolerance (the literal reading), or its final stretch
     within it must have started (the strict reading)."""
-    out: Path = Path("docs/mujoco")
+    out: Path = Path("results/mujoco")
     """Where the tables go."""
 
 

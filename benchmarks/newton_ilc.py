@@ -16,7 +16,7 @@ trial on simulations 1-3.
 
     python benchmarks/newton_ilc.py [--quick] [--out DIR]
 
-writes ``newton_ilc.{csv,json,md}`` and ``newton_ilc_errors.png`` (committed in ``docs/newton_ilc``).
+writes ``newton_ilc.{csv,json,md}`` and ``newton_ilc_errors.png`` (committed in ``results/newton_ilc``).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ scatter is the run's own estimate (``scatter`` of ``run --json``: ``cartesian`` 
     python benchmarks/noisy.py [--quick] [--out DIR]
 
 writes ``noisy_runs.{csv,json,md}`` (one row per learner and seed) and ``noisy.{csv,json,md}``
-(one row per learner), committed in ``docs/noisy`` and quoted by ``docs/noisy.md``. A run
+(one row per learner), committed in ``results/noisy`` and quoted by ``docs/noisy.md``. A run
 interrupted resumes: every finished run is appended to ``noisy_runs.partial.jsonl`` in ``--out``
 (its arguments on the first line) and not run again; the file is removed when the tables are written.
 """
@@ -45,7 +45,7 @@ __all__ = ["Args", "main", "noisy_config", "one_run", "summarize"]
 class Args:
     quick: bool = False
     """Two seeds, one learner, six trials: checks that the script runs (CI)."""
-    out: Path = Path("docs/noisy")
+    out: Path = Path("results/noisy")
     """Where the tables go."""
     task: str = "forward_parking"
     """The in-family task (a packaged name or a YAML path)."""

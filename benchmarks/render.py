@@ -16,7 +16,7 @@ check that both draw about as much.
 
     python benchmarks/render.py [--quick] [--out DIR]
 
-writes ``render.json``, ``render.csv`` and ``render.md`` to ``DIR`` (committed in ``docs/benchmarks``).
+writes ``render.json``, ``render.csv`` and ``render.md`` to ``DIR`` (committed in ``results/benchmarks``).
 """
 
 from __future__ import annotations

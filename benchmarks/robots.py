@@ -15,7 +15,7 @@ perturbed by 5 %, seeded):
 
     PYTHONPATH=. python benchmarks/robots.py [--quick] [--first-run] [--out DIR]
 
-writes ``robots.json``, ``robots.csv`` and ``robots.md`` to ``DIR`` (committed in ``docs/benchmarks``).
+writes ``robots.json``, ``robots.csv`` and ``robots.md`` to ``DIR`` (committed in ``results/benchmarks``).
 From a checkout, put it first on the path (``PYTHONPATH=.``): a script's own folder heads
 ``sys.path``, so without it the script times whichever ``ilc_steering`` the interpreter has installed.
 """

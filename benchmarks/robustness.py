@@ -7,7 +7,7 @@ oracle-solvable region.
 
     python benchmarks/robustness.py [--quick] [--out DIR] [--grid N] [--workers W]
 
-writes ``robustness.{csv,json,md}`` and one sweep folder per map (committed in ``docs/robustness``).
+writes ``robustness.{csv,json,md}`` and one sweep folder per map (committed in ``results/robustness``).
 The oracle knows the true plant; it is never a learner (see :mod:`ilc_steering.oracle`).
 """
 

@@ -2,7 +2,7 @@
 
     python benchmarks/robustness_diagnosis.py [--out DIR]
 
-writes ``diagnosis.json`` (committed in ``docs/robustness``; read by ``docs/robustness/diagnosis.md``).
+writes ``diagnosis.json`` (committed in ``results/robustness``; read by ``docs/diagnosis.md``).
 On ``parallel_parking_servo``, after the first trial (the nominal solution) it fits the geometry's
 family and the family with the steering offset and lag to that trial, as ``robust_ilc`` does, and
 reports what each explains; then, on the identified model, how near the goal each solver of
@@ -36,7 +36,7 @@ __all__ = ["Args", "main"]
 class Args:
     out: Path = Path("results/robustness")
     """Folder of ``diagnosis.json``."""
-    trailer: Path = Path("docs/robustness/trailer_bay")
+    trailer: Path = Path("results/robustness/trailer_bay")
     """The trailer map's sweep folder (its oracle and its ``robust_ilc`` rows)."""
 
 

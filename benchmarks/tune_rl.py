@@ -32,7 +32,7 @@ from ilc_steering.tables import markdown_table, write_results
 __all__ = ["GRID", "Args", "main"]
 
 GRID: dict[str, dict[str, list[Any]]] = {
-    # sweep 2 (docs/tuning/sweep2): around the nominal values chosen by sweep 1 (docs/compare/tuning.md)
+    # sweep 2 (results/tuning/sweep2): around the nominal values chosen by sweep 1 (results/compare/tuning.md)
     "td3": {"noise_std": [0.005, 0.01], "learning_rate": [3.0e-3, 1.0e-3, 3.0e-4]},
     "sac": {"gradient_steps": [1, 2], "target_entropy": [-12.0, -16.0]},
     "ppo": {"n_steps": [16, 64], "policy_kwargs.log_std_init": [-3.0, -4.0]},
@@ -100,6 +100,16 @@ def run_candidate(algorithm: str, overrides: dict[str, Any], scenario: str, seed
     return {k: v for k, v in result.items() if k != "curve"}
 
 
+def option_text(overrides: dict[str, Any]) -> str:
+    """A candidate's overrides as a file-name part every shell and OS takes as it is
+    (``learning_rate-0.0003_noise_std-0.005``), injective: a name whose text had to be cleaned
+    gets a hash of the overrides appended."""
+    from ilc_steering.output import content_hash, safe_name
+
+    text = "_".join(f"{key}-{value!r}" for key, value in sorted(overrides.items())) or "defaults"
+    return text if safe_name(text) == text else f"{safe_name(text)[:80]}-{content_hash(overrides)[:8]}"
+
+
 def main(args: Args) -> list[dict[str, Any]]:
 
     from ilc_steering.agents import rl_settings
@@ -121,7 +131,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     cells.mkdir(exist_ok=True)
 
     def path(key: tuple[str, int, int]) -> Path:
-        return cells / f"{key[0]}__{json.dumps(grid[key[0]][key[1]], sort_keys=True)}__{key[2]}.json"
+        return cells / f"{key[0]}__{option_text(grid[key[0]][key[1]])}__{key[2]}.json"
 
     results = {key: json.loads(path(key).read_text()) for key in calls if path(key).exists()}  # resume
 

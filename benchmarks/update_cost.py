@@ -15,7 +15,7 @@ CPU from ``resource.getrusage(RUSAGE_CHILDREN)``; run it once before, so the num
 
     python benchmarks/update_cost.py [--quick] [--out DIR] [--seeds N] [--no-reproduce]
 
-writes ``update_cost[.LABEL].{csv,json,md}`` (committed in ``docs/benchmarks``).
+writes ``update_cost[.LABEL].{csv,json,md}`` (committed in ``results/benchmarks``).
 """
 
 from __future__ import annotations

@@ -256,7 +256,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     current.set_defaults(handler=_current)
     tables = sub.add_parser("tables", help="rewrite the comparison tables of Markdown files from a compare run")
-    tables.add_argument("folder", type=Path, metavar="DIR", help="the compare run folder, e.g. docs/compare")
+    tables.add_argument("folder", type=Path, metavar="DIR", help="the compare run folder, e.g. results/compare")
     tables.add_argument("--into", type=Path, nargs="+", required=True, metavar="FILE", help="the Markdown files")
     tables.add_argument("--check", action="store_true", help="rewrite nothing; exit 1 if a table differs")
     tables.set_defaults(handler=_tables)

@@ -249,7 +249,7 @@ def test_any_module_attr_is_found_in_the_working_directory_or_refused_in_one_lin
 README = (ROOT / "README.md").read_text()
 
 
-@pytest.mark.skipif(not (ROOT / "docs" / "compare" / "run.json").is_file(), reason="needs the committed run")
+@pytest.mark.skipif(not (ROOT / "results" / "compare" / "run.json").is_file(), reason="needs the committed run")
 def test_the_readmes_row_beside_the_committed_comparison_runs_as_written(tmp_path):
     section = README[README.index("Your learner as one more row") :]
     command = re.findall(r"```bash\n(.*?)```", section, re.S)[0].strip()
@@ -262,7 +262,7 @@ def test_the_readmes_row_beside_the_committed_comparison_runs_as_written(tmp_pat
     )
     assert result.returncode == 0, result.stderr[-2000:]
     report = json.loads((out / "compare.json").read_text())
-    committed = json.loads((ROOT / "docs" / "compare" / "compare.json").read_text())
+    committed = json.loads((ROOT / "results" / "compare" / "compare.json").read_text())
     mine = [c for c in report["cells"] if c["method"] == "my_learners:make"]
     assert len(report["cells"]) == len(committed["cells"]) + len(mine)
     assert {c["scenario"] for c in mine} == {c["scenario"] for c in committed["cells"]}

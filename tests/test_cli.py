@@ -54,9 +54,9 @@ def test_reproduce_prints_the_comparison_table_and_writes_the_figures(tmp_path, 
     figures = tmp_path.parent / f"{tmp_path.name}-figures"
     assert main(["reproduce", "--json-dir", str(tmp_path), "--plots", str(figures)]) == 0
     out = capsys.readouterr().out
-    committed = (ROOT / "docs/reproduce/reproduce.txt").read_text()
+    committed = (ROOT / "results/reproduce/reproduce.txt").read_text()
     assert _printed(out) == _printed(committed), (
-        "docs/reproduce/reproduce.txt is not what `ilc-steering reproduce` prints with this code: regenerate it "
+        "results/reproduce/reproduce.txt is not what `ilc-steering reproduce` prints with this code: regenerate it "
         "with the command on its first line"
     )
     assert "| forward_parking | Figs. 3-6 | 4 | 4 |" in out
@@ -129,7 +129,7 @@ def test_compare_quick_runs_every_method(quick_comparison):
         ["session", "record", "folder"],
         ["session"],
         ["current"],
-        ["tables", "docs/compare"],
+        ["tables", "results/compare"],
         ["plot", "run.json"],
         ["plot", "run.json", "--out", ""],
         ["compare", "--quick", "--out", ""],  # before: the working directory taken as the run folder

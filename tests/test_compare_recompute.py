@@ -1,4 +1,4 @@
-"""The committed comparison (``docs/compare``) recomputes: one cell per method, the cheapest of each,
+"""The committed comparison (``results/compare``) recomputes: one cell per method, the cheapest of each,
 run again by today's code, gives the committed trials bit for bit wherever its code says it is
 current. A cell whose closure changed since it was made is stale, and ``ilc-steering current``
 must say so (it is recomputed by a resume); a cell said current that does not recompute bit for
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-COMPARE = ROOT / "docs" / "compare"
+COMPARE = ROOT / "results" / "compare"
 KEYS = ("trials", "trials_to", "best_error", "curve", "off_chart_fraction", "clipped_fraction", "fragile")
 EXTRAS = {"bayes_opt": "botorch", "cma_es": "cma", "ppo": "stable_baselines3", "sac": "stable_baselines3",
           "td3": "stable_baselines3", "tqc": "sb3_contrib"}  # fmt: skip

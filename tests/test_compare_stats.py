@@ -89,9 +89,9 @@ def test_a_table_block_that_differs_from_the_run_is_found_and_rewritten(tmp_path
         compare_tables.render("<!-- compare-table: nope -->\nx\n<!-- /compare-table -->", tables)
 
 
-@pytest.mark.skipif(not (ROOT / "docs" / "compare" / "compare.json").is_file(), reason="needs the source tree")
+@pytest.mark.skipif(not (ROOT / "results" / "compare" / "compare.json").is_file(), reason="needs the source tree")
 @pytest.mark.extra("rl")  # the committed RL cells' budgets are read from their hyperparameter files, checked on SB3
 def test_the_readme_and_the_comparison_page_show_the_committed_runs_tables() -> None:
     files = [ROOT / "README.md", ROOT / "docs" / "comparison.md"]
     assert all(compare_tables.BLOCK.search(path.read_text()) for path in files)  # both hold generated tables
-    assert compare_tables.check(ROOT / "docs" / "compare", files) == []
+    assert compare_tables.check(ROOT / "results" / "compare", files) == []

@@ -185,7 +185,7 @@ def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
     from ilc_steering.compare.against import read_committed
 
     (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
-    committed = Path(__file__).resolve().parents[1] / "docs" / "compare" / "compare.json"
+    committed = Path(__file__).resolve().parents[1] / "results" / "compare" / "compare.json"
     cell = json.loads(committed.read_text())["cells"][0]  # a whole cell: the schema checks it first
     (tmp_path / "compare.json").write_text(json.dumps({"cells": [cell, {**cell, "best_error": 1.0}]}))
     with pytest.raises(ValueError, match="holds the cell .* twice"):

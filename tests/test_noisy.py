@@ -59,14 +59,14 @@ def test_the_summary_counts_holds_and_ratios() -> None:
 
 def test_the_page_quotes_its_artifact_and_the_done_when_holds() -> None:
     page = (ROOT / "docs/noisy.md").read_text()
-    assert (ROOT / "docs/noisy/noisy.md").read_text().strip() in page
-    rows = {r["learner"]: r for r in json.loads((ROOT / "docs/noisy/noisy.json").read_text())["rows"]}
+    assert (ROOT / "results/noisy/noisy.md").read_text().strip() in page
+    rows = {r["learner"]: r for r in json.loads((ROOT / "results/noisy/noisy.json").read_text())["rows"]}
     assert set(rows) == {"robust_ilc", "newton_ilc", "ilc_paper"}
     for name in ("robust_ilc", "newton_ilc"):
         row = rows[name]
         assert row["runs"] == 100 and row["hold_share"] >= 0.95  # the last five trials hold 4 sigma
         assert 1 / 1.5 <= row["cartesian_median"] <= 1.5 and 1 / 1.5 <= row["orientation_median"] <= 1.5
-    runs = json.loads((ROOT / "docs/noisy/noisy_runs.json").read_text())["rows"]
+    runs = json.loads((ROOT / "results/noisy/noisy_runs.json").read_text())["rows"]
     below = [sum(r["below_floor"] for r in runs if r["learner"] == name) for name in rows]
     relapsed = [sum(r["relapses"] > 0 for r in runs if r["learner"] == name) for name in rows]
     assert f"In {below[0]}, {below[1]} and {below[2]} runs" in " ".join(page.split())
@@ -98,8 +98,8 @@ def test_the_mujoco_page_quotes_its_floor_table() -> None:
     """benchmarks/mujoco_car.py's floor table (issue 48's Done-when on the scatter config), as written:
     the learners' and the oracle's runs on the same seeds, each scored by both readings."""
     page = (ROOT / "docs/mujoco.md").read_text()
-    assert (ROOT / "docs/mujoco/mujoco_floor.md").read_text().strip() in page
-    floor = json.loads((ROOT / "docs/mujoco/mujoco_floor.json").read_text())
+    assert (ROOT / "results/mujoco/mujoco_floor.md").read_text().strip() in page
+    floor = json.loads((ROOT / "results/mujoco/mujoco_floor.json").read_text())
     rows, within, last = floor["rows"], floor["within"], floor["last"]
     assert floor["repeats"] >= 200 and floor["cartesian_m"] == pytest.approx(4 * floor["scatter_m"])
     seeds = {name: [r["seed"] for r in rows if r["learner"] == name] for name in floor["summary"]}

@@ -1,5 +1,5 @@
-"""The numbers of the README and of the docs pages are their committed artifacts' (``docs/reproduce``,
-``docs/benchmarks``, ``docs/robustness``): a table or a range typed by hand, or left behind by a new run, fails
+"""The numbers of the README and of the docs pages are their committed artifacts' (``results/reproduce``,
+``results/benchmarks``, ``results/robustness``): a table or a range typed by hand, or left behind by a new run, fails
 here. The README fits a page, and the layout page names every module."""
 
 import json
@@ -9,7 +9,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 SPEED = (ROOT / "docs/speed.md").read_text()
-REPRODUCED = (ROOT / "docs/reproduce/reproduce.txt").read_text()
+REPRODUCED = (ROOT / "results/reproduce/reproduce.txt").read_text()
 
 
 def section(title, text=SPEED):
@@ -35,7 +35,7 @@ def test_the_readme_fits_a_page():
 
 
 def test_the_reproduction_tables_are_what_reproduce_printed():
-    # docs/reproduce/reproduce.txt: `ilc-steering reproduce`'s output, committed; tests/test_cli.py checks the command
+    # results/reproduce/reproduce.txt: `ilc-steering reproduce`'s output; tests/test_cli.py checks the command
     printed = table(REPRODUCED, "| scenario | paper figures |")
     assert len(printed) == 6
     paper = (ROOT / "docs/paper.md").read_text()
@@ -59,7 +59,7 @@ def test_the_layout_page_names_every_module():
 
 
 def test_the_every_robot_table_is_robots_json():
-    rows = {r["robot"]: r for r in json.loads((ROOT / "docs/benchmarks/robots.json").read_text())["rows"]}
+    rows = {r["robot"]: r for r in json.loads((ROOT / "results/benchmarks/robots.json").read_text())["rows"]}
     text = section("## Every robot, against the car")
     found = table(text, "| robot |")
     assert len(found) == len(rows)
@@ -74,18 +74,18 @@ def test_the_every_robot_table_is_robots_json():
 
 def test_the_first_runs_and_frame_times_quoted_are_the_artifacts():
     text = section("## Every robot, against the car")
-    firsts = json.loads((ROOT / "docs/benchmarks/robots.json").read_text())["first_run_s"]
+    firsts = json.loads((ROOT / "results/benchmarks/robots.json").read_text())["first_run_s"]
     on_lab_kernel = {"parallel_parking_servo", "parallel_parking_lag"}  # the servo cars run on the lab robot's kernel
     lab = sorted(v for k, v in firsts.items() if k.startswith("experiment_") or k in on_lab_kernel)
     others = sorted(v for k, v in firsts.items() if not (k.startswith("experiment_") or k in on_lab_kernel))
     assert f"{others[0]:.1f}-{others[-1]:.1f} s" in text
     assert f"{lab[0]:.1f} and {lab[-1]:.1f} s" in text
-    frames = json.loads((ROOT / "docs/benchmarks/render.json").read_text())["rows"]
+    frames = json.loads((ROOT / "results/benchmarks/render.json").read_text())["rows"]
     raster = sorted(r["raster_ms"] for r in frames)
     matplotlib = sorted(r["matplotlib_ms"] for r in frames)
     assert f"{raster[0]:.2f}-{raster[-1]:.2f} ms per frame" in text
     assert f"{matplotlib[0]:.1f}-{matplotlib[-1]:.1f} ms" in text
-    rows = json.loads((ROOT / "docs/benchmarks/robots.json").read_text())["rows"]
+    rows = json.loads((ROOT / "results/benchmarks/robots.json").read_text())["rows"]
     share, target = next((r["share_of_car"], r["target_share"]) for r in rows if r["robot"] == "lab")
     floor = "over its floor of a tenth" if share >= target else "under the floor of a tenth"
     assert floor in text and all(r["within_target"] for r in frames)
@@ -93,12 +93,12 @@ def test_the_first_runs_and_frame_times_quoted_are_the_artifacts():
 
 def test_the_robustness_table_is_the_committed_maps():
     # The table benchmarks/robustness.py wrote from the maps' sweep.json, and each map's own summary.
-    written = (ROOT / "docs/robustness/robustness.md").read_text().strip()
+    written = (ROOT / "results/robustness/robustness.md").read_text().strip()
     assert written in (ROOT / "docs/robustness.md").read_text()
-    for row in json.loads((ROOT / "docs/robustness/robustness.json").read_text())["rows"]:
+    for row in json.loads((ROOT / "results/robustness/robustness.json").read_text())["rows"]:
         lines: dict = {}
         for folder in (row["map"], row["map"] + "_others"):  # a map's methods may lie in two runs of its settings
-            path = ROOT / "docs/robustness" / folder / "sweep.json"
+            path = ROOT / "results/robustness" / folder / "sweep.json"
             for line in json.loads(path.read_text())["rows"] if path.exists() else []:
                 lines.setdefault(line["method"], line)
         assert row["solvable"] == lines["oracle"]["converged_fraction"]
@@ -111,7 +111,7 @@ def test_the_robustness_table_is_the_committed_maps():
 
 def test_the_test_tiers_times_are_the_logged_runs():
     text = " ".join((ROOT / "docs/tests.md").read_text().split())  # wherever the page's lines wrap
-    log = (ROOT / "docs/benchmarks/test_tiers/fast.txt").read_text()
+    log = (ROOT / "results/benchmarks/test_tiers/fast.txt").read_text()
     passed, seconds = re.search(r"(\d+) passed, \d+ deselected, .* in ([\d.]+)s", log).groups()
     user, sys_ = re.search(r"user ([\d.]+) s, sys ([\d.]+) s", log).groups()
     loads = re.findall(r"load average: ([\d.]+),", log)
@@ -122,7 +122,7 @@ def test_the_test_tiers_times_are_the_logged_runs():
 
 def test_the_slow_tiers_time_is_the_logged_run():
     text = " ".join((ROOT / "docs/tests.md").read_text().split())
-    log = (ROOT / "docs/benchmarks/test_tiers/slow.txt").read_text()
+    log = (ROOT / "results/benchmarks/test_tiers/slow.txt").read_text()
     found = re.search(r"(?:(\d+) failed, )?(\d+) passed, \d+ deselected, .* in ([\d.]+)s", log)
     assert found is not None, "the slow tier's log has no pytest summary"
     failed, passed, seconds = int(found[1] or 0), int(found[2]), found[3]
@@ -137,26 +137,26 @@ def test_the_mujoco_page_quotes_its_artifacts():
     # benchmarks/mujoco_car.py's tables, as written; and the page's words match their numbers.
     page = (ROOT / "docs/mujoco.md").read_text()
     for stem in ("mujoco_repeatability", "mujoco_learners", "mujoco_spread"):
-        assert (ROOT / f"docs/mujoco/{stem}.md").read_text().strip() in page, stem
-    runs = json.loads((ROOT / "docs/mujoco/mujoco_learners.json").read_text())["rows"]
+        assert (ROOT / f"results/mujoco/{stem}.md").read_text().strip() in page, stem
+    runs = json.loads((ROOT / "results/mujoco/mujoco_learners.json").read_text())["rows"]
     smooth = [r for r in runs if not r["config"].endswith("_scatter")]
     assert all(r["trials_to_1cm"] <= 2 and r["last_inside"] for r in smooth)
     scattered = [r["last_worst_m"] for r in runs if r["config"].endswith("_scatter")]
     assert f"{1e3 * min(scattered):.1f}-{1e3 * max(scattered):.1f} mm" in page
     speed = [
         r["simulated_per_wall"]
-        for r in json.loads((ROOT / "docs/mujoco/mujoco_repeatability.json").read_text())["rows"]
+        for r in json.loads((ROOT / "results/mujoco/mujoco_repeatability.json").read_text())["rows"]
     ]
     assert f"{min(speed):.0f}-{max(speed):.0f} simulated seconds per wall second" in page
 
 
 def test_the_highway_tables_are_the_artifacts(monkeypatch):
-    # issue 50 item 5: one table of every method on parking-v0's goals, from docs/highway's artifacts
+    # issue 50 item 5: one table of every method on parking-v0's goals, from results/highway's artifacts
     monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
     monkeypatch.chdir(ROOT)
     import highway_table
 
-    blocks = highway_table.tables(ROOT / "docs/highway")
+    blocks = highway_table.tables(ROOT / "results/highway")
     for path in (ROOT / "README.md", ROOT / "docs/highway.md"):
         text = path.read_text()
         assert highway_table.render(text, blocks, str(path)) == text, (
@@ -173,10 +173,10 @@ def test_the_map_tables_are_the_artifacts(monkeypatch):
 
     from ilc_steering.tables import render_blocks
 
-    blocks = map_tables.tables(ROOT / "docs")
+    blocks = map_tables.tables(ROOT / "results")
     for path, names in (
         (ROOT / "docs/robustness.md", ("robustness", "sweep", "sweep-blackbox")),
-        (ROOT / "docs/robustness/diagnosis.md", ("diagnosis-maps",)),
+        (ROOT / "docs/diagnosis.md", ("diagnosis-maps",)),
     ):
         text = path.read_text()
         assert render_blocks(text, blocks, map_tables.KIND, str(path)) == text, (

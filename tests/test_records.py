@@ -18,7 +18,7 @@ import pytest
 
 from ilc_steering.cli import main
 
-COMPARE = Path(__file__).resolve().parents[1] / "docs" / "compare"
+COMPARE = Path(__file__).resolve().parents[1] / "results" / "compare"
 CASES = {
     "provenance": ("x", "provenance: must be a mapping"),
     "sessions": (5, "sessions: must be a list"),
@@ -161,7 +161,7 @@ def test_a_forged_sweep_row_is_refused_on_resume_in_one_line(runs, tmp_path, for
 def test_a_forged_sweep_json_is_refused_by_the_robustness_report(tmp_path, forgery):
     forge, message = SWEEP_FORGERIES[forgery]
     out = tmp_path / "robustness"
-    shutil.copytree(ROOT / "docs" / "robustness", out)
+    shutil.copytree(ROOT / "results" / "robustness", out)
     target = out / "forward_parking" / "sweep.json"
     target.write_text(json.dumps(forge(json.loads(target.read_text()))))
     done = subprocess.run(
@@ -180,14 +180,15 @@ def test_a_forged_sweep_json_is_refused_by_the_robustness_report(tmp_path, forge
         "compare",
         "sweep",
         "sweep_blackbox",
-        *sorted(p.name for p in (ROOT / "docs" / "robustness").iterdir() if (p / "run.json").is_file()),
+        *sorted(p.name for p in (ROOT / "results" / "robustness").iterdir() if (p / "run.json").is_file()),
     ],
 )
 def test_the_committed_records_still_read(folder):
     """The committed folders are older formats in places (the maps' ``run.json`` hold no
     provenance): they read, and ``current`` calls each current (exit 0) or stale (exit 1), never
     malformed (exit 2) or an internal error (exit 3); a folder without provenance is stale."""
-    path = ROOT / "docs" / folder if (ROOT / "docs" / folder).is_dir() else ROOT / "docs" / "robustness" / folder
+    results = ROOT / "results"
+    path = results / folder if (results / folder).is_dir() else results / "robustness" / folder
     code, err = quiet(["current", str(path)])
     assert code in (0, 1), err
     if "provenance" not in json.loads((path / "run.json").read_text()):

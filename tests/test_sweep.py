@@ -113,7 +113,7 @@ def test_a_folder_with_rows_but_no_settings_is_refused(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize(("method", "row"), [("ilc_paper", 0), ("ilc_paper", 7)])
 def test_committed_robustness_rows_are_recomputed_bit_for_bit_or_said_stale(method, row):
-    """The engine and the vector trial loop reproduce the committed rows of docs/robustness exactly
+    """The engine and the vector trial loop reproduce the committed rows of results/robustness exactly
     wherever a row's code says it is current; a stale row (its closure changed since) must be said
     stale by ``ilc-steering current``, and a resume recomputes it."""
     from pathlib import Path
@@ -122,7 +122,7 @@ def test_committed_robustness_rows_are_recomputed_bit_for_bit_or_said_stale(meth
     from ilc_steering.engine.provenance import read_run
     from ilc_steering.engine.staleness import configs_today, staleness
 
-    folder = Path(__file__).parents[1] / "docs" / "robustness" / "forward_parking"
+    folder = Path(__file__).parents[1] / "results" / "robustness" / "forward_parking"
     settings, record = read_run(folder)
     args = SweepArgs(
         config=settings["config"],

@@ -1,6 +1,6 @@
 """``compare --against DIR``: a new method's cells beside a committed run's, which is only read.
 
-A committed run folder (``docs/compare``, or any ``compare --out`` folder) holds ``run.json``
+A committed run folder (``results/compare``, or any ``compare --out`` folder) holds ``run.json``
 (its settings, the package version and each scenario's config content hash) and its cells, in
 ``cells/`` or, in a clone that did not keep them, in ``compare.json``. :func:`read_committed`
 reads both and refuses a folder that is not a run of this kind; :func:`resolve_settings` takes

@@ -34,7 +34,7 @@ of 1e-6 in the error would move (:data:`FRAGILE`) is listed in the cell's ``frag
 marked in the report.
 
     ilc-steering compare [--quick] [--out DIR] [--methods ilc least_squares mypkg.mod:make ...]
-    ilc-steering compare --methods mypkg.mod:make --against docs/compare --out DIR
+    ilc-steering compare --methods mypkg.mod:make --against results/compare --out DIR
     python benchmarks/compare.py [--quick] [--out DIR]
 """
 
@@ -294,7 +294,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=Path,
         default=None,
         metavar="DIR",
-        help="a committed run folder (e.g. docs/compare), only read: run the cells of --methods it lacks, with its "
+        help="a committed run folder (e.g. results/compare), only read: run the cells of --methods it lacks, with its "
         "scenarios, seeds, priors and budgets (its run.json; another version or other settings are refused), and "
         "write the joint report to --out",
     )

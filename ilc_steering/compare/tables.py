@@ -6,7 +6,7 @@ A Markdown file holds a generated table between two markers::
     ...
     <!-- /compare-table -->
 
-``ilc-steering tables docs/compare --into README.md docs/comparison.md`` rewrites every such block
+``ilc-steering tables results/compare --into README.md docs/comparison.md`` rewrites every such block
 from the run's ``compare.json`` (its cells, summarized as ``compare`` summarizes them,
 :mod:`~ilc_steering.compare.report`); ``--check`` rewrites nothing and exits 1 if a block differs,
 which is what the tests run: a table in the docs is always the committed run's.
