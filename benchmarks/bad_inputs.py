@@ -32,6 +32,7 @@ from typing import Any
 
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.tables import markdown_table, write_results
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -965,4 +966,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

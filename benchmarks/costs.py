@@ -14,6 +14,7 @@ writes ``costs.{csv,json,md}`` and ``costs_<task>_<cost>.png`` (committed in ``r
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.costs import NullSpaceCost
 from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, TaskConfig, load_config
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.rendering import draw_trial, draw_waypoints, setup_workspace
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.output import check_output_dir
@@ -169,4 +171,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

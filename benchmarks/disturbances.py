@@ -14,6 +14,7 @@ writes ``disturbances.{csv,json,md}`` (committed in ``results/disturbances``).
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from statistics import median
@@ -27,6 +28,7 @@ from ilc_steering.agents.registry import lookup
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.score import within_tolerance
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.loop import run_trials
 from ilc_steering.output import check_output_dir
 from ilc_steering.tables import markdown_table, write_results
@@ -132,4 +134,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

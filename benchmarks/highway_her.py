@@ -39,6 +39,7 @@ import gymnasium as gym
 import numpy as np
 
 from ilc_steering.arguments import Parser
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.output import write_atomic
 from ilc_steering.tables import markdown_table, write_results
 
@@ -368,4 +369,5 @@ if __name__ == "__main__":
     except ValueError:
         parser.error(f"--seeds must be whole numbers separated by commas, got {cli.seeds!r}")
     main(Args(cli.quick, seeds, cli.steps, cli.every, Args.goals, cli.out, cli.models, cli.zoo_cost))
+    record_made(cli.out, __file__, sys.argv[1:])
     sys.exit(0)

@@ -43,7 +43,7 @@ import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.agents.registry import lookup
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
-from ilc_steering.engine.provenance import code, packages
+from ilc_steering.engine.provenance import code, packages, record_made
 from ilc_steering.envs.highway import highway_config
 from ilc_steering.errors import ConfigError
 from ilc_steering.output import write_atomic
@@ -301,3 +301,4 @@ if __name__ == "__main__":
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
+    record_made(cli.out, __file__, sys.argv[1:])

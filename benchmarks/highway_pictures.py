@@ -16,6 +16,7 @@ writes ``highway_first_trial[_seedN].png`` and ``highway_last_trial[_seedN].png`
 from __future__ import annotations
 
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ilc_steering.arguments import Parser
+from ilc_steering.engine.provenance import record_made
 
 __all__ = ["Args", "main"]
 
@@ -117,3 +119,4 @@ if __name__ == "__main__":
     parser.add_argument("--seed", type=int, default=None, help="parking-v0's seed (default: the packaged task's, 4)")
     cli = parser.parse_args()
     main(Args(cli.quick, cli.learner, cli.trials, cli.out, cli.seed))
+    record_made(cli.out, __file__, sys.argv[1:])

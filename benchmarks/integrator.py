@@ -13,6 +13,7 @@ writes ``integrator.json``, ``integrator.csv`` and ``integrator.md`` to ``DIR``.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from ilc_steering.agents import ILCAgent
 from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.reference import trial as car_trial
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.loop import run_trials
 from ilc_steering.tables import markdown_table, median_seconds, write_results
@@ -126,4 +128,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

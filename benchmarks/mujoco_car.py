@@ -30,6 +30,7 @@ writes ``mujoco_repeatability``, ``mujoco_learners``, ``mujoco_spread`` and ``mu
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -41,6 +42,7 @@ import numpy.typing as npt
 
 from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.runner import ENV_ID, run_ilc
 from ilc_steering.tables import markdown_table, write_results
@@ -525,3 +527,4 @@ if __name__ == "__main__":
             floor_seeds=seeds,
         )
     )
+    record_made(cli.out, __file__, sys.argv[1:])

@@ -22,6 +22,7 @@ writes ``newton_ilc.{csv,json,md}`` and ``newton_ilc_errors.png`` (committed in 
 from __future__ import annotations
 
 import dataclasses
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +39,7 @@ from ilc_steering.agents.registry import lookup
 from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.score import within_tolerance
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.loop import run_trials
 from ilc_steering.output import check_output_dir
 from ilc_steering.tables import markdown_table, write_results
@@ -268,4 +270,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

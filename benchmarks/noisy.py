@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +35,7 @@ from typing import Any
 
 from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.output import check_output_dir
 from ilc_steering.runner import run_ilc
 from ilc_steering.tables import markdown_table, write_results
@@ -238,4 +240,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -35,6 +36,7 @@ import numpy.typing as npt
 
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.arguments import Parser
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.frames import HEIGHT, SNAPSHOTS, WIDTH, Scene
 from ilc_steering.envs.rendering import draw_trial, draw_waypoints, setup_workspace
 from ilc_steering.output import check_output_dir
@@ -230,4 +232,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

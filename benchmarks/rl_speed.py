@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -34,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from ilc_steering.arguments import Parser
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.output import check_output_dir
 from ilc_steering.tables import markdown_table, write_results
 
@@ -191,4 +193,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

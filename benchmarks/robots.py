@@ -39,6 +39,7 @@ from scipy.integrate import solve_ivp
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config, packaged_configs
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 from ilc_steering.output import check_output_dir
@@ -221,4 +222,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

@@ -13,11 +13,13 @@ The oracle knows the true plant; it is never a learner (see :mod:`ilc_steering.o
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ilc_steering.arguments import Parser
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.sweep.command import main as sweep
 from ilc_steering.sweep.report import read_report
 from ilc_steering.sweep.rows import SweepArgs
@@ -183,10 +185,10 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    import sys
-
+    arguments = parse()
     try:
-        main(parse())
+        main(arguments)
     except ValueError as error:  # a committed map of the wrong shape (--report), named in one line
         print(f"robustness: {error}", file=sys.stderr)
         sys.exit(2)
+    record_made(arguments.out, __file__, sys.argv[1:])

@@ -15,6 +15,7 @@ each method's share of the solvable plants on the rows of the servo and lag maps
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,7 @@ from ilc_steering.agents.model_based import gauss_newton, levenberg_marquardt
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.family import ModelFamily
+from ilc_steering.engine.provenance import record_made
 
 __all__ = ["Args", "main"]
 
@@ -160,4 +162,6 @@ if __name__ == "__main__":
     parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Args.out)
     parser.add_argument("--trailer", type=Path, default=Args.trailer)
-    print(json.dumps(main(Args(**vars(parser.parse_args()))), indent=1))
+    arguments = Args(**vars(parser.parse_args()))
+    print(json.dumps(main(arguments), indent=1))
+    record_made(arguments.out, __file__, sys.argv[1:])

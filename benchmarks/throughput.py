@@ -53,6 +53,7 @@ from ilc_steering.core.grid import steps_per_span
 from ilc_steering.core.integrate import integrate
 from ilc_steering.core.reference import trial as car_trial
 from ilc_steering.core.robots.car_fields import ANGLE_KERNEL
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
 from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, ChainedSteeringVectorEnv
@@ -404,4 +405,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

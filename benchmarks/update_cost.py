@@ -38,6 +38,7 @@ import ilc_steering
 from ilc_steering.agents.robust_ilc import RobustILC
 from ilc_steering.arguments import Parser
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.engine.provenance import record_made
 from ilc_steering.output import check_output_dir
 from ilc_steering.runner import run_ilc
 from ilc_steering.tables import markdown_table, write_results
@@ -171,4 +172,6 @@ def parse(argv: list[str] | None = None) -> Args:
 
 
 if __name__ == "__main__":
-    main(parse())
+    arguments = parse()
+    main(arguments)
+    record_made(arguments.out, __file__, sys.argv[1:])

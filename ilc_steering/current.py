@@ -1,8 +1,9 @@
 """``ilc-steering current DIR``: is every result in a folder made by the code in this tree?
 
 A folder is a compare run (``cells/``, or ``compare.json`` in a clone that did not keep them), a
-sweep (``rows/`` and ``oracle.json``; a robustness map is one) or a folder that holds such folders
-at any depth (``results/``). Each result records its code, the hash of its import closure
+sweep (``rows/`` and ``oracle.json``; a robustness map is one), a folder a script made (its
+``made.json``: a benchmark's artifacts, one code for all of them) or a folder that holds such
+folders at any depth (``results/``). Each result records its code, the hash of its import closure
 (:mod:`~ilc_steering.engine.provenance`); a result is stale when that closure hashes otherwise
 today or its packaged config changed, and a report (``compare.json``, ``sweep.json``) when it was
 not made from the results the folder holds. The lines say which results, grouped by learner, and
@@ -14,24 +15,26 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.engine.provenance import read_run, results_hash
-from ilc_steering.engine.staleness import freshness
+from ilc_steering.engine.provenance import MADE, CodeRecord, read_made, read_run, results_hash
+from ilc_steering.engine.staleness import freshness, staleness
 from ilc_steering.output import MAX_RESULT_BYTES
 from ilc_steering.readers import is_file, read_json
 
 __all__ = ["check_folders", "run_folders"]
 
 
+RECORDS = ("run.json", MADE)
+"""The records that make a folder one of results: a command's run, or what a script made."""
+
+
 def run_folders(folder: Path) -> list[Path]:
-    """``folder`` if it holds a ``run.json``, else every folder below it that does, sorted;
+    """``folder`` and every folder below it that holds a ``run.json`` or a ``made.json``, sorted;
     ``ValueError`` when there is none."""
-    if is_file(folder / "run.json"):
-        return [folder]
     if not folder.is_dir():
         raise ValueError(f"{folder}: not a folder")
-    found = sorted(path.parent for path in folder.rglob("run.json") if is_file(path))
+    found = sorted({path.parent for name in RECORDS for path in folder.rglob(name) if is_file(path)})
     if not found:
-        raise ValueError(f"{folder}: holds no run folder (no run.json in it or below it)")
+        raise ValueError(f"{folder}: holds no results (no run.json or made.json in it or below it)")
     return found
 
 
@@ -62,12 +65,36 @@ def _results(folder: Path, stored: dict[str, Any]) -> tuple[dict[str, dict[str, 
     return found, None
 
 
+def unrecorded(folder: Path) -> list[Path]:
+    """The folders at or below ``folder`` that hold files but no record of what made them, at or
+    above them (up to ``folder``): results nobody can say are current."""
+    found = []
+    for path in sorted([folder, *(p for p in folder.rglob("*") if p.is_dir())]):
+        if not any(child.is_file() and not child.name.startswith(".") for child in path.iterdir()):
+            continue
+        chain = [path, *path.relative_to(folder).parents]
+        if not any(is_file(folder / part / name) for part in chain for name in RECORDS if part != path) and not any(
+            is_file(path / name) for name in RECORDS
+        ):
+            found.append(path)
+    return found
+
+
 def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
     """Whether every result below each of ``folders`` is current, and the lines that say so."""
     lines: list[str] = []
     current = True
     for top in folders:
+        for folder in unrecorded(top) if top.is_dir() else ():
+            current = False
+            lines.append(f"{folder}: STALE: holds results with no record of what made them (no run.json or made.json)")
         for folder in run_folders(top):
+            if is_file(folder / MADE):
+                ok, said = _made(folder)
+                current &= ok
+                lines += said
+            if not is_file(folder / "run.json"):
+                continue
             stored, record = read_run(folder)
             results, reported = _results(folder, stored)
             if not results:
@@ -85,3 +112,12 @@ def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
             lines += [f"{folder}: {'STALE' if stale else 'current'}: {head}", *said]
             current &= not stale
     return current, lines
+
+
+def _made(folder: Path) -> tuple[bool, list[str]]:
+    """Whether what a script made in ``folder`` is of the code in this tree, and the lines that say so."""
+    made = read_made(folder)
+    why = staleness({"code": made.code}, {made.code: CodeRecord(made.roots, made.files)}, {})
+    if not why:
+        return True, [f"{folder}: current: made by {made.command} ({made.made})"]
+    return False, [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); run it again"]

@@ -195,3 +195,35 @@ def test_the_current_command_reports_cells_stale_after_a_learner_or_the_simulato
     path.write_text(path.read_text() + "\n# changed\n")
     stale = ilc_steering("current", str(run))
     assert "2 of 2 results stale" in stale.stdout and "ilc_steering/core/integrate.py" in stale.stdout
+
+
+def test_what_a_script_made_is_current_until_its_code_changes(tmp_path: Path, changed) -> None:
+    import ilc_steering.agents.newton_ilc  # noqa: F401  (a learner the script ran, imported by name)
+
+    prov.record_made(tmp_path / "made", str(ROOT / "benchmarks" / "newton_ilc.py"), ["--quick"])
+    record = json.loads((tmp_path / "made" / "made.json").read_text())
+    assert record["command"] == "python benchmarks/newton_ilc.py --quick"
+    assert "ilc_steering/agents/newton_ilc.py" in record["files"] and "benchmarks/newton_ilc.py" in record["files"]
+    assert check_folders([tmp_path]) == (True, [f"{tmp_path / 'made'}: current: made by {record['command']} "
+                                                f"({record['made']})"])  # fmt: skip
+    changed("agents/newton_ilc.py")
+    current, lines = check_folders([tmp_path])
+    assert not current and lines[0] == f"{tmp_path / 'made'}: STALE: 1 file changed: ilc_steering/agents/newton_ilc.py"
+    (tmp_path / "made" / "made.json").write_text(json.dumps({**record, "code": "0" * 16}))
+    assert main(["current", str(tmp_path)]) == 2  # a record that contradicts itself is refused
+
+
+def test_results_with_no_record_of_what_made_them_are_never_called_current(tmp_path: Path) -> None:
+    (tmp_path / "made").mkdir()
+    prov.record_made(tmp_path / "made", str(ROOT / "benchmarks" / "newton_ilc.py"))
+    (tmp_path / "made" / "deeper").mkdir()
+    (tmp_path / "made" / "deeper" / "table.md").write_text("| a |\n")  # below a record: its artifact
+    (tmp_path / "loose").mkdir()
+    (tmp_path / "loose" / "table.md").write_text("| a |\n")
+    current, lines = check_folders([tmp_path])
+    assert not current
+    assert (
+        lines[0]
+        == f"{tmp_path / 'loose'}: STALE: holds results with no record of what made them (no run.json or made.json)"
+    )
+    assert len(lines) == 2 and lines[1].startswith(f"{tmp_path / 'made'}: current")

@@ -30,7 +30,7 @@ from functools import cache, lru_cache
 from importlib import util
 from pathlib import Path
 
-__all__ = ["PACKAGE", "closure", "code_of", "root_of_entry"]
+__all__ = ["PACKAGE", "checkout", "closure", "code_of", "root_of_entry"]
 
 PACKAGE = "ilc_steering"
 """The package whose imports a closure follows (and a script's files beside it)."""
@@ -48,7 +48,7 @@ def root_of_entry(entry: str) -> str:
 
 
 @lru_cache(maxsize=1)
-def _checkout() -> Path:
+def checkout() -> Path:
     """The folder that holds the package's folder: a checkout's root (a script's paths are relative to it)."""
     return _package_folder(PACKAGE).parent
 
@@ -171,7 +171,7 @@ def _resolve(root: str) -> tuple[str, Path, str | None]:
         folder = _package_folder(head)
         key = "/".join([*head.split("."), rest])
         return key, folder / rest, None
-    path = Path(root) if Path(root).is_absolute() else _checkout() / root
+    path = Path(root) if Path(root).is_absolute() else checkout() / root
     return root, path, None
 
 
@@ -205,6 +205,6 @@ def closure(roots: Iterable[str]) -> dict[str, str]:
             assert file is not None
             todo.append((_key(name, file), file, name))
         for file in beside:
-            key = file.relative_to(_checkout()).as_posix() if file.is_relative_to(_checkout()) else file.name
+            key = file.relative_to(checkout()).as_posix() if file.is_relative_to(checkout()) else file.name
             todo.append((key, file, None))
     return dict(sorted(found.items()))

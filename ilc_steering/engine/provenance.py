@@ -46,6 +46,7 @@ __all__ = [
     "PACKAGES",
     "CodeRecord",
     "Machine",
+    "MadeRecord",
     "Provenance",
     "ProvenanceRecord",
     "RunRecord",
@@ -55,6 +56,7 @@ __all__ = [
     "copy_codes",
     "machine",
     "provenance",
+    "read_made",
     "read_run",
     "record_codes",
     "record_made",
@@ -292,15 +294,48 @@ MADE = "made.json"
 """The record of a folder a script made (a benchmark's artifacts): its command and its code."""
 
 
+@dataclass(frozen=True)
+class MadeRecord:
+    """A ``made.json``, as read back: the command that made its folder, when, and its code."""
+
+    command: str
+    made: str
+    code: str
+    roots: tuple[str, ...]
+    files: dict[str, str]
+    provenance: ProvenanceRecord
+    machine: Machine
+
+
+def read_made(folder: Path) -> MadeRecord:
+    """``folder/made.json``, checked against :class:`MadeRecord` and against itself (its code the
+    hash of its files): ``ValueError`` naming the file and the key."""
+    from ilc_steering.errors import ConfigError
+    from ilc_steering.readers import read_json
+    from ilc_steering.schema import validate
+
+    path = folder / MADE
+    try:
+        record: MadeRecord = validate(MadeRecord, read_json(path, 1 << 24))
+    except ConfigError as error:
+        raise ValueError(f"{path}: {error}") from None
+    if code_of(record.files) != record.code:
+        raise ValueError(f"{path}: code: not the hash of its files ({code_of(record.files)}): it contradicts itself")
+    return record
+
+
 def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterable[str] = ()) -> str:
-    """Write ``out/made.json``: the command that made the folder (``script``, a path relative to the
-    checkout such as ``benchmarks/noisy.py``, and its arguments ``argv``) and its code, the import
-    closure of the script, of every module of the library this process imported (the learners and
-    robots a registry named by string among them) and of ``roots``; returns the code."""
+    """Write ``out/made.json``: the command that made the folder (``script``, the script's path,
+    ``__file__``, and its arguments ``argv``) and its code, the import closure of the script, of
+    every module of the library this process imported (the learners and robots a registry named by
+    string among them) and of ``roots``; returns the code."""
     from datetime import datetime, timezone
 
+    from ilc_steering.engine.closure import checkout
     from ilc_steering.output import write_json
 
+    path = Path(script).resolve()
+    script = path.relative_to(checkout()).as_posix() if path.is_relative_to(checkout()) else str(path)
     imported = sorted(name for name, module in sys.modules.items() if _library(name, module))
     everything = (script, *imported, *roots)
     digest, files = code(everything)
