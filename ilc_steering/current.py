@@ -115,9 +115,13 @@ def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
 
 
 def _made(folder: Path) -> tuple[bool, list[str]]:
-    """Whether what a script made in ``folder`` is of the code in this tree, and the lines that say so."""
-    made = read_made(folder)
-    why = staleness({"code": made.code}, {made.code: CodeRecord(made.roots, made.files)}, {})
-    if not why:
-        return True, [f"{folder}: current: made by {made.command} ({made.made})"]
-    return False, [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); run it again"]
+    """Whether what scripts made in ``folder`` is of the code in this tree, and the lines that say so."""
+    current, lines = True, []
+    for made in read_made(folder).values():
+        why = staleness({"code": made.code}, {made.code: CodeRecord(made.roots, made.files)}, {})
+        if why:
+            current = False
+            lines += [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); run it again"]
+        else:
+            lines.append(f"{folder}: current: made by {made.command} ({made.made})")
+    return current, lines

@@ -201,15 +201,21 @@ def test_what_a_script_made_is_current_until_its_code_changes(tmp_path: Path, ch
     import ilc_steering.agents.newton_ilc  # noqa: F401  (a learner the script ran, imported by name)
 
     prov.record_made(tmp_path / "made", str(ROOT / "benchmarks" / "newton_ilc.py"), ["--quick"])
-    record = json.loads((tmp_path / "made" / "made.json").read_text())
+    prov.record_made(tmp_path / "made", str(ROOT / "benchmarks" / "noisy.py"))  # another script, the same folder
+    records = json.loads((tmp_path / "made" / "made.json").read_text())
+    assert sorted(records) == ["benchmarks/newton_ilc.py", "benchmarks/noisy.py"]
+    record = records["benchmarks/newton_ilc.py"]
     assert record["command"] == "python benchmarks/newton_ilc.py --quick"
     assert "ilc_steering/agents/newton_ilc.py" in record["files"] and "benchmarks/newton_ilc.py" in record["files"]
-    assert check_folders([tmp_path]) == (True, [f"{tmp_path / 'made'}: current: made by {record['command']} "
-                                                f"({record['made']})"])  # fmt: skip
-    changed("agents/newton_ilc.py")
     current, lines = check_folders([tmp_path])
-    assert not current and lines[0] == f"{tmp_path / 'made'}: STALE: 1 file changed: ilc_steering/agents/newton_ilc.py"
-    (tmp_path / "made" / "made.json").write_text(json.dumps({**record, "code": "0" * 16}))
+    assert current and lines[0] == f"{tmp_path / 'made'}: current: made by {record['command']} ({record['made']})"
+    changed("benchmarks/noisy.py")  # only the second script's code
+    current, lines = check_folders([tmp_path])
+    assert not current and lines[0].startswith(f"{tmp_path / 'made'}: current: made by python benchmarks/newton_ilc.py")
+    assert lines[1] == f"{tmp_path / 'made'}: STALE: 1 file changed: benchmarks/noisy.py"
+    changed("agents/newton_ilc.py")  # in both closures: the learner was imported by the process that recorded
+    assert sum("STALE" in line for line in check_folders([tmp_path])[1]) == 2
+    (tmp_path / "made" / "made.json").write_text(json.dumps({**records, "x": {**record, "code": "0" * 16}}))
     assert main(["current", str(tmp_path)]) == 2  # a record that contradicts itself is refused
 
 

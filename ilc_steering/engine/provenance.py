@@ -32,7 +32,7 @@ import platform
 import subprocess
 import sys
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import cache, lru_cache
 from pathlib import Path
 from typing import Any
@@ -291,12 +291,13 @@ def copy_codes(folder: Path, codes: Mapping[str, CodeRecord]) -> None:
 
 
 MADE = "made.json"
-"""The record of a folder a script made (a benchmark's artifacts): its command and its code."""
+"""The record of what scripts made in a folder (a benchmark's artifacts): for each script (by its
+path), its command and its code. Several scripts may write into one folder, each its own entry."""
 
 
 @dataclass(frozen=True)
 class MadeRecord:
-    """A ``made.json``, as read back: the command that made its folder, when, and its code."""
+    """One script's entry of a ``made.json``, as read back: its command, when, and its code."""
 
     command: str
     made: str
@@ -307,21 +308,22 @@ class MadeRecord:
     machine: Machine
 
 
-def read_made(folder: Path) -> MadeRecord:
-    """``folder/made.json``, checked against :class:`MadeRecord` and against itself (its code the
-    hash of its files): ``ValueError`` naming the file and the key."""
+def read_made(folder: Path) -> dict[str, MadeRecord]:
+    """``folder/made.json`` (script -> its entry), each entry checked against :class:`MadeRecord`
+    and against itself (its code the hash of its files): ``ValueError`` naming the file and the key."""
     from ilc_steering.errors import ConfigError
     from ilc_steering.readers import read_json
     from ilc_steering.schema import validate
 
     path = folder / MADE
     try:
-        record: MadeRecord = validate(MadeRecord, read_json(path, 1 << 24))
+        records: dict[str, MadeRecord] = validate(dict[str, MadeRecord], read_json(path, 1 << 24))
     except ConfigError as error:
         raise ValueError(f"{path}: {error}") from None
-    if code_of(record.files) != record.code:
-        raise ValueError(f"{path}: code: not the hash of its files ({code_of(record.files)}): it contradicts itself")
-    return record
+    for script, record in records.items():
+        if code_of(record.files) != record.code:
+            raise ValueError(f"{path}: {script}.code: not the hash of its files: the record contradicts itself")
+    return records
 
 
 def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterable[str] = ()) -> str:
@@ -349,7 +351,11 @@ def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterabl
         "machine": machine(),
     }
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / MADE, record)
+    try:
+        others = {name: asdict(made) for name, made in read_made(out).items()} if (out / MADE).is_file() else {}
+    except ValueError:
+        others = {}  # a broken record of this folder is replaced, not merged
+    write_json(out / MADE, dict(sorted({**others, script: record}.items())))
     return digest
 
 
