@@ -121,7 +121,8 @@ def _made(folder: Path) -> tuple[bool, list[str]]:
         why = staleness({"code": made.code}, {made.code: CodeRecord(made.roots, made.files)}, {})
         if why:
             current = False
-            lines += [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); run it again"]
+            again = f"run it again (it took {made.cpu_s / 60:.1f} CPU minutes)"
+            lines += [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); {again}"]
         else:
             lines.append(f"{folder}: current: made by {made.command} ({made.made})")
     return current, lines

@@ -133,7 +133,8 @@ def test_a_sweep_s_rows_and_oracle_record_their_code(tmp_path: Path, changed, ca
     assert check_folders([tmp_path])[0]
     changed("agents/newton_ilc.py")
     current, lines = check_folders([tmp_path])
-    assert not current and lines[1:] == ["  2 of newton_ilc: 1 file changed: ilc_steering/agents/newton_ilc.py"]
+    assert not current and lines[1] == "  2 of newton_ilc: 1 file changed: ilc_steering/agents/newton_ilc.py"
+    assert lines[2].startswith("  a resume recomputes them: about ") and len(lines) == 3
     changed("ilc_steering/oracle.py")
     assert "  1 of oracle: 1 file changed: ilc_steering/oracle.py" in check_folders([tmp_path])[1]
 

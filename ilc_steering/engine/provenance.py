@@ -302,6 +302,8 @@ class MadeRecord:
     command: str
     made: str
     code: str
+    cpu_s: float
+    """What making it cost: the CPU time of the script and of the processes it waited for [s]."""
     roots: tuple[str, ...]
     files: dict[str, str]
     provenance: ProvenanceRecord
@@ -330,7 +332,9 @@ def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterabl
     """Write ``out/made.json``: the command that made the folder (``script``, the script's path,
     ``__file__``, and its arguments ``argv``) and its code, the import closure of the script, of
     every module of the library this process imported (the learners and robots a registry named by
-    string among them) and of ``roots``; returns the code."""
+    string among them) and of ``roots``, and what it cost (CPU seconds, its workers' included);
+    returns the code."""
+    import resource
     from datetime import datetime, timezone
 
     from ilc_steering.engine.closure import checkout
@@ -341,9 +345,11 @@ def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterabl
     imported = sorted(name for name, module in sys.modules.items() if _library(name, module))
     everything = (script, *imported, *roots)
     digest, files = code(everything)
+    used = [resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
     record = {
         "command": " ".join(["python", script, *argv]),
         "made": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "cpu_s": round(sum(u.ru_utime + u.ru_stime for u in used), 1),
         "code": digest,
         "roots": list(everything),
         "files": files,

@@ -80,12 +80,17 @@ def freshness(folder: Path, results: Mapping[str, dict[str, Any]], label: str) -
     _, run = read_run(folder)
     today = configs_today(r["config"] for r in results.values() if isinstance(r.get("config"), str))
     groups: Counter[tuple[str, str]] = Counter()
+    cost = 0.0
     for result in results.values():
         why = staleness(result, run.codes, today)
         if why:
             groups[str(result.get(label, "?")), why.text()] += 1
+            wall = result.get("wall_s")
+            cost += float(wall) if isinstance(wall, (int, float)) else 0.0
     stale = sum(groups.values())
     lines = [f"  {count} of {name}: {why}" for (name, why), count in sorted(groups.items())]
+    if stale:
+        lines.append(f"  a resume recomputes them: about {cost / 60:.1f} minutes of one core (their wall times)")
     made = run.provenance
     if made is not None and made.version != __version__:
         lines.append(f"  version: made by ilc-steering {made.version}, the tree is {__version__}")
@@ -93,10 +98,10 @@ def freshness(folder: Path, results: Mapping[str, dict[str, Any]], label: str) -
     last = run.sessions[-1].packages if run.sessions else None
     before = last or (made.packages if made else {})
     after = provenance()["packages"]
-    moved = [
-        f"{p} {before.get(p)} -> {after.get(p)}"
-        for p in sorted(before.keys() | after.keys())
-        if before.get(p) != after.get(p)
+    moved = [  # a package the record did not know (newly tracked) is no change
+        f"{p} {before[p]} -> {after.get(p)}"
+        for p in sorted(before)
+        if before[p] is not None and before[p] != after.get(p)
     ]
     if moved:
         lines.append("  packages (results may differ; not stale for it): " + ", ".join(moved))
