@@ -26,6 +26,7 @@ from gymnasium import spaces
 from ilc_steering.boxes import residual_box
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.entries import load_entry
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "PRIORS",
@@ -231,7 +232,7 @@ class LearnerContext:
 
     def __post_init__(self) -> None:
         if self.prior not in PRIORS:
-            raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
+            raise BadInput(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
 
     def search_box(self) -> tuple[Array, Array]:
         """Centre and half-widths [physical units] of the box a black-box or RL method searches
@@ -269,5 +270,5 @@ def load_factory(spec: str, option: str = "--methods") -> LearnerFactory:
     last); ``ValueError`` if it cannot be, or is not callable."""
     target = load_entry(spec, option)
     if not callable(target):
-        raise ValueError(f"{option} {spec}: not callable; give a factory make(context) -> Learner")
+        raise BadInput(f"{option} {spec}: not callable; give a factory make(context) -> Learner")
     return target  # type: ignore[no-any-return]

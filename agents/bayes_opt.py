@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
+from ilc_steering.errors import BadInput
 
 __all__ = ["bayes_opt"]
 
@@ -109,7 +110,7 @@ def bayes_opt(
     in trials; restarts whenever the trust region shrinks below ``min_length``; the GP's
     hyperparameters refitted every ``refit_every`` trials and whenever the region changes."""
     if isinstance(refit_every, bool) or not isinstance(refit_every, int) or refit_every < 1:
-        raise ValueError(f"bayes_opt: refit_every must be a whole number of trials >= 1, got {refit_every!r}")
+        raise BadInput(f"bayes_opt: refit_every must be a whole number of trials >= 1, got {refit_every!r}")
     import torch
 
     threads = torch.get_num_threads()

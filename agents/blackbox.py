@@ -44,6 +44,7 @@ from ilc_steering.agents.adapters import PullLearner
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.boxes import SearchBox
 from ilc_steering.core.score import OFF_CHART_PENALTY
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "cma_es",
@@ -216,7 +217,7 @@ def noisy_least_squares(
     The Jacobian is measured again whenever a step fails. Every trial counts, probes and repeats
     included."""
     if not probe > 0 or repeats < 1 or resizes < 0 or not growth > 1:
-        raise ValueError(
+        raise BadInput(
             "noisy_least_squares: probe > 0, repeats >= 1, resizes >= 0 and growth > 1, "
             f"got {probe!r}, {repeats!r}, {resizes!r}, {growth!r}"
         )

@@ -40,6 +40,7 @@ from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.simulate import Trials, simulate
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "COSTS",
@@ -74,11 +75,11 @@ class NullSpaceCost:
 
     def __init__(self, model: NominalModel, name: str) -> None:
         if name not in COSTS[1:]:
-            raise ValueError(f"learning.cost must be one of {list(COSTS)}, got {name!r}")
+            raise BadInput(f"learning.cost must be one of {list(COSTS)}, got {name!r}")
         if name == "steering_margin" and model.steering_limit is None:
-            raise ValueError("learning.cost steering_margin needs a robot with a steering_limit")
+            raise BadInput("learning.cost steering_margin needs a robot with a steering_limit")
         if model.profile.v2_terms <= model.dimension - 1:
-            raise ValueError(
+            raise BadInput(
                 f"learning.cost {name} needs v2_terms > n - 1 = {model.dimension - 1} (a null space of W), "
                 f"got {model.profile.v2_terms}"
             )

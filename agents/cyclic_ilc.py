@@ -48,6 +48,7 @@ import numpy.typing as npt
 
 from ilc_steering.core.checks import check_gains
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.errors import BadInput
 
 __all__ = ["CyclicILCAgent"]
 
@@ -72,7 +73,7 @@ class CyclicILCAgent:
     def __init__(self, models: Sequence[NominalModel], nu_a: float = 1.0, nu_b: float = 1.0) -> None:
         check_gains(nu_a, nu_b)
         if len(models) < 2:
-            raise ValueError(f"a cycle needs at least 2 segments, got {len(models)}")
+            raise BadInput(f"a cycle needs at least 2 segments, got {len(models)}")
         self.models = list(models)
         self.nu = np.array([nu_a] + [nu_b] * (self.models[0].dimension - 1))
         self.reset()
@@ -86,7 +87,7 @@ class CyclicILCAgent:
         n = self.models[0].dimension
         observation = np.asarray(observation, dtype=np.float64)
         if observation.shape != (n + len(self.models),):
-            raise ValueError(f"observation must have shape {(n + len(self.models),)}, got {observation.shape}")
+            raise BadInput(f"observation must have shape {(n + len(self.models),)}, got {observation.shape}")
         segment = int(np.argmax(observation[n:]))
         # Eq. 39 is the nominal open-loop solution from the measured start to the learned target.
         return self.models[segment].solve(z_start=observation[:n], z_goal=self._targets[segment])

@@ -37,6 +37,7 @@ import numpy.typing as npt
 from ilc_steering.agents.base import LearnerContext
 from ilc_steering.core.checks import check_gains
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.errors import BadInput
 
 __all__ = ["CostStep", "ILCAgent", "make_ilc", "make_ilc_paper"]
 
@@ -89,7 +90,7 @@ class ILCAgent:
         self.nu_b = float(nu_b)
         self.start = None if start is None else np.array(start, dtype=np.float64)
         if self.start is not None and self.start.shape != (model.profile.num_coefficients,):
-            raise ValueError(f"start must have shape ({model.profile.num_coefficients},), got {self.start.shape}")
+            raise BadInput(f"start must have shape ({model.profile.num_coefficients},), got {self.start.shape}")
         self.reset()
 
     def reset(self) -> None:

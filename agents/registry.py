@@ -36,6 +36,7 @@ from typing import Any
 
 from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
 from ilc_steering.entries import load_entry
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "DEFAULT_METHODS",
@@ -199,7 +200,7 @@ class LearnerSpec:
         missing = [name for name in ("act", "learn", "reset") if not callable(getattr(learner, name, None))]
         if missing:
             lacks = " and ".join([", ".join(missing[:-1]), missing[-1]] if len(missing) > 1 else missing)
-            raise ValueError(f"{self.option} {self.id}: made {type(learner).__name__}, which has no {lacks} method")
+            raise BadInput(f"{self.option} {self.id}: made {type(learner).__name__}, which has no {lacks} method")
         return with_cost(learner, context)
 
 
@@ -336,7 +337,7 @@ def lookup(name: str, option: str = "--methods") -> LearnerSpec:
         return spec
     what = "learner" if option == "--learner" else "method"
     plugins = f", an installed learner {sorted(installed())}" if installed() else ""
-    raise ValueError(f"{option}: unknown {what} {name!r}; choose from {list(METHODS)}{plugins} or give module:attr")
+    raise BadInput(f"{option}: unknown {what} {name!r}; choose from {list(METHODS)}{plugins} or give module:attr")
 
 
 def families(methods: Iterable[str] = ()) -> dict[str, tuple[str, ...]]:

@@ -15,7 +15,7 @@ from typing import Any
 
 from ilc_steering.agents.base import PRIORS
 from ilc_steering.agents.registry import REGISTRY, RLAlgorithm, ids
-from ilc_steering.errors import ConfigError
+from ilc_steering.errors import BadInput, ConfigError
 from ilc_steering.yaml_reader import load_yaml
 
 __all__ = [
@@ -58,12 +58,12 @@ def rl_backend() -> str:
     ``sbx`` asked for by name and not installed."""
     asked = os.environ.get(BACKEND_VARIABLE, "auto")
     if asked not in (*RL_BACKENDS, "auto"):
-        raise ValueError(f"{BACKEND_VARIABLE}={asked!r}: choose one of {[*RL_BACKENDS, 'auto']}")
+        raise BadInput(f"{BACKEND_VARIABLE}={asked!r}: choose one of {[*RL_BACKENDS, 'auto']}")
     try:
         import_module("sbx")
     except ImportError:
         if asked == "sbx":
-            raise ValueError(
+            raise BadInput(
                 f"{BACKEND_VARIABLE}=sbx: SBX is not installed (pip install 'ilc-steering[rl-jax]')"
             ) from None
         return "sb3"
@@ -80,7 +80,7 @@ def backend_setting(methods: Iterable[str]) -> dict[str, str]:
 
 def _module(algorithm: str, backend: str) -> str:
     if backend not in RL_BACKENDS:
-        raise ValueError(f"backend must be one of {RL_BACKENDS}, got {backend!r}")
+        raise BadInput(f"backend must be one of {RL_BACKENDS}, got {backend!r}")
     return "sbx" if backend == "sbx" else facts(algorithm).sb3_module
 
 
@@ -88,7 +88,7 @@ def facts(algorithm: str) -> RLAlgorithm:
     """The registry's facts of RL method ``algorithm``; ``ValueError`` for any other id."""
     spec = REGISTRY.get(algorithm)
     if spec is None or spec.rl is None:
-        raise ValueError(f"algorithm must be one of {RL_ALGORITHMS}, got {algorithm!r}")
+        raise BadInput(f"algorithm must be one of {RL_ALGORITHMS}, got {algorithm!r}")
     return spec.rl
 
 
@@ -104,7 +104,7 @@ def algorithm_class(algorithm: str, backend: str | None = None) -> type[Any]:
         imported = import_module(module)
     except ModuleNotFoundError as error:
         extra = "rl-jax" if module == "sbx" else "rl"
-        raise ValueError(f'{algorithm} needs {error.name}: pip install "ilc-steering[{extra}]"') from None
+        raise BadInput(f'{algorithm} needs {error.name}: pip install "ilc-steering[{extra}]"') from None
     return getattr(imported, facts(algorithm).class_name)  # type: ignore[no-any-return]
 
 
@@ -129,7 +129,7 @@ def hyperparameters(algorithm: str, scenario: str, prior: str = "nominal") -> di
     source = f"configs/rl/{algorithm}.yaml"
     _module(algorithm, "sb3")
     if prior not in PRIORS:
-        raise ValueError(f"prior must be one of {list(PRIORS)}, got {prior!r}")
+        raise BadInput(f"prior must be one of {list(PRIORS)}, got {prior!r}")
     table = load_yaml((resources.files("ilc_steering.configs") / "rl" / f"{algorithm}.yaml").read_text(), source)
     section = table.get(prior) if isinstance(table, dict) else None
     if not isinstance(section, dict):

@@ -19,8 +19,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.model_based import Trial, final_chained, levenberg_marquardt_many
+from ilc_steering.core.checks import require
 from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.errors import ParameterError
 
 __all__ = [
     "CHART_PENALTY",
@@ -319,25 +321,22 @@ def carried_family(families: list[ModelFamily], carried: Mapping[str, Any]) -> t
     Jacobian sends the second trial off; the geometry's two are overdetermined by one trial. Such a
     goal carries its geometry alone; docs/highway.md measures what carrying gains."""
     found = carried.get("robust_ilc") if isinstance(carried, Mapping) else None
-    if not isinstance(found, Mapping) or not isinstance(found.get("parameters"), Mapping):
-        raise ValueError(
-            f"context.carried is not robust_ilc's transfer() ({{'robust_ilc': {{'parameters': ...}}}}): {carried!r}"
-        )
-    values, servo = found["parameters"], found.get("servo", True)
-    if not isinstance(servo, bool):
-        raise ValueError(f"context.carried: robust_ilc's 'servo' must be true or false, got {servo!r}")
+    ok = isinstance(found, Mapping) and isinstance(found.get("parameters"), Mapping)
+    require(
+        ok, "context.carried", f"is not robust_ilc's transfer() ({{'robust_ilc': {{'parameters': ...}}}}): {carried!r}"
+    )
+    values, servo = found["parameters"], found.get("servo", True)  # type: ignore[index,union-attr]
+    require(isinstance(servo, bool), "context.carried", f"robust_ilc's 'servo' must be true or false, got {servo!r}")
     for family in families:
         if list(family.names) == list(values):
             theta = np.array([values[name] for name in family.names], dtype=np.float64)
-            if not (np.all(np.isfinite(theta)) and np.all(theta >= family.low) and np.all(theta <= family.high)):
-                raise ValueError(
-                    f"context.carried: robust_ilc's parameters {dict(values)} lie outside the family's bounds"
-                )
+            inside = np.all(np.isfinite(theta)) and np.all(theta >= family.low) and np.all(theta <= family.high)
+            require(bool(inside), "context.carried", f"robust_ilc's {dict(values)} lie outside the family's bounds")
             if not servo:  # the servo's parameters of a family that did not explain the robot: the geometry's only
                 family, theta = families[0], theta[: families[0].size]
             return family, theta, servo
     names = [list(f.names) for f in families]
-    raise ValueError(f"context.carried: parameters {list(values)} are none of this robot's families {names}")
+    raise ParameterError("context.carried", f"parameters {list(values)} are none of this robot's families {names}")
 
 
 @dataclass(frozen=True)

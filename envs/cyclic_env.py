@@ -17,6 +17,7 @@ from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import TrialView, check_action, check_flag, check_render_mode, reward, trial_info
+from ilc_steering.errors import BadInput
 
 __all__ = ["CyclicSteeringEnv", "check_cycles", "make_cyclic_env"]
 
@@ -124,7 +125,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
         self.config = load_config(config)
         if not self.config.is_cyclic:
-            raise ValueError(
+            raise BadInput(
                 f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal"
             )
         self._scenario = Scenario.from_config(self.config, measurement_noise)
@@ -160,10 +161,10 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         if seed is not None:  # an external plant's own scatter follows the env's seed
             self._scenario.reseed(seed)
         if options is not None and not isinstance(options, dict):
-            raise ValueError(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
+            raise BadInput(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
         unknown = sorted(set(options or {}) - {"start"})
         if unknown:
-            raise ValueError(f"options: unknown key {unknown[0]!r}; the cyclic env takes 'start' (a configuration)")
+            raise BadInput(f"options: unknown key {unknown[0]!r}; the cyclic env takes 'start' (a configuration)")
         start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])
         self._x = self._scenario.plant.initial_state(self._scenario.to_task(np.asarray(start, dtype=np.float64)))
         self._segment, self._cycle = 0, 1
@@ -176,7 +177,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         try:
             self._scenario.check_start(q)
         except ValueError as error:
-            raise ValueError(f"options['start']: {error}") from None
+            raise BadInput(f"options['start']: {error}") from None
         return q
 
     def step(self, action: Any) -> tuple[Array, float, bool, bool, dict[str, Any]]:
@@ -217,7 +218,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
 def check_cycles(cycles: Any) -> None:
     """``ValueError`` unless ``cycles`` is a whole number >= 1 or ``None`` (the config's ``learning.trials``)."""
     if cycles is not None and (isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1):
-        raise ValueError(f"cycles must be a whole number >= 1 or None, got {cycles!r}")
+        raise BadInput(f"cycles must be a whole number >= 1 or None, got {cycles!r}")
 
 
 def make_cyclic_env(

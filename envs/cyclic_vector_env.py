@@ -19,6 +19,7 @@ from ilc_steering.envs.cyclic_env import check_cycles
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import check_action, check_flag, check_render_mode, reward, trial_infos
 from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, check_num_envs, draw_noise, seed_streams
+from ilc_steering.errors import BadInput
 
 __all__ = ["CyclicSteeringVectorEnv"]
 
@@ -81,7 +82,7 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         self.render_mode = check_render_mode(render_mode, self.metadata)
         self.config = load_config(config)
         if not self.config.is_cyclic:
-            raise ValueError(
+            raise BadInput(
                 f"{self.config.name}: the cyclic vector env needs task.waypoints; use ChainedSteering-v0 for start/goal"
             )
         self._scenario = Scenario.from_config(self.config, measurement_noise)
@@ -112,10 +113,10 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
     ) -> tuple[Array, dict[str, Any]]:
         seed, streams = seed_streams(seed, self.num_envs)
         if options is not None and not isinstance(options, dict):
-            raise ValueError(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
+            raise BadInput(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
         unknown = sorted(set(options or {}) - {"start"})
         if unknown:
-            raise ValueError(f"options: unknown key {unknown[0]!r}; the cyclic vector env takes 'start'")
+            raise BadInput(f"options: unknown key {unknown[0]!r}; the cyclic vector env takes 'start'")
         super().reset(seed=seed)
         if seed is not None:  # an external plant's own scatter follows the env's seed
             self._scenario.reseed(seed)
@@ -138,7 +139,7 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
             try:
                 self._scenario.check_start(row)
             except ValueError as error:
-                raise ValueError(f"options['start']{f'[{i}]' if q.ndim == 2 else ''}: {error}") from None
+                raise BadInput(f"options['start']{f'[{i}]' if q.ndim == 2 else ''}: {error}") from None
         return q
 
     def _restart(self, start: Array) -> tuple[Array, dict[str, Any]]:

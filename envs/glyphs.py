@@ -11,6 +11,8 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.errors import BadInput
+
 __all__ = ["ADVANCE", "BASELINE", "GLYPH_HEIGHT", "text_mask", "text_pixels"]
 
 GLYPH_WIDTH, GLYPH_HEIGHT = 5, 9
@@ -124,7 +126,7 @@ def _glyphs() -> dict[str, npt.NDArray[np.bool_]]:
         for i, char in enumerate(chars):
             cells = [row[i * ADVANCE : i * ADVANCE + GLYPH_WIDTH] for row in rows]
             if any(len(cell) != GLYPH_WIDTH or set(cell) - {"#", "."} for cell in cells):
-                raise ValueError(f"glyph {char!r}: every row must be {GLYPH_WIDTH} of '#' and '.'")
+                raise BadInput(f"glyph {char!r}: every row must be {GLYPH_WIDTH} of '#' and '.'")
             glyphs[char] = np.array([[c == "#" for c in cell] for cell in cells])
     return glyphs
 

@@ -37,6 +37,7 @@ from ilc_steering.envs.highway_paths import (
 )
 from ilc_steering.envs.highway_plant import MAX_TURN, STEERING, parking_task
 from ilc_steering.envs.highway_segments import choose_via
+from ilc_steering.errors import BadInput
 
 __all__ = ["PATH_MARGIN", "PROFILES", "choose_frame", "highway_config", "main", "nominal_path", "task_profile"]
 
@@ -61,7 +62,7 @@ def _task(seed: int) -> tuple[Array, list[Array], list[tuple[float, int, float]]
     except ValueError as error:
         turn = f"its goal's heading is {np.degrees(abs(goal[2] - start[2])):.0f}° from the start's"
         needs = turn if one is None else f"its one-chart path needs {np.degrees(one[2]):.0f}° of steering"
-        raise ValueError(f"parking-v0 seed {seed}: {needs}, and {error}") from None
+        raise BadInput(f"parking-v0 seed {seed}: {needs}, and {error}") from None
     return start, [via, end], legs
 
 

@@ -53,7 +53,7 @@ from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, chec
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
 from ilc_steering.envs.highway_lot import LENGTH, WALL_MARGIN, WALLS, WIDTH, inside_lot, outline
-from ilc_steering.errors import ConfigError
+from ilc_steering.errors import BadInput, ConfigError
 
 __all__ = [
     "ACCELERATION",
@@ -129,7 +129,7 @@ def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:
     for a manoeuvre of several segments), or when ``seed`` is not a whole number in ``[0, 2**31)``
     (:data:`SEEDS`: what a config's ``plant.seed`` takes)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < SEEDS:
-        raise ValueError(f"parking-v0 seed {seed!r:.40}: needs a whole number in [0, 2**31)")
+        raise BadInput(f"parking-v0 seed {seed!r:.40}: needs a whole number in [0, 2**31)")
     env = _make_env()
     env.reset(seed=seed)
     vehicle = env.unwrapped.vehicle
@@ -144,7 +144,7 @@ def parking_task(seed: int, one_chart: bool = True) -> tuple[Array, Array]:
     env.close()
     turn = abs(goal[2] - start[2])
     if one_chart and turn > MAX_TURN:
-        raise ValueError(
+        raise BadInput(
             f"parking-v0 seed {seed}: the goal's heading is {np.degrees(turn):.0f}° from the start's, over the "
             f"{np.degrees(MAX_TURN):.0f}° one chart serves; this task cannot serve it (it needs a waypoint)"
         )
@@ -344,4 +344,4 @@ class HighwayPlantConfig:
 
     def check_task(self, max_step: float, cyclic: bool) -> None:
         if cyclic:
-            raise ValueError("highway_parking is a one-trial task (parking-v0 resets the car for each trial)")
+            raise BadInput("highway_parking is a one-trial task (parking-v0 resets the car for each trial)")

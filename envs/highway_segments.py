@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from ilc_steering.envs.highway_paths import STEERING_USE, choose_frame
 from ilc_steering.envs.highway_plant import MAX_TURN, STEERING
+from ilc_steering.errors import BadInput
 
 __all__ = ["ANGLES", "BACK", "SIDE", "WIDE", "Leg", "choose_via", "via_candidates"]
 
@@ -92,7 +93,7 @@ def choose_via(start: Array, goal: Array) -> tuple[Array, Array, list[Leg]]:
         best = _best_via(start, goal, family)
         if best is not None and best[0] <= STEERING_USE * STEERING:
             return best[1], best[2], best[3]
-    raise ValueError("no via point of the search keeps both segments within the ±45° stop and inside the lot")
+    raise BadInput("no via point of the search keeps both segments within the ±45° stop and inside the lot")
 
 
 def _best_via(

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.envs.glyphs import BASELINE, GLYPH_HEIGHT, text_pixels
+from ilc_steering.errors import BadInput
 
 __all__ = ["RGB", "Layer", "Pen", "Raster", "WorldToPixels"]
 
@@ -103,9 +104,7 @@ class Raster:
         for k, layer in enumerate(layers):
             drawn = [layer.pen] * len(layer.lines) if isinstance(layer.pen, Pen) else list(layer.pen)
             if len(drawn) != len(layer.lines):
-                raise ValueError(
-                    f"one pen for all lines or one per line: {len(drawn)} pens for {len(layer.lines)} lines"
-                )
+                raise BadInput(f"one pen for all lines or one per line: {len(drawn)} pens for {len(layer.lines)} lines")
             kept = [(line, pen) for line, pen in zip(layer.lines, drawn) if len(line) > 1]
             lines += [line for line, _ in kept]
             pens += [pen for _, pen in kept]
@@ -115,7 +114,7 @@ class Raster:
         # Across the major axis, a stroke reaches its half width (and half a pixel) over cos(45 deg) at most.
         reach = int(np.ceil((max(pen.width for pen in pens) / 2 + 0.5) * np.sqrt(2.0)))
         if reach > PAD:
-            raise ValueError(f"a stroke is at most {2 * PAD / np.sqrt(2.0) - 1:.0f} pixels wide")
+            raise BadInput(f"a stroke is at most {2 * PAD / np.sqrt(2.0) - 1:.0f} pixels wide")
         runs = _runs(lines, [pen.dash for pen in pens], transform, (self.width, self.height))
         along, across, steep, stretch, line = runs
         # A run across a steep segment lies along a row: kept whole within the row, a reach from its ends.
@@ -156,7 +155,7 @@ class Raster:
         ``transform``) in ``colour`` at opacity ``alpha``, one layer."""
         reach = int(np.ceil(diameter / 2 + 1.0))
         if reach > PAD:
-            raise ValueError(f"a dot is at most {2 * PAD - 2} pixels across, got {diameter}")
+            raise BadInput(f"a dot is at most {2 * PAD - 2} pixels across, got {diameter}")
         points = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
         if transform is not None:
             points = transform(points)

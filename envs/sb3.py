@@ -33,6 +33,8 @@ import numpy.typing as npt
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from ilc_steering.errors import BadInput
+
 __all__ = ["SB3VecEnv"]
 
 
@@ -43,7 +45,7 @@ class SB3VecEnv(VecEnv):
     def __init__(self, venv: gym.vector.VectorEnv) -> None:
         mode = venv.metadata.get("autoreset_mode")
         if mode != AutoresetMode.SAME_STEP:
-            raise ValueError(f"SB3VecEnv needs a vector env with autoreset_mode SAME_STEP, got {mode!r}")
+            raise BadInput(f"SB3VecEnv needs a vector env with autoreset_mode SAME_STEP, got {mode!r}")
         self.venv = venv
         self._actions: npt.NDArray[Any] | None = None
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)

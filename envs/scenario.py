@@ -26,6 +26,7 @@ from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.simulate import Trials, simulate
 from ilc_steering.core.trajectory import Trajectory
+from ilc_steering.errors import BadInput
 
 __all__ = ["PlantGroups", "Scenario"]
 
@@ -111,7 +112,7 @@ class Scenario:
         self.external: ExternalPlant | None = None
         if isinstance(plant, ExternalPlant):  # someone else's code: it reports in the task frame, nothing to jitter
             if parameter_jitter:
-                raise ValueError("simulation.parameter_jitter: an external plant has no true factors to jitter")
+                raise BadInput("simulation.parameter_jitter: an external plant has no true factors to jitter")
             with users_plant(plant, "with_frame"):
                 self.external = plant.with_frame(frame)
             plant = self.external  # type: ignore[assignment]  # an ExternalPlant serves as the Plant here
@@ -151,7 +152,7 @@ class Scenario:
         ``measurement_noise``, ``start_error`` and ``parameter_jitter`` replace the config's if given;
         ``plant`` replaces the config's true plant (the one car every segment of a manoeuvre drives)."""
         if config.is_segmented:  # one scenario per segment: config.segment_configs()
-            raise ValueError(
+            raise BadInput(
                 f"{config.name}: a manoeuvre of several segments (task.segments); "
                 "it runs in ilc_steering/SegmentedSteering-v0 (ilc-steering run), one scenario per segment"
             )
@@ -192,7 +193,7 @@ class Scenario:
     def refuse_disturbances(self, env: str) -> None:
         """``ValueError`` if the scenario has non-repetitive disturbances, for an env that cannot draw them."""
         if self.start_error is not None or self.jitter is not None:
-            raise ValueError(
+            raise BadInput(
                 f"{env} does not draw simulation.start_error or simulation.parameter_jitter; "
                 "use ilc_steering/ChainedSteering-v0 for a task with them"
             )
@@ -218,7 +219,7 @@ class Scenario:
             except ValueError:
                 continue
             return q
-        raise ValueError(
+        raise BadInput(
             f"simulation.start_error {sigma.tolist()}: {START_DRAWS} draws in a row start outside the "
             "chart or past the steering limit; it is too large for this task"
         )
@@ -280,7 +281,7 @@ class Scenario:
         rest at the start, one compiled call per kernel: the final configurations (task frame, each
         measured as its own plant measures it) ``(B, nq)`` and the statuses ``(B,)``."""
         if len(plants) != len(c):
-            raise ValueError(f"plants: one plant per trial is needed ({len(c)}), got {len(plants)}")
+            raise BadInput(f"plants: one plant per trial is needed ({len(c)}), got {len(plants)}")
         start = self.to_task(self.waypoints[0])
         q = np.empty((len(c), start.shape[0]))
         status = np.empty(len(c), dtype=np.int64)
@@ -301,7 +302,7 @@ class Scenario:
         robot's dead-reckoned estimate).
         """
         if trials.times is None or trials.states is None:
-            raise ValueError("the trials were run without record=True; nothing to build a trajectory from")
+            raise BadInput("the trials were run without record=True; nothing to build a trajectory from")
         t, states = trials.times, trials.states[index]
         left_chart = bool(trials.status[index] != OK)
         if left_chart:  # the robot halted at its last valid state; drop the standstill after it

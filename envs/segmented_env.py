@@ -56,6 +56,7 @@ from ilc_steering.envs.steering_env import (
     task_spaces,
     trial_info,
 )
+from ilc_steering.errors import BadInput
 
 __all__ = ["Carried", "SegmentTask", "SegmentView", "SegmentedSteeringEnv"]
 
@@ -198,13 +199,13 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
         self.config = load_config(config)
         if not self.config.is_segmented:
-            raise ValueError(
+            raise BadInput(
                 f"{self.config.name}: SegmentedSteeringEnv needs task.segments beside task.start; "
                 "use ilc_steering/ChainedSteering-v0 for one segment"
             )
         plant = self.config.plant.plant()  # one car for every segment
         if is_external(plant) and not isinstance(plant, Carried):
-            raise ValueError(
+            raise BadInput(
                 f"{self.config.name}: plant.model {self.config.plant.model} resets for every trial and cannot go "
                 "on from where a segment left it (an external plant needs carry_on() for a manoeuvre)"
             )
@@ -215,7 +216,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
             scenario.refuse_disturbances("the segmented env")
         frames = {s.frame for s in self._segments}
         if len(frames) > 1 and not _turns_with_frame(self._segments[0]):
-            raise ValueError(
+            raise BadInput(
                 f"{self.config.name}: segments in different frames need a plant whose state turns with the frame "
                 "(x, y, theta first); a lab robot's dead-reckoned estimate does not: give every segment one frame"
             )
@@ -256,7 +257,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
         if options:
-            raise ValueError(f"options: the segmented env takes none, got {sorted(map(str, options))}")
+            raise BadInput(f"options: the segmented env takes none, got {sorted(map(str, options))}")
         if seed is not None:  # an external plant's own scatter (each segment's frame of the one car)
             for scenario in self._segments:
                 scenario.reseed(seed)

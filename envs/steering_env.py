@@ -19,6 +19,7 @@ from ilc_steering.core.score import TRUE_KEYS, trial_cost
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.frames import Scene, draw_scene
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "ChainedSteeringEnv",
@@ -41,29 +42,29 @@ def check_action(action: Any, shape: tuple[int, ...], names: str, what: str = "a
     real numbers (integers or floats; not complex, text, dates, booleans or a masked array),
     finite and within the float64 range."""
     if isinstance(action, np.ma.MaskedArray):
-        raise ValueError(f"{what} must be a plain array of {names}, not a masked array")
+        raise BadInput(f"{what} must be a plain array of {names}, not a masked array")
     try:
         raw = np.asarray(action)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"{what} must be numeric {names}: {error}") from None
+        raise BadInput(f"{what} must be numeric {names}: {error}") from None
     if raw.dtype.kind == "O":
         try:
             raw = np.asarray(action, dtype=np.float64)
         except OverflowError:
-            raise ValueError(f"{what} has a value beyond the float64 range") from None
+            raise BadInput(f"{what} has a value beyond the float64 range") from None
         except (TypeError, ValueError):
-            raise ValueError(f"{what} must be numeric {names}, got {reprlib.repr(action)}") from None
+            raise BadInput(f"{what} must be numeric {names}, got {reprlib.repr(action)}") from None
     if raw.dtype.kind not in "iuf":
-        raise ValueError(f"{what} must be numeric {names} (real integers or floats), got dtype {raw.dtype}")
+        raise BadInput(f"{what} must be numeric {names} (real integers or floats), got dtype {raw.dtype}")
     c = np.asarray(raw, dtype=np.float64)
     if c.shape != shape:
-        raise ValueError(f"{what} must have shape {shape} = {names}, got shape {c.shape}")
+        raise BadInput(f"{what} must have shape {shape} = {names}, got shape {c.shape}")
     finite = np.isfinite(c)
     if not np.all(finite):
         if c.ndim == 1:
-            raise ValueError(f"{what} must be finite, got {c.tolist()}")
+            raise BadInput(f"{what} must be finite, got {c.tolist()}")
         rows = np.flatnonzero(~finite.all(axis=-1))
-        raise ValueError(f"{what} must be finite; rows {rows[:10].tolist()} are not ({rows.size} in all)")
+        raise BadInput(f"{what} must be finite; rows {rows[:10].tolist()} are not ({rows.size} in all)")
     return c
 
 
@@ -72,13 +73,13 @@ def check_flag(value: Any, name: str, none: bool = False) -> Any:
     would read as true."""
     if not (isinstance(value, (bool, np.bool_)) or (none and value is None)):
         allowed = "True, False or None" if none else "True or False"
-        raise ValueError(f"{name} must be {allowed}, got {value!r:.80}")
+        raise BadInput(f"{name} must be {allowed}, got {value!r:.80}")
     return None if value is None else bool(value)
 
 
 def check_render_mode(render_mode: str | None, metadata: dict[str, Any]) -> str | None:
     if render_mode is not None and render_mode not in metadata["render_modes"]:
-        raise ValueError(f"render_mode must be one of {metadata['render_modes']} or None, got {render_mode!r}")
+        raise BadInput(f"render_mode must be one of {metadata['render_modes']} or None, got {render_mode!r}")
     return render_mode
 
 
@@ -254,7 +255,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
         self.config = load_config(config)
         if self.config.is_cyclic:
-            raise ValueError(
+            raise BadInput(
                 f"{self.config.name}: a cyclic config (task.waypoints); use ilc_steering/CyclicSteering-v0 for it"
             )
         self._scenario = Scenario.from_config(self.config, measurement_noise, start_error, parameter_jitter)
@@ -277,7 +278,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         if seed is not None:  # an external plant's own scatter follows the env's seed
             self._scenario.reseed(seed)
         if options:  # a trial starts where the task says; start_error draws its homing errors
-            raise ValueError(
+            raise BadInput(
                 f"options: the one-trial env takes none, got {sorted(map(str, options))}; its trials start at "
                 "task.start (simulation.start_error draws imperfect homing), the cyclic env takes {'start': q}"
             )

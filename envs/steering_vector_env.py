@@ -26,6 +26,7 @@ from ilc_steering.envs.steering_env import (
     task_spaces,
     trial_infos,
 )
+from ilc_steering.errors import BadInput
 
 __all__ = ["MAX_ENVS", "ChainedSteeringVectorEnv", "check_num_envs", "draw_noise", "seed_streams"]
 
@@ -41,7 +42,7 @@ bitwise the same either way, since every trial runs the same compiled code."""
 def check_num_envs(num_envs: Any) -> int:
     """``num_envs`` as an int in ``[1, MAX_ENVS]``; ``ValueError`` before anything is allocated."""
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= MAX_ENVS:
-        raise ValueError(f"num_envs must be an integer in [1, {MAX_ENVS}], got {num_envs!r:.40}")
+        raise BadInput(f"num_envs must be an integer in [1, {MAX_ENVS}], got {num_envs!r:.40}")
     return int(num_envs)
 
 
@@ -53,9 +54,9 @@ def seed_streams(seed: Any, num_envs: int) -> tuple[int | None, list[np.random.G
     if not isinstance(seed, (list, tuple)):
         return seed, None
     if len(seed) != num_envs:
-        raise ValueError(f"seed: a list needs one seed per env ({num_envs}), got {len(seed)}")
+        raise BadInput(f"seed: a list needs one seed per env ({num_envs}), got {len(seed)}")
     if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0 for s in seed):
-        raise ValueError(f"seed: every seed of a list must be an integer >= 0, got {list(seed)!r:.80}")
+        raise BadInput(f"seed: every seed of a list must be an integer >= 0, got {list(seed)!r:.80}")
     return int(seed[0]), [seeding.np_random(int(s))[0] for s in seed]
 
 
@@ -140,7 +141,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         parallel = check_flag(parallel, "parallel", none=True)
         self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
         if true_factors is not None and true_plants is not None:
-            raise ValueError("true_factors and true_plants: give one of them, not both")
+            raise BadInput("true_factors and true_plants: give one of them, not both")
         self._plants: PlantGroups | None = None  # stacked once for every step
         if true_factors is not None:
             self._plants = PlantGroups(self._vary(true_factors))
@@ -157,7 +158,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
         seed, streams = seed_streams(seed, self.num_envs)
         if options:
-            raise ValueError(f"options: the vector env takes none, got {sorted(options)}")
+            raise BadInput(f"options: the vector env takes none, got {sorted(options)}")
         super().reset(seed=seed)
         if seed is not None:  # an external plant's own scatter follows the env's seed
             self._scenario.reseed(seed)
@@ -204,7 +205,7 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
             try:  # the plant checks each ratio against FACTOR_RANGE, naming it with the value given
                 plants.append(plant.with_true_factors(row))
             except ValueError as error:
-                raise ValueError(f"true_factors[{i}]: {error}") from None
+                raise BadInput(f"true_factors[{i}]: {error}") from None
         return plants
 
     def _own_plants(self, plants: Sequence[Plant]) -> list[Plant]:
@@ -212,11 +213,11 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         on whichever kernel each needs)."""
         plants = list(plants)
         if len(plants) != self.num_envs:
-            raise ValueError(f"true_plants: one plant per env is needed ({self.num_envs}), got {len(plants)}")
+            raise BadInput(f"true_plants: one plant per env is needed ({self.num_envs}), got {len(plants)}")
         kind = self._scenario.plant.kind
         for plant in plants:
             if not isinstance(plant, Plant) or plant.kind != kind:
-                raise ValueError(f"true_plants: every entry must be a Plant of kind {kind.name!r}, got {plant!r}")
+                raise BadInput(f"true_plants: every entry must be a Plant of kind {kind.name!r}, got {plant!r}")
         return plants
 
     def _reset_info(self) -> dict[str, Any]:

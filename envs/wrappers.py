@@ -12,6 +12,7 @@ import numpy.typing as npt
 
 from ilc_steering.boxes import RESIDUAL_SCALE, SearchBox, residual_box
 from ilc_steering.envs.steering_env import check_action
+from ilc_steering.errors import BadInput
 
 __all__ = ["MAX_SCALE", "ResidualAction"]
 
@@ -80,7 +81,7 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
 
     def __init__(self, env: gym.Env[Any, Any], scale: float = RESIDUAL_SCALE) -> None:
         if not isinstance(env, gym.Env):
-            raise ValueError(
+            raise BadInput(
                 f"ResidualAction wraps one env from gym.make, got {type(env).__name__}; for make_vec, "
                 "pass wrappers=[ResidualAction] with vectorization_mode='sync' or 'async'"
             )
@@ -90,19 +91,17 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
             or not math.isfinite(scale)
             or not 0 < scale <= MAX_SCALE
         ):
-            raise ValueError(
-                f"scale must be a number in (0, {MAX_SCALE:g}] [units of action_scale()], got {scale!r:.80}"
-            )
+            raise BadInput(f"scale must be a number in (0, {MAX_SCALE:g}] [units of action_scale()], got {scale!r:.80}")
         gym.utils.RecordConstructorArgs.__init__(self, scale=scale)  # the spec records the wrapper (check_env)
         unwrapped: Any = env.unwrapped
         models = getattr(unwrapped, "nominal_models", None) or [getattr(unwrapped, "nominal_model", None)]
         if models[0] is None:
-            raise ValueError(
+            raise BadInput(
                 f"ResidualAction needs an ilc_steering env (ChainedSteering-v0 or CyclicSteering-v0), "
                 f"got {type(unwrapped).__name__}, which has no nominal model"
             )
         if env.action_space != unwrapped.action_space:
-            raise ValueError(
+            raise BadInput(
                 f"ResidualAction must wrap the env's own action box {unwrapped.action_space}, got "
                 f"{env.action_space}: put it below no other action wrapper"
             )
@@ -112,7 +111,7 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
         self.halves: Array = np.array([half * ratio for _, half in boxes])
         self.scale = float(scale)
         if not (np.all(np.isfinite(self.halves)) and np.all(np.isfinite(self.centres))):
-            raise ValueError(f"scale {scale:g}: the box's half-widths overflow; give a smaller scale")
+            raise BadInput(f"scale {scale:g}: the box's half-widths overflow; give a smaller scale")
         SearchBox.__init__(self, env, self.centres[0], self.halves[0])
 
     def action(self, action: Any) -> Array:

@@ -33,7 +33,7 @@ from ilc_steering.compare.command import add_arguments as add_compare_arguments
 from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
 from ilc_steering.console import learn, learn_goals, save, save_goals
 from ilc_steering.core.scatter import HOLD
-from ilc_steering.errors import ENDS_A_RUN, ConfigError, LearnerError, PlantError
+from ilc_steering.errors import ENDS_A_RUN, BadInput, ConfigError, LearnerError, PlantError
 from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
 from ilc_steering.reproduce import PAPER
 from ilc_steering.reproduce import reproduce as reproduce_paper
@@ -66,11 +66,11 @@ EXIT_CODES = {
 def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
     """``--trials`` and ``--hold`` checked against each other and the configs; the ``--hold`` to use."""
     if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
-        raise ValueError(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
+        raise BadInput(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
     if args.hold is None:  # the default: a run too short for it says "not converged", as it is
         return HOLD
     if not 1 <= args.hold <= MAX_TRIALS:
-        raise ValueError(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
+        raise BadInput(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
     for config in configs:
         unit = "cycles" if config.is_cyclic else "trials"
         count = config.learning.trials if args.trials is None else args.trials
@@ -78,7 +78,7 @@ def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
             f"--trials {count}" if args.trials is not None else f"the {count} {unit} of {config.name} (learning.trials)"
         )
         if args.hold > count:
-            raise ValueError(
+            raise BadInput(
                 f"--hold {args.hold} is more than {budget}: the run could never hold {args.hold} {unit} "
                 f"within the tolerance; give --hold at most {count}, or more --trials"
             )
@@ -96,7 +96,7 @@ def _run(args: argparse.Namespace) -> int:
     if len(args.config) > 1:
         return _run_goals(args)
     if args.carry:
-        raise ValueError("--carry needs two or more configs (goals of one robot, in order)")
+        raise BadInput("--carry needs two or more configs (goals of one robot, in order)")
     config = load_config(args.config[0])
     hold = _counts(args, [config])
     if args.json is not None:
@@ -129,7 +129,7 @@ def _run_goals(args: argparse.Namespace) -> int:
     configs = [load_config(name) for name in args.config]
     hold = _counts(args, configs)
     if args.plots is not None:
-        raise ValueError("--plots draws one run: give one config (or plot a goal's run from --json)")
+        raise BadInput("--plots draws one run: give one config (or plot a goal's run from --json)")
     if args.json is not None:
         check_output_file(args.json, "--json")
     try:
@@ -331,7 +331,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc()
         print(f"ilc-steering: {_one_line(error)}", file=sys.stderr)
         return 4
-    except ValueError as error:  # ConfigError included: bad input
+    except BadInput as error:  # ConfigError, ParameterError and LimitError included
         if args.debug:
             traceback.print_exc()
         kind = "config error" if isinstance(error, ConfigError) else "error"

@@ -10,6 +10,7 @@ import numpy as np
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.scatter import FLOOR, HOLD
+from ilc_steering.errors import BadInput
 from ilc_steering.output import write_json
 from ilc_steering.runner import (
     DEFAULT_LEARNER,
@@ -104,7 +105,7 @@ def learn(
 ) -> RunResult | CyclicRunResult:
     """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
     if config.is_cyclic and learner != DEFAULT_LEARNER:
-        raise ValueError(
+        raise BadInput(
             f"--learner {learner}: a cyclic config runs the paper's cyclic law of eqs. 39-40 "
             f"(the default, --learner {DEFAULT_LEARNER})"
         )
@@ -135,7 +136,7 @@ def learn_goals(
     first goal's, and the later goals' median."""
     cyclic = [config.name for config in configs if config.is_cyclic]
     if cyclic:
-        raise ValueError(f"a list of goals takes one-trial configs; {cyclic[0]} is cyclic")
+        raise BadInput(f"a list of goals takes one-trial configs; {cyclic[0]} is cyclic")
     learner_spec(learner)
 
     def started(k: int) -> None:

@@ -17,6 +17,7 @@ from typing import Any
 
 from ilc_steering.engine.provenance import MADE, CodeRecord, read_made, read_run, results_hash
 from ilc_steering.engine.staleness import freshness, staleness
+from ilc_steering.errors import BadInput
 from ilc_steering.output import MAX_RESULT_BYTES
 from ilc_steering.readers import is_file, read_json
 
@@ -31,10 +32,10 @@ def run_folders(folder: Path) -> list[Path]:
     """``folder`` and every folder below it that holds a ``run.json`` or a ``made.json``, sorted;
     ``ValueError`` when there is none."""
     if not folder.is_dir():
-        raise ValueError(f"{folder}: not a folder")
+        raise BadInput(f"{folder}: not a folder")
     found = sorted({path.parent for name in RECORDS for path in folder.rglob(name) if is_file(path)})
     if not found:
-        raise ValueError(f"{folder}: holds no results (no run.json or made.json in it or below it)")
+        raise BadInput(f"{folder}: holds no results (no run.json or made.json in it or below it)")
     return found
 
 

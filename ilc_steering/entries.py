@@ -25,7 +25,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from ilc_steering.errors import INTERRUPTS
+from ilc_steering.errors import INTERRUPTS, BadInput
 
 __all__ = ["CONFIG_FOLDERS", "ENTRY", "load_entry", "search_folders"]
 
@@ -51,11 +51,11 @@ def load_entry(entry: str, who: str, folders: Iterable[str | os.PathLike[str]] =
     it is not of that form (``example`` is the attribute the message suggests), cannot be imported
     (the module's own code raised, named as such) or has no such attribute."""
     if not isinstance(entry, str):
-        raise ValueError(f"{who}: give module:attr as a string, got {type(entry).__name__}")
+        raise BadInput(f"{who}: give module:attr as a string, got {type(entry).__name__}")
     module_name, colon, attr = entry.partition(":")
     if module_name.endswith(".py") or "/" in module_name or "\\" in module_name:
         stem = module_name.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".py")
-        raise ValueError(
+        raise BadInput(
             f"{who} {entry}: give the module's import name, not its file: {stem}:{attr or example} "
             f"for {stem}.py in the working directory or the config's folder (or a package's dotted name)"
         )
@@ -64,7 +64,7 @@ def load_entry(entry: str, who: str, folders: Iterable[str | os.PathLike[str]] =
         or not ENTRY.fullmatch(entry)
         or not all(p.isidentifier() for p in (*module_name.split("."), *attr.split(".")))
     ):
-        raise ValueError(
+        raise BadInput(
             f"{who} {entry}: give module:attr, a module's import name and a name in it, e.g. my_module:{example}"
         )
     folders = list(folders)
@@ -77,21 +77,21 @@ def load_entry(entry: str, who: str, folders: Iterable[str | os.PathLike[str]] =
             where = ", ".join(
                 [f"the working directory ({os.getcwd()})", *(f"the config's folder ({f})" for f in folders)]
             )
-            raise ValueError(
+            raise BadInput(
                 f"{who} {entry}: cannot import it: no module {error.name!r} in {where} or on the path"
             ) from None
-        raise ValueError(f"{who} {entry}: cannot import it: importing it raised ModuleNotFoundError: {error}") from None
+        raise BadInput(f"{who} {entry}: cannot import it: importing it raised ModuleNotFoundError: {error}") from None
     except INTERRUPTS:
         raise
     except BaseException as error:  # the user's module: SyntaxError, its own error, even SystemExit
         problem = " ".join(str(error).split())[:300]
-        raise ValueError(
+        raise BadInput(
             f"{who} {entry}: cannot import it: importing it raised {type(error).__name__}: {problem}"
         ) from None
     module = target
     for part in attr.split("."):
         if not hasattr(target, part):
-            raise ValueError(f"{who} {entry}: cannot import it: {_missing(module, attr)}")
+            raise BadInput(f"{who} {entry}: cannot import it: {_missing(module, attr)}")
         target = getattr(target, part)
     return target
 

@@ -1,6 +1,8 @@
 """The library's errors, on the lowest floor: every layer raises and catches these, none imports
 another layer for them.
 
+- :class:`BadInput`: what the user handed the library cannot be used (an option, a file, a value
+  given to the API), named where it enters; the base of the three below.
 - :class:`ParameterError`: a parameter out of its range (the core's range rules).
 - :class:`ConfigError`: a config or a record on disk that cannot be used, naming the file and key.
 - :class:`LearnerError`: a learner failed (it raised, exited, or acted with an action the env refused).
@@ -8,9 +10,12 @@ another layer for them.
   other end of a pipe hung, died or answered junk: ``plant.model: process``).
 - :class:`LimitError`: a trial's commands beyond the robot's limits, refused before they were sent.
 
-The CLI maps ``ParameterError``, ``ConfigError`` and ``LimitError`` to exit 2 (bad input),
-``LearnerError`` and ``PlantError`` to exit 4 (the user's code failed; ``docs/usage.md``) and an
-interrupt to 130. Each of :data:`ENDS_A_RUN` may carry ``partial``, the trials run before it.
+The CLI maps :class:`BadInput` (``ParameterError``, ``ConfigError`` and ``LimitError`` among them)
+to exit 2, ``LearnerError`` and ``PlantError`` to exit 4 (the user's code failed;
+``docs/usage.md``) and an interrupt to 130; anything else that escapes, a ``ValueError`` of numpy
+or scipy included, is an internal error (exit 3, a bug of the library's). Each ``BadInput`` is a
+``ValueError``, so code that catches those keeps working. Each of :data:`ENDS_A_RUN` may carry
+``partial``, the trials run before it.
 
 What a user's code (a learner, a plant, a robot's config class) raises is its failure, whatever it
 raises (``sys.exit()`` included), except :data:`INTERRUPTS`: the boundaries into it catch
@@ -25,6 +30,7 @@ from typing import Any
 __all__ = [
     "ENDS_A_RUN",
     "INTERRUPTS",
+    "BadInput",
     "ConfigError",
     "LearnerError",
     "LimitError",
@@ -47,7 +53,13 @@ def described(error: BaseException, limit: int = 300) -> str:
     return f"{type(error).__name__}: {text if len(text) <= limit else text[:limit] + ' ...'}"
 
 
-class ParameterError(ValueError):
+class BadInput(ValueError):
+    """What the user handed the library cannot be used: an option, a file, a value given to the
+    API. The message names it, where it entered (the option, the file and key, the argument), and
+    says what to give instead."""
+
+
+class ParameterError(BadInput):
     """A parameter out of its range: ``name`` is the parameter, ``problem`` what is wrong with it."""
 
     def __init__(self, name: str, problem: str) -> None:
@@ -56,7 +68,7 @@ class ParameterError(ValueError):
         self.problem = problem
 
 
-class ConfigError(ValueError):
+class ConfigError(BadInput):
     """A config that cannot be used, with the file and key at fault in its message."""
 
 
@@ -88,7 +100,7 @@ class PlantError(Exception):
         super().__init__(message)
 
 
-class LimitError(ValueError):
+class LimitError(BadInput):
     """A trial's commands beyond the robot's limits (``plant.limits``: its top speed, steering angle,
     steering rate or workspace), refused before anything was sent: bad input, never clipped.
     ``partial`` as :class:`PlantError`'s."""

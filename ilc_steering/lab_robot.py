@@ -31,6 +31,7 @@ from ilc_steering.core.profiles import PiecewiseProfile
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.errors import BadInput
 
 __all__ = ["LabRobot", "main"]
 
@@ -44,7 +45,7 @@ class LabRobot:
         self.config = config
         self.plant = config.plant.plant()
         if is_external(self.plant):
-            raise ValueError(f"{config.name}: plant.model {config.plant.model} is not a plant the library simulates")
+            raise BadInput(f"{config.name}: plant.model {config.plant.model} is not a plant the library simulates")
         self.frame = config.frame() if config.plant.kind.has_pose else 0.0
 
     def to_task(self, q: Any) -> Any:
@@ -56,7 +57,7 @@ class LabRobot:
     def hello(self, message: dict[str, Any]) -> dict[str, Any]:
         robot, dimension = message.get("robot"), message.get("dimension")
         if robot != self.config.plant.model or dimension != self.config.plant.dimension:
-            raise ValueError(
+            raise BadInput(
                 f"the library's robot is {robot!r} of dimension {dimension!r}; this is a "
                 f"{self.config.plant.model!r} of dimension {self.config.plant.dimension}"
             )
@@ -98,7 +99,7 @@ class LabRobot:
                 elif kind == "trial":
                     answer = self.trial(message)
                 else:
-                    raise ValueError(f"unknown message type {kind!r}")
+                    raise BadInput(f"unknown message type {kind!r}")
             except (KeyError, TypeError, ValueError) as error:
                 answer = {"type": "error", "trial": message.get("trial"), "message": f"{type(error).__name__}: {error}"}
             stdout.write(json.dumps(answer) + "\n")

@@ -26,7 +26,7 @@ import numpy as np
 
 from ilc_steering.agents.base import Closable, Learner, transferred
 from ilc_steering.core.score import TRUE_KEYS
-from ilc_steering.errors import INTERRUPTS, ConfigError, LearnerError, LimitError, described
+from ilc_steering.errors import INTERRUPTS, BadInput, ConfigError, LearnerError, LimitError, described
 
 __all__ = ["Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
 
@@ -81,7 +81,7 @@ def run_trials(
     (:func:`~ilc_steering.agents.base.transferred`), asked after the last trial, before ``close()``.
     """
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
-        raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
+        raise BadInput(f"trials must be an integer >= 1, got {trials!r}")
     rollout = Rollout()
     who = name or type(learner).__name__
     observation, _ = env.reset(seed=seed, options=options)
@@ -154,9 +154,9 @@ def run_vector_trials(
     the callbacks get every env's whole ``info``. What a learner raises is a :class:`LearnerError`
     naming it (``name``) and the trial; every learner is closed when the loop ends."""
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
-        raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
+        raise BadInput(f"trials must be an integer >= 1, got {trials!r}")
     if len(learners) != envs.num_envs:
-        raise ValueError(f"one learner per env is needed ({envs.num_envs}), got {len(learners)}")
+        raise BadInput(f"one learner per env is needed ({envs.num_envs}), got {len(learners)}")
     who = name or (type(learners[0]).__name__ if learners else "learner")
     observations, _ = envs.reset(seed=seed)
     run = 0

@@ -23,6 +23,7 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.errors import BadInput
 from ilc_steering.readers import describe, is_file, kind_of, read_json
 
 __all__ = [
@@ -71,16 +72,16 @@ def check_output_dir(path: Path, option: str) -> Path:
     """Create the folder ``path`` if needed and check that files can be written in it; ``ValueError``
     naming ``option`` otherwise (every ``OSError``: a loop of links, a path under a file, a name too long)."""
     if "\x00" in str(path):
-        raise ValueError(f"{option}: a path cannot hold a NUL character")
+        raise BadInput(f"{option}: a path cannot hold a NUL character")
     kind = _not_regular(path, option)
     if kind is not None and kind != "a folder":
-        raise ValueError(f"{option} {path}: is {kind}, not a folder")
+        raise BadInput(f"{option} {path}: is {kind}, not a folder")
     try:
         path.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path, prefix=".write-check-"):
             pass
     except OSError as error:
-        raise ValueError(f"{option} {path}: cannot write there ({_problem(error)})") from None
+        raise BadInput(f"{option} {path}: cannot write there ({_problem(error)})") from None
     return path
 
 
@@ -92,9 +93,9 @@ def _not_regular(path: Path, option: str = "") -> str | None:
     except FileNotFoundError:
         return None  # absent, or a dangling link: written anew (the link's target, see _target)
     except NotADirectoryError:
-        raise ValueError(f"{option} {path}: a part of the path is a file, not a folder".lstrip()) from None
+        raise BadInput(f"{option} {path}: a part of the path is a file, not a folder".lstrip()) from None
     except OSError as error:
-        raise ValueError(f"{option} {path}: cannot use it ({_problem(error)})".lstrip()) from None
+        raise BadInput(f"{option} {path}: cannot use it ({_problem(error)})".lstrip()) from None
     return None if stat.S_ISREG(mode) else kind_of(mode)
 
 
@@ -108,28 +109,28 @@ def check_output_file(path: Path, option: str) -> Path:
     absent or a regular file, its folder writable, its name one the file system takes. Every
     problem is a ``ValueError`` naming ``option``, before any work is done."""
     if "\x00" in str(path):
-        raise ValueError(f"{option}: a path cannot hold a NUL character")
+        raise BadInput(f"{option}: a path cannot hold a NUL character")
     kind = _not_regular(path, option)
     if kind == "a folder":
-        raise ValueError(f"{option} {path}: is a folder, not a file")
+        raise BadInput(f"{option} {path}: is a folder, not a file")
     if kind is not None:
-        raise ValueError(f"{option} {path}: is {kind}, not a regular file; give a file path")
+        raise BadInput(f"{option} {path}: is {kind}, not a regular file; give a file path")
     target = _target(path)
     folder = target.parent
     try:
         if folder.exists() and not folder.is_dir():
-            raise ValueError(f"{option} {path}: {folder} is not a folder")
+            raise BadInput(f"{option} {path}: {folder} is not a folder")
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=folder, prefix=".write-check-"):
             pass
         if target.exists():
             if not os.access(target, os.W_OK):
-                raise ValueError(f"{option} {path}: exists and cannot be written")
+                raise BadInput(f"{option} {path}: exists and cannot be written")
         else:  # the name itself (its length, its characters) is the file system's to accept
             os.close(os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
             os.unlink(target)
     except OSError as error:
-        raise ValueError(f"{option} {path}: cannot be written ({_problem(error)})") from None
+        raise BadInput(f"{option} {path}: cannot be written ({_problem(error)})") from None
     return path
 
 
@@ -146,11 +147,11 @@ def open_lock(path: Path) -> int:
     try:
         descriptor = os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o666)
     except OSError as error:  # ENXIO: a FIFO with no reader; ELOOP, EACCES, ...
-        raise ValueError(f"{path}: cannot open the run folder's lock ({_problem(error)})") from None
+        raise BadInput(f"{path}: cannot open the run folder's lock ({_problem(error)})") from None
     mode = os.fstat(descriptor).st_mode
     if not stat.S_ISREG(mode):
         os.close(descriptor)
-        raise ValueError(f"{path}: the run folder's lock is {kind_of(mode)}, not a regular file; remove it")
+        raise BadInput(f"{path}: the run folder's lock is {kind_of(mode)}, not a regular file; remove it")
     return descriptor
 
 
@@ -180,7 +181,7 @@ def write_atomic(path: Path, content: str | bytes) -> None:
     path = Path(path)
     kind = _not_regular(path)
     if kind is not None:
-        raise ValueError(f"{path}: is {kind}, not a regular file; it is not replaced")
+        raise BadInput(f"{path}: is {kind}, not a regular file; it is not replaced")
     path = _target(path)  # write the file a link names, keep the link
     try:
         try:
@@ -190,7 +191,7 @@ def write_atomic(path: Path, content: str | bytes) -> None:
         # a short prefix: the temporary name must fit wherever the name itself fits
         handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:24]}.", suffix=".tmp")
     except OSError as error:
-        raise ValueError(f"{path}: cannot be written ({_problem(error)})") from None
+        raise BadInput(f"{path}: cannot be written ({_problem(error)})") from None
     try:
         with os.fdopen(handle, "wb") as file:
             file.write(content.encode("utf-8") if isinstance(content, str) else content)
@@ -200,7 +201,7 @@ def write_atomic(path: Path, content: str | bytes) -> None:
         os.replace(temporary, path)
     except OSError as error:
         Path(temporary).unlink(missing_ok=True)
-        raise ValueError(f"{path}: cannot be written ({_problem(error)})") from None
+        raise BadInput(f"{path}: cannot be written ({_problem(error)})") from None
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
@@ -285,10 +286,10 @@ def check_run_settings(
     if resumed:
         stored = read_json(stored_path, MAX_RESULT_BYTES)
         if not isinstance(stored, dict):
-            raise ValueError(f"{stored_path}: not a run record (a JSON object); use another --out folder")
+            raise BadInput(f"{stored_path}: not a run record (a JSON object); use another --out folder")
         kept = {key: stored.pop(key) for key in RECORD_KEYS if key in stored}
         if stored != settings:
-            raise ValueError(
+            raise BadInput(
                 f"{stored_path} was written with other settings: {differences(stored, settings)}; "
                 "use another --out folder"
             )
@@ -296,7 +297,7 @@ def check_run_settings(
         if held and isinstance(kept.get("provenance"), dict):
             made = kept["provenance"]  # the provenance of the first results, as first recorded
     elif results.is_dir() and any(results.glob("*.json")):
-        raise ValueError(
+        raise BadInput(
             f"{folder}: has results in {results.name}/ but no run.json, so their settings cannot be checked: "
             "use another --out folder"
         )

@@ -29,7 +29,7 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import PlantKind
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
-from ilc_steering.errors import ConfigError
+from ilc_steering.errors import BadInput, ConfigError
 from ilc_steering.output import safe_name, write_figure
 from ilc_steering.readers import read_json
 
@@ -75,7 +75,7 @@ class Run:
 
     def trajectory(self, record: dict[str, Any]) -> Trajectory:
         if "trajectory" not in record:
-            raise ValueError(
+            raise BadInput(
                 f"{self.name}: the run has no trajectories; write it with `ilc-steering run CONFIG --json RUN.json`, "
                 "which records them"
             )
@@ -91,14 +91,14 @@ def load_run(source: Path | dict[str, Any]) -> Run:
         or data.get("kind") not in ("trials", "cycles")
         or not isinstance(data.get("config"), dict)
     ):
-        raise ValueError(
+        raise BadInput(
             f"{origin}: not a run's JSON (needs 'kind': 'trials' or 'cycles' and a 'config' mapping; "
             "written by `ilc-steering run --json`)"
         )
     try:
         config = load_config(data["config"])
     except ConfigError as error:
-        raise ValueError(f"{origin}: its config: {error}") from None
+        raise BadInput(f"{origin}: its config: {error}") from None
     kind = data["kind"]
     try:
         if kind == "trials":
@@ -106,13 +106,13 @@ def load_run(source: Path | dict[str, Any]) -> Run:
         else:
             records = [{**w, "cycle": c["cycle"]} for c in data["cycles"] for w in c["waypoints"]]
     except (KeyError, TypeError, ValueError) as error:
-        raise ValueError(f"{origin}: malformed {kind} list ({error!r})") from None
+        raise BadInput(f"{origin}: malformed {kind} list ({error!r})") from None
     if not records:
-        raise ValueError(f"{origin}: the run has no {kind}")
+        raise BadInput(f"{origin}: the run has no {kind}")
     for i, record in enumerate(records):
         problem = _record_problem(record, kind == "cycles", config)
         if problem:
-            raise ValueError(f"{origin}: {kind} record {i}: {problem}")
+            raise BadInput(f"{origin}: {kind} record {i}: {problem}")
     return Run(config, records, kind == "cycles")
 
 

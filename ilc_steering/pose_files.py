@@ -23,6 +23,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.errors import BadInput
 from ilc_steering.readers import read_bytes
 
 __all__ = ["MAX_POSE_FILE_BYTES", "POSE_TYPES", "final_pose"]
@@ -41,7 +42,7 @@ def final_pose(path: Path, topic: str | None = None) -> list[float]:
     if path.is_dir() or path.suffix in _BAGS:
         return _bag_pose(path, topic)
     if topic is not None:
-        raise ValueError(f"{path}: --topic is for a ROS bag; a CSV's columns are x, y, theta[, phi]")
+        raise BadInput(f"{path}: --topic is for a ROS bag; a CSV's columns are x, y, theta[, phi]")
     return _csv_pose(path)
 
 
@@ -49,12 +50,12 @@ def _csv_pose(path: Path) -> list[float]:
     text = read_bytes(path, MAX_POSE_FILE_BYTES).decode("utf-8", errors="replace")
     rows = [row for row in csv.reader(io.StringIO(text)) if row and any(cell.strip() for cell in row)]
     if len(rows) < 2:
-        raise ValueError(f"{path}: needs a header (x, y, theta[, phi]) and at least one row of numbers")
+        raise BadInput(f"{path}: needs a header (x, y, theta[, phi]) and at least one row of numbers")
     header = [name.strip().lower() for name in rows[0]]
     names = ["x", "y", "theta" if "theta" in header else "yaw"] + (["phi"] if "phi" in header else [])
     missing = [name for name in names if name not in header]
     if missing:
-        raise ValueError(f"{path}: its header {rows[0]} has no column {missing[0]!r} (x, y, theta or yaw, [phi])")
+        raise BadInput(f"{path}: its header {rows[0]} has no column {missing[0]!r} (x, y, theta or yaw, [phi])")
     last = rows[-1]
     values = []
     for name in names:
@@ -65,7 +66,7 @@ def _csv_pose(path: Path) -> list[float]:
         except ValueError:
             value = math.nan
         if not math.isfinite(value):
-            raise ValueError(f"{path}: the last row's {name} is {cell!r}, not a finite number")
+            raise BadInput(f"{path}: the last row's {name} is {cell!r}, not a finite number")
         values.append(value)
     return values
 
@@ -74,7 +75,7 @@ def _bag_pose(path: Path, topic: str | None) -> list[float]:
     try:
         from rosbags.highlevel import AnyReader
     except ImportError:
-        raise ValueError(f'{path}: a ROS bag needs rosbags: pip install "ilc-steering[rosbags]"') from None
+        raise BadInput(f'{path}: a ROS bag needs rosbags: pip install "ilc-steering[rosbags]"') from None
     bag = path.parent if path.is_file() and path.suffix in (".mcap", ".db3") else path
     try:
         with AnyReader([bag]) as reader:
@@ -83,12 +84,12 @@ def _bag_pose(path: Path, topic: str | None) -> list[float]:
                 chosen = [c for c in reader.connections if c.topic == topic]
                 if not chosen:
                     topics = sorted({c.topic for c in reader.connections})
-                    raise ValueError(f"{path}: no topic {topic!r}; it has {topics}")
+                    raise BadInput(f"{path}: no topic {topic!r}; it has {topics}")
                 if chosen[0].msgtype not in POSE_TYPES:
-                    raise ValueError(f"{path}: topic {topic!r} is a {chosen[0].msgtype}, not one of {list(POSE_TYPES)}")
+                    raise BadInput(f"{path}: topic {topic!r} is a {chosen[0].msgtype}, not one of {list(POSE_TYPES)}")
             elif len({c.topic for c in poses}) != 1:
                 found = sorted({c.topic for c in poses})
-                raise ValueError(f"{path}: {len(found)} pose topics {found}; say which with --topic")
+                raise BadInput(f"{path}: {len(found)} pose topics {found}; say which with --topic")
             else:
                 chosen = poses
             last: Any = None
@@ -97,13 +98,13 @@ def _bag_pose(path: Path, topic: str | None) -> list[float]:
     except ValueError:
         raise
     except Exception as error:  # rosbags' own errors: a folder that is not a bag, a torn file
-        raise ValueError(f"{path}: cannot read it as a ROS bag ({type(error).__name__}: {error})") from None
+        raise BadInput(f"{path}: cannot read it as a ROS bag ({type(error).__name__}: {error})") from None
     if last is None:
-        raise ValueError(f"{path}: the topic {chosen[0].topic!r} holds no message")
+        raise BadInput(f"{path}: the topic {chosen[0].topic!r} holds no message")
     pose = last.pose.pose if hasattr(last.pose, "pose") else last.pose  # Odometry / WithCovariance: nested
     q = pose.orientation
     yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
     values = [float(pose.position.x), float(pose.position.y), yaw]
     if not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{path}: the last pose {values} is not finite")
+        raise BadInput(f"{path}: the last pose {values} is not finite")
     return values

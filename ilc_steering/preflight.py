@@ -13,6 +13,7 @@ import gymnasium as gym
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.external import is_external
 from ilc_steering.core.nominal import MAX_NOMINAL_MISS
+from ilc_steering.errors import BadInput
 
 __all__ = ["MAX_STEP_MISS", "check_task", "step_warning"]
 
@@ -31,7 +32,7 @@ def check_task(env: gym.Env[Any, Any], where: str) -> None:
     if miss > MAX_NOMINAL_MISS:
         _, W = model.transition(c[0])
         singular = np.linalg.svd(W, compute_uv=False)
-        raise ValueError(
+        raise BadInput(
             f"{where}: an ill-posed task: the nominal model's exact solution misses the goal by {miss:.2g} of the "
             f"distance to it, W (eq. 23) being singular at c11 = {c[0]:.3g} (singular values down to "
             f"{singular[-1]:.2g}); change task.pieces or task.v1_fixed (v1 on one piece undone by another "
@@ -41,7 +42,7 @@ def check_task(env: gym.Env[Any, Any], where: str) -> None:
     beyond = np.flatnonzero(np.abs(c) > high)
     if beyond.size:
         i = int(beyond[0])
-        raise ValueError(
+        raise BadInput(
             f"{where}: the nominal solution needs |c[{i}]| = {abs(c[i]):.3g}, beyond the action box "
             f"({high[i]:.3g}, task.action_bound); raise task.action_bound or leave it out (10x the nominal scale)"
         )

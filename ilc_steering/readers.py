@@ -18,6 +18,8 @@ import stat
 from pathlib import Path
 from typing import Any
 
+from ilc_steering.errors import BadInput
+
 __all__ = [
     "MAX_DEPTH",
     "check_depth",
@@ -59,11 +61,11 @@ def open_regular(path: Path, origin: str | None = None) -> int:
         descriptor = os.open(os.fspath(path), flags)
     except (OSError, ValueError) as error:  # ValueError: a NUL in the path
         problem = describe(error) if isinstance(error, OSError) else "a path cannot hold a NUL character"
-        raise ValueError(f"{where}: cannot read it: {problem}") from None
+        raise BadInput(f"{where}: cannot read it: {problem}") from None
     try:
         mode = os.fstat(descriptor).st_mode
         if not stat.S_ISREG(mode):
-            raise ValueError(f"{where}: is {kind_of(mode)}, not a regular file")
+            raise BadInput(f"{where}: is {kind_of(mode)}, not a regular file")
         os.set_blocking(descriptor, True)
     except BaseException:
         os.close(descriptor)
@@ -79,12 +81,12 @@ def read_bytes(path: Path, limit: int, origin: str | None = None) -> bytes:
         with os.fdopen(descriptor, "rb") as file:
             size = os.fstat(file.fileno()).st_size
             if size > limit:
-                raise ValueError(f"{where}: {size} bytes; at most {limit} bytes are read")
+                raise BadInput(f"{where}: {size} bytes; at most {limit} bytes are read")
             raw = file.read(limit + 1)
     except OSError as error:  # EIO, EISDIR on odd file systems
-        raise ValueError(f"{where}: cannot read it: {describe(error)}") from None
+        raise BadInput(f"{where}: cannot read it: {describe(error)}") from None
     if len(raw) > limit:
-        raise ValueError(f"{where}: more than {limit} bytes; at most {limit} bytes are read")
+        raise BadInput(f"{where}: more than {limit} bytes; at most {limit} bytes are read")
     return raw
 
 
@@ -96,7 +98,7 @@ def read_text(path: Path, limit: int, origin: str | None = None) -> str:
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as error:
-        raise ValueError(f"{where}: not UTF-8 text (byte {error.start})") from None
+        raise BadInput(f"{where}: not UTF-8 text (byte {error.start})") from None
 
 
 def is_file(path: Path) -> bool:
@@ -120,7 +122,7 @@ def check_depth(data: Any, origin: str, max_depth: int = MAX_DEPTH) -> None:
         item, depth = todo.pop()
         if isinstance(item, (dict, list)):
             if depth > max_depth:
-                raise ValueError(f"{origin}: nested deeper than {max_depth} levels")
+                raise BadInput(f"{origin}: nested deeper than {max_depth} levels")
             todo.extend((value, depth + 1) for value in (item.values() if isinstance(item, dict) else item))
 
 
@@ -131,8 +133,8 @@ def read_json(path: Path, limit: int, origin: str | None = None) -> Any:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as error:
-        raise ValueError(f"{where}: not valid JSON at line {error.lineno}, column {error.colno}: {error.msg}") from None
+        raise BadInput(f"{where}: not valid JSON at line {error.lineno}, column {error.colno}: {error.msg}") from None
     except RecursionError:
-        raise ValueError(f"{where}: nested deeper than {MAX_DEPTH} levels") from None
+        raise BadInput(f"{where}: nested deeper than {MAX_DEPTH} levels") from None
     check_depth(data, where)
     return data

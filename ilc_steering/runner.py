@@ -25,7 +25,7 @@ from ilc_steering.config import SteeringConfig, config_data, load_config
 from ilc_steering.core import scatter as scatter_
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.errors import ENDS_A_RUN, keep_partial
+from ilc_steering.errors import ENDS_A_RUN, BadInput, keep_partial
 from ilc_steering.loop import run_trials
 from ilc_steering.preflight import MAX_STEP_MISS, check_task, step_warning
 from ilc_steering.segmented import segmented_learner
@@ -235,7 +235,7 @@ def run_goals(
     other = next((k for k, goal in enumerate(goals) if carry and goal.plant != goals[0].plant), None)
     if not goals or other is not None:
         where = f"goal {other + 1} ({goals[other].name}) has another plant than goal 1" if other else "no goal"
-        raise ValueError(f"run_goals: {where}: learning is carried between goals of one robot")
+        raise BadInput(f"run_goals: {where}: learning is carried between goals of one robot")
     results: list[RunResult] = []
     carried: dict[str, Any] | None = None
     for k, config in enumerate(goals):

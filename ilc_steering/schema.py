@@ -27,7 +27,7 @@ from typing import Annotated, Any
 
 from pydantic import ConfigDict, StringConstraints, TypeAdapter, ValidationError
 
-from ilc_steering.errors import ConfigError, ParameterError
+from ilc_steering.errors import BadInput, ConfigError, ParameterError
 from ilc_steering.yaml_reader import Ambiguous
 
 __all__ = ["NAME_PATTERN", "STRICT", "MethodName", "Name", "check_record", "validate"]
@@ -113,7 +113,7 @@ def check_record(cls: Any, data: Any, path: Any, hint: str = "") -> Any:
     try:
         return validate(cls, data, whole="the record")
     except ConfigError as error:
-        raise ValueError(f"{path}: {error}" + (f"; {hint}" if hint else "")) from None
+        raise BadInput(f"{path}: {error}" + (f"; {hint}" if hint else "")) from None
 
 
 def _join(*keys: str) -> str:

@@ -18,6 +18,7 @@ import numpy.typing as npt
 from ilc_steering.agents.base import Closable, Learner, LearnerContext, transferred
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.envs.segmented_env import SegmentView
+from ilc_steering.errors import BadInput
 
 __all__ = ["SegmentedLearner", "rebased", "segmented_learner"]
 
@@ -32,7 +33,7 @@ class SegmentedLearner:
 
     def __init__(self, learners: Sequence[Learner], views: Sequence[SegmentView]) -> None:
         if len(learners) != len(views) or not learners:
-            raise ValueError(f"one learner per segment is needed ({len(views)}), got {len(learners)}")
+            raise BadInput(f"one learner per segment is needed ({len(views)}), got {len(learners)}")
         self.learners = list(learners)
         self.views = list(views)
 

@@ -35,7 +35,7 @@ import numpy as np
 from ilc_steering import __version__
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig
-from ilc_steering.errors import ConfigError, LimitError, PlantError
+from ilc_steering.errors import BadInput, ConfigError, LimitError, PlantError
 from ilc_steering.output import check_output_dir, open_lock, write_atomic, write_json
 from ilc_steering.readers import read_json
 from ilc_steering.runner import RunResult, learner_spec, run_ilc
@@ -175,18 +175,18 @@ class Session:
         self.folder = Path(folder)
         path = self.folder / SESSION
         if not path.is_file():
-            raise ValueError(f"{self.folder}: not a session folder (no {SESSION}; start one with `session new`)")
+            raise BadInput(f"{self.folder}: not a session folder (no {SESSION}; start one with `session new`)")
         data = read_json(path, MAX_RECORD_BYTES)
         kinds = {"learner": str, "seed": int, "trials": int, "version": str, "created": str}
         if not isinstance(data, dict) or set(data) != set(kinds):
-            raise ValueError(f"{path}: not a session record (it holds exactly the keys {sorted(kinds)})")
+            raise BadInput(f"{path}: not a session record (it holds exactly the keys {sorted(kinds)})")
         for key, kind in kinds.items():
             value = data[key]
             least = {"seed": 0, "trials": 1}.get(key)
             small = least is not None and isinstance(value, int) and value < least
             if not isinstance(value, kind) or isinstance(value, bool) or small:
                 needs = f"a whole number >= {least}" if least is not None else "a string"
-                raise ValueError(f"{path}: {key} = {value!r}: needs {needs}")
+                raise BadInput(f"{path}: {key} = {value!r}: needs {needs}")
         self.learner: str = data["learner"]
         self.seed: int = data["seed"]
         self.trials: int = data["trials"]
@@ -200,7 +200,7 @@ class Session:
             try:
                 fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                raise ValueError(f"{self.folder}: another session command is running on it; wait for it") from None
+                raise BadInput(f"{self.folder}: another session command is running on it; wait for it") from None
             yield
         finally:
             os.close(handle)
@@ -213,10 +213,10 @@ class Session:
         learner_spec(learner)
         budget = steering.learning.trials if trials is None else trials
         if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
-            raise ValueError(f"--trials must be a whole number >= 1, got {budget!r}")
+            raise BadInput(f"--trials must be a whole number >= 1, got {budget!r}")
         folder = Path(folder)
         if folder.exists() and any(folder.iterdir()):
-            raise ValueError(f"{folder}: exists and is not empty; a session starts in a new or empty folder")
+            raise BadInput(f"{folder}: exists and is not empty; a session starts in a new or empty folder")
         check_output_dir(folder, "session folder")
         write_atomic(folder / CONFIG, Path(config).read_bytes())
         record = {"learner": learner, "seed": seed, "trials": budget, "version": __version__, "created": _now()}
@@ -234,7 +234,7 @@ class Session:
         except SessionPending as pending:  # run_ilc keeps the trials before it, judged as run judges
             return Replay(pending.partial, pending.trial, pending.folder, request=pending.request)
         except _SessionFileError as error:
-            raise ValueError(str(error)) from None
+            raise BadInput(str(error)) from None
         except LimitError as refused:
             k = len(refused.partial.trials) + 1
             return Replay(refused.partial, k, self.folder / "trials" / f"{k:04d}", refused)
@@ -245,30 +245,30 @@ class Session:
         session is unchanged if the pose is refused."""
         before = self.replay(write=False)
         if before.pending is None or before.pending_folder is None:
-            raise ValueError(f"{self.folder}: no pending trial (the session has run its {self.trials} trials)")
+            raise BadInput(f"{self.folder}: no pending trial (the session has run its {self.trials} trials)")
         if not (before.pending_folder / "request.json").exists():
-            raise ValueError(f"{self.folder}: trial {before.pending} has no commands yet: run `session next` first")
+            raise BadInput(f"{self.folder}: trial {before.pending} has no commands yet: run `session next` first")
         dimension = self.config.plant.dimension
         values = [float(v) for v in final]
         if len(values) == dimension - 1 and dimension == 4:  # no steering angle measured: the commanded one
             request = read_json(before.pending_folder / "request.json", MAX_RECORD_BYTES)
             values.append(float(request["nominal"]["q"][-1][3]))
         if len(values) != dimension or not all(math.isfinite(v) for v in values):
-            raise ValueError(f"--final needs {dimension} finite numbers (x, y, theta[, phi]; world frame), got {final}")
+            raise BadInput(f"--final needs {dimension} finite numbers (x, y, theta[, phi]; world frame), got {final}")
         result = before.pending_folder / "result.json"
         write_json(result, {"type": "result", "trial": before.pending, "final": values})
         try:
             return self.replay(write=False)
         except (PlantError, ValueError) as error:  # the pose refused (outside the workspace, ...): unchanged
             result.unlink()
-            raise ValueError(str(error)) from None
+            raise BadInput(str(error)) from None
 
     def withdraw(self) -> int:
         """Move the last recorded result to ``withdrawn/``: that trial is asked again, uncounted.
         The next trial's commands, learned from that result, go with it (``NNNN-<time>/``)."""
         recorded = sorted((self.folder / "trials").glob("*/result.json"))
         if not recorded:
-            raise ValueError(f"{self.folder}: no recorded trial to withdraw")
+            raise BadInput(f"{self.folder}: no recorded trial to withdraw")
         last = recorded[-1]
         k = int(last.parent.name)
         stamp = _now().replace(":", "")

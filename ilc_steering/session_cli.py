@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ilc_steering.console import print_header, print_row, print_verdict, save
+from ilc_steering.errors import BadInput
 from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
 from ilc_steering.pose_files import final_pose
 from ilc_steering.session import Session
@@ -55,7 +56,7 @@ def _record(args: argparse.Namespace) -> int:
     session = Session(args.folder)
     final = args.final if args.pose_file is None else final_pose(args.pose_file, args.topic)
     if args.topic is not None and args.pose_file is None:
-        raise ValueError("--topic: names a topic of --pose-file's bag; give --pose-file")
+        raise BadInput("--topic: names a topic of --pose-file's bag; give --pose-file")
     with session.locked():
         replay = session.record(final)
     for record in replay.result.trials:

@@ -13,6 +13,7 @@ from pathlib import Path
 from statistics import median
 from typing import Any
 
+from ilc_steering.errors import BadInput
 from ilc_steering.output import write_atomic
 
 __all__ = ["markdown_table", "median_seconds", "render_blocks", "rewrite_blocks", "update_pages", "write_results"]
@@ -59,10 +60,10 @@ def render_blocks(text: str, blocks: dict[str, str], kind: str, where: str) -> s
     pattern = re.compile(rf"(<!-- {re.escape(kind)}: ([a-z0-9-]+) -->\n)(.*?)(<!-- /{re.escape(kind)} -->)", re.DOTALL)
     found = pattern.findall(text)
     if text.count(f"<!-- {kind}:") != len(found):
-        raise ValueError(f"{where}: a <!-- {kind}: NAME --> marker without its <!-- /{kind} -->")
+        raise BadInput(f"{where}: a <!-- {kind}: NAME --> marker without its <!-- /{kind} -->")
     for _, name, _, _ in found:
         if name not in blocks:
-            raise ValueError(f"{where}: a {kind} block names {name!r}; choose from {list(blocks)}")
+            raise BadInput(f"{where}: a {kind} block names {name!r}; choose from {list(blocks)}")
     return pattern.sub(lambda m: m.group(1) + blocks[m.group(2)] + m.group(4), text)
 
 

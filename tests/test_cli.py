@@ -178,3 +178,32 @@ def test_a_hold_longer_than_the_run_is_refused_naming_both(capsys, argv, says):
     err = capsys.readouterr().err
     assert says in err and len(err.splitlines()) == 1
     assert main(["run", "forward_parking", "--trials", "2"]) == 1  # the default --hold: a short run, not an error
+
+
+def test_a_value_error_deep_in_the_numerics_is_a_bug_not_the_users_input(monkeypatch, capsys):
+    """Only :class:`~ilc_steering.errors.BadInput` (raised where the user's value enters) is exit 2;
+    a ``ValueError`` of numpy or scipy from inside the library is a bug: exit 3, saying so."""
+    from ilc_steering.core import nominal
+
+    def broken(self):
+        raise ValueError("math domain error")
+
+    monkeypatch.setattr(nominal.NominalModel, "solve", broken)
+    assert main(["run", "forward_parking", "--trials", "1"]) == 3
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("ilc-steering: internal error: ValueError: math domain error. This is a bug")
+    assert len(err.splitlines()) == 1
+    assert main(["--debug", "run", "forward_parking", "--trials", "1"]) == 3
+    assert "Traceback (most recent call last)" in capsys.readouterr().err
+
+
+def test_the_users_bad_input_is_still_exit_2(tmp_path, capsys):
+    from ilc_steering.errors import BadInput, ConfigError, LimitError, ParameterError
+
+    assert all(issubclass(kind, BadInput) for kind in (ConfigError, LimitError, ParameterError))
+    assert issubclass(BadInput, ValueError)  # the API's callers that catch ValueError keep working
+    assert main(["run", "forward_parking", "--trials", "0"]) == 2
+    assert main(["run", str(tmp_path / "missing.yaml")]) == 2
+    assert main(["sweep", "forward_parking", "--grid", "1", "--out", str(tmp_path / "s")]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 3 and all(line.startswith("ilc-steering: ") for line in errors)

@@ -21,6 +21,7 @@ from typing import Any
 
 from ilc_steering.compare.cells import CellRecord, read_report
 from ilc_steering.engine.provenance import CodeRecord, read_run
+from ilc_steering.errors import BadInput
 from ilc_steering.output import RECORD_KEYS
 from ilc_steering.readers import is_file, read_json
 from ilc_steering.schema import check_record
@@ -65,7 +66,7 @@ class CommittedRun:
 
 
 def _refuse(label: str, problem: str) -> ValueError:
-    return ValueError(f"{label}: {problem}")
+    return BadInput(f"{label}: {problem}")
 
 
 def read_committed(folder: Path, label: str | None = None, cell_files: bool = True) -> CommittedRun:
@@ -129,7 +130,7 @@ def _identity(cell: Any, where: str) -> str:
     """A cell's (prior, method, scenario, seed) as text, or ``ValueError`` naming ``where``."""
     names = ("prior", "method", "scenario", "seed")
     if not isinstance(cell, dict) or not all(name in cell for name in names):
-        raise ValueError(f"{where}: not a cell (a JSON object with {', '.join(names)})")
+        raise BadInput(f"{where}: not a cell (a JSON object with {', '.join(names)})")
     return json.dumps([cell[name] for name in names])
 
 
@@ -194,7 +195,7 @@ def check_out(out: Path, folder: Path) -> None:
     inside = out.resolve()
     committed = folder.resolve()
     if inside == committed or committed in inside.parents:
-        raise ValueError(
+        raise BadInput(
             f"--out {out}: inside the committed run --against {folder}, which is only read; give another folder"
         )
 
@@ -213,7 +214,7 @@ def committed_cells(
     for name, digest in configs.items():
         theirs = committed.configs.get(name)
         if theirs != digest:
-            raise ValueError(
+            raise BadInput(
                 f"{committed.label}: its {name!r} cells were computed with another config (content hash {theirs}, "
                 f"this one's {digest}): the same name, another content"
             )
@@ -224,7 +225,7 @@ def committed_cells(
         known = isinstance(method, str) and (method in METHODS or is_custom(method))
         ours = isinstance(scenario, str) and scenario in committed.configs
         if prior not in PRIORS or not known or not ours or seed not in (args.seeds or ()):
-            raise ValueError(
+            raise BadInput(
                 f"{where}: not a cell of its run (prior {prior!r}, method {method!r}, scenario {scenario!r}, "
                 f"seed {seed!r}); {hint}"
             )
@@ -276,4 +277,4 @@ def copy_committed(
         if not path.exists():
             write_json(path, found)
         elif read(path, cell) != found:
-            raise ValueError(f"{path}: holds another result than the committed run's; use another --out folder")
+            raise BadInput(f"{path}: holds another result than the committed run's; use another --out folder")

@@ -24,6 +24,7 @@ from ilc_steering.agents.base import Learner, LearnerContext, update_times
 from ilc_steering.agents.registry import Budgets
 from ilc_steering.compare.stats import LADDER
 from ilc_steering.core.score import true_cost
+from ilc_steering.errors import BadInput
 from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 from ilc_steering.readers import read_json
@@ -287,7 +288,7 @@ def _check_values(cell: dict[str, Any], path: Path | str, hint: str) -> None:
     if not problems:
         problems += _contradictions(cell)
     if problems:
-        raise ValueError(f"{path}: {problems[0]}; {hint}")
+        raise BadInput(f"{path}: {problems[0]}; {hint}")
 
 
 def _contradictions(cell: dict[str, Any]) -> list[str]:
@@ -315,25 +316,25 @@ def read_cell(path: Path, key: dict[str, Any]) -> dict[str, Any]:
     try:
         cell = read_json(path, MAX_RESULT_BYTES)
     except ValueError as error:
-        raise ValueError(f"not a readable cell: {error}; {hint}") from None
+        raise BadInput(f"not a readable cell: {error}; {hint}") from None
     return check_cell(cell, key, path, hint)
 
 
 def check_cell(cell: Any, key: dict[str, Any], path: Path | str, hint: str) -> dict[str, Any]:
     """``cell`` checked as :func:`read_cell` checks it; ``ValueError`` names ``path`` and ends with ``hint``."""
     if not isinstance(cell, dict):
-        raise ValueError(f"{path}: not a cell (a JSON object); {hint}")
+        raise BadInput(f"{path}: not a cell (a JSON object); {hint}")
     check_record(CellRecord, cell, path, hint)
     for name, value in key.items():
         if cell[name] != value:
             what = {"config_sha": "the content hash of its config", "version": "the ilc-steering version"}
-            raise ValueError(f"{path}: holds {what.get(name, name)} {cell[name]!r}, not {value!r}; {hint}")
+            raise BadInput(f"{path}: holds {what.get(name, name)} {cell[name]!r}, not {value!r}; {hint}")
     if not 1 <= cell["trials"] <= cell["budget"]:
-        raise ValueError(f"{path}: {cell['trials']} trials for a budget of {cell['budget']}; {hint}")
+        raise BadInput(f"{path}: {cell['trials']} trials for a budget of {cell['budget']}; {hint}")
     reached = cell["trials_to"]
     if sorted(reached) != sorted(LADDER) or not all(
         v is None or (isinstance(v, int) and 1 <= v <= cell["trials"]) for v in reached.values()
     ):
-        raise ValueError(f"{path}: 'trials_to' needs {sorted(LADDER)}, each a trial or null; {hint}")
+        raise BadInput(f"{path}: 'trials_to' needs {sorted(LADDER)}, each a trial or null; {hint}")
     _check_values(cell, path, hint)
     return cell

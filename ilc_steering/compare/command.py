@@ -65,6 +65,7 @@ from ilc_steering.compare.report import write_report
 from ilc_steering.engine.options import add_cell_options
 from ilc_steering.engine.provenance import copy_codes, record_report
 from ilc_steering.engine.runs import Cells, RunFolder, compute_cells, dry_run
+from ilc_steering.errors import BadInput
 from ilc_steering.output import output_folder, write_json
 from ilc_steering.readers import is_file
 
@@ -108,13 +109,13 @@ def _restore_cells(folder: Path) -> None:
     try:
         cells = read_report(report)["cells"]
     except ValueError as error:
-        raise ValueError(f"{error}; use another --out folder") from None
+        raise BadInput(f"{error}; use another --out folder") from None
     restored = 0
     seen: set[Path] = set()
     for cell in cells:
         path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
         if path in seen:
-            raise ValueError(f"{report}: holds the cell {path.stem} twice; use another --out folder")
+            raise BadInput(f"{report}: holds the cell {path.stem} twice; use another --out folder")
         seen.add(path)
         if not path.exists():
             write_json(path, cell)

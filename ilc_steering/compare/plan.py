@@ -23,6 +23,7 @@ from ilc_steering.compare.args import MAX_BUDGET, MAX_SEED, QUICK, QUICK_SEEDS, 
 from ilc_steering.compare.cells import ENV_ID, budgets, cell_roots
 from ilc_steering.config import SteeringConfig
 from ilc_steering.engine.options import check_cell_options
+from ilc_steering.errors import BadInput
 from ilc_steering.output import content_hash
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
@@ -123,31 +124,31 @@ def check_options(args: Args) -> Args:
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:
-            raise ValueError(f"{option}: give at least one")
+            raise BadInput(f"{option}: give at least one")
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
-            raise ValueError(f"{option}: {repeated[0]} is given twice; each cell is counted once")
+            raise BadInput(f"{option}: {repeated[0]} is given twice; each cell is counted once")
     unknown_priors = [p for p in args.priors if p not in PRIORS]
     if unknown_priors:
-        raise ValueError(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
+        raise BadInput(f"--priors: unknown prior {unknown_priors[0]!r}; choose from {list(PRIORS)}")
     if any(registry.lookup(method).family == "RL" for method in args.methods):
         from ilc_steering.agents.rl_settings import rl_backend
 
         rl_backend()  # ILC_STEERING_RL_BACKEND checked before any cell, not in each RL cell
     bad = [s for s in args.seeds or () if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED]
     if bad:
-        raise ValueError(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
+        raise BadInput(f"--seeds: {bad[0]!r} is not a whole number in [0, {MAX_SEED}]")
     for option in ("model_trials", "blackbox_trials", "rl_trials", "custom_trials"):
         value = getattr(args, option)
         if value is not None and (
             isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_BUDGET
         ):
-            raise ValueError(
+            raise BadInput(
                 f"--{option.replace('_', '-')}: the budget must be a whole number in [1, {MAX_BUDGET}], got {value!r}"
             )
     k = args.ablation_seeds
     if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SEED:
-        raise ValueError(f"--ablation-seeds: a whole number of seeds >= 1, got {k!r}")
+        raise BadInput(f"--ablation-seeds: a whole number of seeds >= 1, got {k!r}")
     return args
 
 
@@ -162,12 +163,12 @@ def _configs(args: Args) -> tuple[dict[str, str], dict[str, SteeringConfig]]:
     for scenario in args.scenarios:
         config = load_config(scenario)
         if config.is_cyclic:
-            raise ValueError(
+            raise BadInput(
                 f"--scenarios {scenario}: a cyclic config; compare runs one-trial tasks "
                 "(use ilc-steering run for cycles)"
             )
         if config.name in names.values():
-            raise ValueError(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
+            raise BadInput(f"--scenarios {scenario}: another scenario is also named {config.name!r}")
         env = gym.make(ENV_ID, config=config)
         check_task(env, f"--scenarios {scenario}")
         env.close()
@@ -228,14 +229,14 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
 
     folder = args.against
     if folder is None:
-        raise ValueError("--against: give a committed run folder")
+        raise BadInput("--against: give a committed run folder")
     from ilc_steering.compare.against import check_out, read_committed, resolve_settings
 
     committed = read_committed(folder)
     check_out(args.out, folder)
     _warn_if_stale(committed)
     if args.methods == Args.methods:
-        raise ValueError(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
+        raise BadInput(f"--against {folder}: name the methods to add with --methods, e.g. --methods my_learners:make")
     defaults = {f.name: f.default for f in fields(Args)}
     args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
     cells = [cell for _, cell in committed.cells]
@@ -243,14 +244,14 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
     if args.scenarios == Args.scenarios:
         unknown = [name for name in scenarios if name not in packaged_configs()]
         if unknown:
-            raise ValueError(
+            raise BadInput(
                 f"--against {folder}: its scenario {unknown[0]!r} is not a packaged config; give its YAML file with "
                 f"--scenarios, beside those of its other scenarios to run ({' '.join(scenarios)})"
             )
         args = replace(args, scenarios=tuple(scenarios))
     for scenario in args.scenarios:
         if load_config(scenario).name not in scenarios:
-            raise ValueError(
+            raise BadInput(
                 f"--scenarios {scenario}: the committed run --against {folder} has no cells of it; its scenarios: "
                 f"{' '.join(scenarios)}"
             )
@@ -258,10 +259,10 @@ def against_args(args: Args) -> tuple[Args, CommittedRun]:
     if args.priors == Args.priors:
         args = replace(args, priors=tuple(priors))
     elif not set(args.priors) <= set(priors):
-        raise ValueError(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
+        raise BadInput(f"--priors: the committed run --against {folder} has cells of {' '.join(priors)} only")
     settings = run_settings(args)
     if settings != committed.settings:
-        raise ValueError(
+        raise BadInput(
             f"--against {folder}: it was run with other settings: {differences(committed.settings, settings)}"
         )
     return args, committed

@@ -27,6 +27,7 @@ from ilc_steering.compare.args import Args
 from ilc_steering.compare.report import iqm_table, main_table, ratio_table, statistic
 from ilc_steering.compare.stats import LADDER_NAMES, ratios, summarize
 from ilc_steering.engine.provenance import RunRecord, read_run
+from ilc_steering.errors import BadInput
 from ilc_steering.output import write_atomic
 from ilc_steering.readers import read_text
 from ilc_steering.tables import markdown_table
@@ -124,7 +125,7 @@ def _run_line(run: dict[str, Any]) -> str:
     codes = f"code {made.code}" if made and made.code else f"{len(record.codes)} codes (one per learner and robot)"
     seeds, ablation = run.get("seeds"), run.get("ablation_seeds")
     if not (isinstance(seeds, list) and all(type(seed) is int for seed in seeds)) or type(ablation) is not int:
-        raise ValueError("run.json: seeds: a list of integers and ablation_seeds: an integer, as compare writes them")
+        raise BadInput("run.json: seeds: a list of integers and ablation_seeds: an integer, as compare writes them")
     return (
         f"Made by ilc-steering {made.version if made else None}, {codes} (commit {commit[:12]}), in "
         f"{len(sessions)} session(s) of {wall / 60:.0f} min of wall time in all on "
@@ -149,14 +150,14 @@ def _cells(folder: Path) -> list[dict[str, Any]]:
     try:
         args = check_options(replace(Args(), **settings))
     except ValueError as error:
-        raise ValueError(f"{folder / 'run.json'}: {error}") from None
+        raise BadInput(f"{folder / 'run.json'}: {error}") from None
     held, _ = committed_cells(args, committed, committed.configs, partial(compare_cells.budget, args))
     return list(held.values())
 
 
 def _tables(folder: Path) -> dict[str, str]:
     if not (folder / "compare.json").is_file() or not (folder / "run.json").is_file():
-        raise ValueError(f"{folder}: not a compare run folder with compare.json and run.json")
+        raise BadInput(f"{folder}: not a compare run folder with compare.json and run.json")
     cells = _cells(folder)
     stored, record = read_run(folder)
     run = {**stored, "record": record}
@@ -175,7 +176,7 @@ def render(text: str, tables: dict[str, str], where: str = "") -> str:
     def replace(match: re.Match[str]) -> str:
         name = match.group(2)
         if name not in tables:
-            raise ValueError(f"{where}: a compare-table block names {name!r}; choose from {list(tables)}")
+            raise BadInput(f"{where}: a compare-table block names {name!r}; choose from {list(tables)}")
         return match.group(1) + tables[name].rstrip("\n") + "\n" + match.group(4)
 
     return BLOCK.sub(replace, text)
@@ -197,9 +198,7 @@ def write(folder: Path, files: list[Path]) -> list[Path]:
 def _blocks(text: str, where: str) -> None:
     """``ValueError`` for a marker that opens no well-formed block (it would be skipped silently)."""
     if text.count("<!-- compare-table:") != len(BLOCK.findall(text)):
-        raise ValueError(
-            f"{where}: a <!-- compare-table: NAME --> marker without its <!-- /compare-table --> or a name"
-        )
+        raise BadInput(f"{where}: a <!-- compare-table: NAME --> marker without its <!-- /compare-table --> or a name")
 
 
 def check(folder: Path, files: list[Path]) -> list[str]:
@@ -212,7 +211,7 @@ def check(folder: Path, files: list[Path]) -> list[str]:
         for match in BLOCK.finditer(text):
             name = match.group(2)
             if name not in tables:
-                raise ValueError(f"{path}: a compare-table block names {name!r}; choose from {list(tables)}")
+                raise BadInput(f"{path}: a compare-table block names {name!r}; choose from {list(tables)}")
             if match.group(3) != tables[name].rstrip("\n") + "\n":
                 stale.append(f"{path}: {name}")
     return stale

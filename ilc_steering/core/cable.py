@@ -19,7 +19,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from ilc_steering.errors import PlantError
+from ilc_steering.errors import BadInput, PlantError
 
 __all__ = ["MAX_LINE", "STOP_SECONDS", "Cable", "describe"]
 
@@ -35,7 +35,7 @@ def describe(command: Sequence[str]) -> str:
 
 
 def _no_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not a number JSON allows")
+    raise BadInput(f"{name} is not a number JSON allows")
 
 
 class Cable:

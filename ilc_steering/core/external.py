@@ -40,7 +40,7 @@ from ilc_steering.core.plants import Kernel, PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials
 from ilc_steering.core.stepper import LEFT_CHART, OK
-from ilc_steering.errors import INTERRUPTS, ConfigError, LimitError, PlantError, described
+from ilc_steering.errors import INTERRUPTS, BadInput, ConfigError, LimitError, PlantError, described
 
 __all__ = [
     "PLANT_STREAM",
@@ -125,7 +125,7 @@ def plant_generator(seed: int, plant_seed: int = 0) -> np.random.Generator:
     twice. ``ValueError`` naming the seeds unless both are integers >= 0."""
     for name, value in (("seed", seed), ("plant seed", plant_seed)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-            raise ValueError(f"an external plant's {name} must be an integer >= 0, got {value!r:.40}")
+            raise BadInput(f"an external plant's {name} must be an integer >= 0, got {value!r:.40}")
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(plant_seed)], spawn_key=(PLANT_STREAM,)))
 
 
@@ -190,7 +190,7 @@ class ExternalPlantBase:
         return ExternalTrials(final, status, times, np.array([o[2] for o in outcomes]), logs=logs)
 
     def _refuse(self, what: str) -> NoReturn:
-        raise ValueError(f"{self.name} is someone else's code: it has no {what}")
+        raise BadInput(f"{self.name} is someone else's code: it has no {what}")
 
     def kernel(self) -> tuple[Kernel, Array]:
         self._refuse("compiled kernel (it runs its own trials; no numba field, no PlantBatch)")
@@ -256,19 +256,19 @@ def plain_log(log: Any, where: str = "its log", depth: int = 0) -> Any:
         return int(log)
     if depth and isinstance(log, numbers.Real):
         if not math.isfinite(log):
-            raise ValueError(f"{where} is {log!r}, not a finite number")
+            raise BadInput(f"{where} is {log!r}, not a finite number")
         return float(log)
     if depth >= MAX_LOG_DEPTH:
-        raise ValueError(f"{where} is nested deeper than {MAX_LOG_DEPTH}")
+        raise BadInput(f"{where} is nested deeper than {MAX_LOG_DEPTH}")
     if isinstance(log, Mapping):
         wrong = next((key for key in log if not isinstance(key, str)), None)
         if wrong is not None:
-            raise ValueError(f"{where} has the key {show(wrong)}, not a string")
+            raise BadInput(f"{where} has the key {show(wrong)}, not a string")
         return {key: plain_log(value, f"{where}[{key!r}]", depth + 1) for key, value in log.items()}
     if depth and isinstance(log, (list, tuple)):
         return [plain_log(value, f"{where}[{i}]", depth + 1) for i, value in enumerate(log)]
     kind = "JSON data" if depth else "a mapping or None"
-    raise ValueError(f"{where} is {show(log)} (type {type(log).__name__}), not {kind}")
+    raise BadInput(f"{where} is {show(log)} (type {type(log).__name__}), not {kind}")
 
 
 def run_external(plant: ExternalPlant, profile: InputProfile, x0: Array, c: Array, record: bool) -> ExternalTrials:

@@ -37,6 +37,7 @@ from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import Plant, PlantBatch
 from ilc_steering.core.robots import nominal_plant
 from ilc_steering.core.simulate import simulate
+from ilc_steering.errors import BadInput
 
 __all__ = ["MAX_ACTUATOR_LAG", "MAX_ACTUATOR_OFFSET", "MAX_LOG_RATIO", "ModelFamily"]
 
@@ -86,7 +87,7 @@ class ModelFamily:
             known = nominal.actuator_names() if hasattr(nominal, "actuator_names") else ()
             unknown = [name for name in actuators if name not in known]
             if unknown:
-                raise ValueError(f"ModelFamily: the robot has no actuator parameter {unknown} (it has {known})")
+                raise BadInput(f"ModelFamily: the robot has no actuator parameter {unknown} (it has {known})")
             bounds = {
                 "steering_offset": (-MAX_ACTUATOR_OFFSET, MAX_ACTUATOR_OFFSET),
                 "steering_lag": (max_step / 4, MAX_ACTUATOR_LAG),
@@ -150,7 +151,7 @@ class ModelFamily:
         thetas = np.atleast_2d(np.asarray(thetas, dtype=np.float64))
         c = np.ascontiguousarray(np.atleast_2d(c), dtype=np.float64)
         if thetas.shape[0] != c.shape[0]:
-            raise ValueError(f"configurations_many: {thetas.shape[0]} parameter rows for {c.shape[0]} trials")
+            raise BadInput(f"configurations_many: {thetas.shape[0]} parameter rows for {c.shape[0]} trials")
         keys = [theta.tobytes() + trial.tobytes() for theta, trial in zip(thetas, c)]
         known = self._finals
         if len(known) + len(keys) > _MAX_FINALS:
@@ -184,7 +185,7 @@ class ModelFamily:
                 self._rows.clear()
             field, row = self.plant(theta).kernel()
             if field is not self._field:
-                raise ValueError("configurations_many: a hypothesis changed the plant's kind")
+                raise BadInput("configurations_many: a hypothesis changed the plant's kind")
             self._rows[key] = row
         return row
 

@@ -22,6 +22,7 @@ import numpy.typing as npt
 
 from ilc_steering.core.plants import Kernel
 from ilc_steering.core.stepper import LEFT_CHART, OK, announce_compile
+from ilc_steering.errors import BadInput
 
 __all__ = ["LEFT_CHART", "OK", "integrate"]
 
@@ -49,7 +50,7 @@ def integrate(
     ``LEFT_CHART``) and, with ``record``, the states at every step ``(B, 1 + sum(steps), nx)``.
     """
     if not isinstance(kernel, Kernel):
-        raise ValueError(f"kernel must be a plant's Kernel (plant.kernel()[0]), got {type(kernel).__name__}")
+        raise BadInput(f"kernel must be a plant's Kernel (plant.kernel()[0]), got {type(kernel).__name__}")
     # One layout for every caller (C order, float64, writeable): a read-only or strided view would
     # compile a second specialization of the kernel, which costs as long as the first.
     x0, params, durations, v1, v2 = (_layout(a, np.float64, name) for a, name in _named(x0, params, durations, v1, v2))
@@ -79,34 +80,34 @@ def _check_arrays(
     ends off the chart and the trial stops with ``LEFT_CHART``."""
     layout = kernel.layout
     if x0.ndim != 2 or x0.shape[0] < 1:
-        raise ValueError(f"x0 must be a batch of states (B, nx) with B >= 1, got shape {x0.shape}")
+        raise BadInput(f"x0 must be a batch of states (B, nx) with B >= 1, got shape {x0.shape}")
     batch = x0.shape[0]
     if params.ndim == 1:
         rows = np.empty((batch, params.shape[0]))
         rows[:] = params
         params = rows
     if params.ndim != 2 or params.shape[0] != batch:
-        raise ValueError(f"{batch} trials need {batch} rows of plant parameters, one per trial; got {params.shape}")
+        raise BadInput(f"{batch} trials need {batch} rows of plant parameters, one per trial; got {params.shape}")
     if params.shape[1] != len(layout.params):
-        raise ValueError(
+        raise BadInput(
             f"a parameter row of the {kernel.name} kernel has {len(layout.params)} entries {list(layout.params)}, "
             f"got {params.shape[1]}"
         )
     if isnan(params.sum()):  # a sum is NaN where an entry is (a steering limit may be inf)
-        raise ValueError("plant parameters must not be NaN")
+        raise BadInput("plant parameters must not be NaN")
     sizes = {len(layout.state)} if layout.state else set(np.unique(params[:, layout.index("dimension")]).tolist())
     if sizes != {x0.shape[1]}:
-        raise ValueError(f"the state of the {kernel.name} kernel has {sorted(sizes)} entries, got {x0.shape[1]}")
+        raise BadInput(f"the state of the {kernel.name} kernel has {sorted(sizes)} entries, got {x0.shape[1]}")
     if not isfinite(x0.sum()):  # finite where every entry is (they are within 1e6 of 0)
-        raise ValueError("start states x0 must be finite")
+        raise BadInput("start states x0 must be finite")
     pieces = durations.shape[0] if durations.ndim == 1 else -1
     if pieces < 1 or not durations.min() > 0:
-        raise ValueError(f"durations must be a vector of piece lengths > 0 [s], got {durations.tolist()}")
+        raise BadInput(f"durations must be a vector of piece lengths > 0 [s], got {durations.tolist()}")
     if steps.shape != (pieces,) or steps.min() < 1:  # the recorded rows are counted from them
-        raise ValueError(f"steps must give each of the {pieces} pieces at least 1 step, got {steps.tolist()}")
+        raise BadInput(f"steps must give each of the {pieces} pieces at least 1 step, got {steps.tolist()}")
     for name, v in (("v1", v1), ("v2", v2)):
         if v.ndim != 3 or v.shape[:2] != (batch, pieces) or v.shape[2] < 1:
-            raise ValueError(
+            raise BadInput(
                 f"{name} must be polynomials (B, pieces, D) = ({batch}, {pieces}, D >= 1) for {batch} trials "
                 f"of {pieces} pieces, got shape {v.shape}"
             )
@@ -119,4 +120,4 @@ def _layout(a: Any, dtype: Any, name: str) -> Any:
     try:
         return np.require(a, dtype, ["C", "W"])
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of numbers, got {type(a).__name__}") from None
+        raise BadInput(f"{name} must be an array of numbers, got {type(a).__name__}") from None

@@ -37,6 +37,7 @@ from numba import njit, prange
 
 from ilc_steering.core.plants import Kernel, KernelLayout
 from ilc_steering.core.stepper import LEFT_CHART, OK, STAGES, announce_compile, drive, lanes_rk, rk_step
+from ilc_steering.errors import BadInput
 
 __all__ = ["LANES", "block_kernel", "inside", "lane_block", "lane_kernel", "plain_step", "trial_kernel"]
 
@@ -194,9 +195,9 @@ def _compile(template: Any, kernel: str, module: str, pieces: dict[str, Any], **
     source = sys.modules.get(module)
     path = getattr(source, "__file__", None)
     if source is None or not path:
-        raise ValueError(f"a kernel's module must be an imported module with a source file, got {module!r}")
+        raise BadInput(f"a kernel's module must be an imported module with a source file, got {module!r}")
     if _OWNERS.get(f"{module}.{qualname}") is source:  # the same module again (not a re-import)
-        raise ValueError(f"{module} has two kernels named {kernel!r}: give each kernel its own name")
+        raise BadInput(f"{module} has two kernels named {kernel!r}: give each kernel its own name")
     _OWNERS[f"{module}.{qualname}"] = source
     namespace = {**template.__globals__, **pieces, "__name__": module}
     function = types.FunctionType(template.__code__.replace(co_filename=path, co_name=qualname), namespace, qualname)

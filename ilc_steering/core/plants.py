@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "CHART_MARGIN",
@@ -88,7 +89,7 @@ class KernelLayout:
     def row(self, **values: float) -> Array:
         """The parameter row of ``values`` (every name of :attr:`params`, no other)."""
         if set(values) != set(self.params):
-            raise ValueError(f"a parameter row needs {list(self.params)}, got {sorted(values)}")
+            raise BadInput(f"a parameter row needs {list(self.params)}, got {sorted(values)}")
         return np.array([float(values[name]) for name in self.params])
 
     def index(self, name: str) -> int:
@@ -262,7 +263,7 @@ class PlantBatch:
         kernels = [plant.kernel() for plant in plants]
         fields = {id(kernel) for kernel, _ in kernels}
         if len(fields) != 1:
-            raise ValueError(f"a batch of plants must be all of one kind; got {len(plants)} of {len(fields)} kinds")
+            raise BadInput(f"a batch of plants must be all of one kind; got {len(plants)} of {len(fields)} kinds")
         self.field = kernels[0][0]
         self.params = np.array([row for _, row in kernels])
         self.size = len(kernels)

@@ -20,6 +20,7 @@ from scipy.integrate import solve_ivp
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CarPlant, car_velocity, chained_inputs
+from ilc_steering.errors import BadInput
 
 __all__ = ["STEERING_COMMAND", "lab_car_trial", "reference_trial", "steering_entry", "trial"]
 
@@ -83,7 +84,7 @@ def steering_entry(plant: Plant, limit: float) -> int:
     if STEERING_COMMAND in state:
         return state.index(STEERING_COMMAND)
     if np.isfinite(limit):
-        raise ValueError(
+        raise BadInput(
             f"{type(plant).__name__}: a steering limit needs a state entry named {STEERING_COMMAND!r} in its "
             f"kernel's layout (the command the stop acts on), got {list(state)}"
         )

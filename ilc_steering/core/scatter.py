@@ -40,6 +40,8 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.errors import BadInput
+
 __all__ = [
     "CONVERGING",
     "FLOOR",
@@ -98,7 +100,7 @@ def estimate(residuals: Array, errors: Array, groups: Sequence[Sequence[int]]) -
     residuals = np.asarray(residuals, dtype=np.float64)
     errors = np.asarray(errors, dtype=np.float64)
     if residuals.ndim != 2 or residuals.shape[0] != errors.shape[0] or errors.ndim != 1:
-        raise ValueError(f"estimate: residuals (m, nq) and errors (m,) of one m, got {residuals.shape}, {errors.shape}")
+        raise BadInput(f"estimate: residuals (m, nq) and errors (m,) of one m, got {residuals.shape}, {errors.shape}")
     finite = np.isfinite(errors) & np.all(np.isfinite(residuals), axis=1)
     candidates = np.flatnonzero(finite)[-WINDOW:]
     if candidates.size < MIN_TRIALS:

@@ -13,6 +13,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.errors import BadInput
+
 __all__ = ["Trajectory"]
 
 Array = npt.NDArray[np.float64]
@@ -43,9 +45,9 @@ class Trajectory:
         try:
             t, q, u = (np.asarray(data[key], dtype=np.float64) for key in ("t", "q", "u"))
         except KeyError as error:
-            raise ValueError(f"a trajectory needs keys t, q and u; {error.args[0]!r} is missing") from None
+            raise BadInput(f"a trajectory needs keys t, q and u; {error.args[0]!r} is missing") from None
         if t.ndim != 1 or q.ndim != 2 or u.shape != (t.size, 2) or q.shape[0] != t.size:
-            raise ValueError(
+            raise BadInput(
                 f"trajectory shapes must be t (S,), q (S, nx), u (S, 2); got {t.shape}, {q.shape}, {u.shape}"
             )
         return cls(t, q, u, bool(data.get("left_chart", False)))

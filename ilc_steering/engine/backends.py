@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from ilc_steering.engine.killable import Failed, Finish, killable_map
-from ilc_steering.errors import ParameterError
+from ilc_steering.errors import BadInput, ParameterError
 
 __all__ = [
     "BACKENDS",
@@ -78,7 +78,7 @@ class CallTimeout(Exception):
 def check_workers(workers: int, option: str = "--workers") -> int:
     """``workers`` if it is a whole number in ``[0, MAX_WORKERS]`` (0: one per core); ``ValueError`` otherwise."""
     if isinstance(workers, bool) or not isinstance(workers, int) or not 0 <= workers <= MAX_WORKERS:
-        raise ValueError(
+        raise BadInput(
             f"{option}: a whole number in [0, {MAX_WORKERS}] (0: one per core; at most twice the "
             f"{os.cpu_count() or 1} cores), got {workers!r}"
         )
@@ -129,7 +129,7 @@ def run_calls(
     ``failed(key, message)`` and the rest run, locally in killable worker processes (see the
     module). An interrupt is always raised."""
     if backend not in BACKENDS:
-        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
+        raise BadInput(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
     check_workers(workers)
     if not calls:
         return
@@ -195,7 +195,7 @@ def _check_ray_address(address: str) -> None:
         return
     host, _, port = address.removeprefix("ray://").rpartition(":")
     if not host or not port.isdigit():
-        raise ValueError(f"RAY_ADDRESS {address!r}: give host:port (or ray://host:port), or unset it for a local Ray")
+        raise BadInput(f"RAY_ADDRESS {address!r}: give host:port (or ray://host:port), or unset it for a local Ray")
     deadline = time.monotonic() + RAY_CONNECT_TIMEOUT
     problem = None
     try:
@@ -214,24 +214,24 @@ def _check_ray_address(address: str) -> None:
     except TimeoutError:
         problem = f"it accepted the connection but sent nothing within {RAY_CONNECT_TIMEOUT:g} s"
     except OSError as error:
-        raise ValueError(
+        raise BadInput(
             f"RAY_ADDRESS {address}: no Ray cluster answers there within {RAY_CONNECT_TIMEOUT:g} s "
             f"({error.strerror or error}); start it, or unset RAY_ADDRESS for a local Ray"
         ) from None
     if problem is not None:
-        raise ValueError(f"RAY_ADDRESS {address}: {problem}; give a Ray cluster's address, or unset RAY_ADDRESS")
+        raise BadInput(f"RAY_ADDRESS {address}: {problem}; give a Ray cluster's address, or unset RAY_ADDRESS")
 
 
 def check_backend(backend: str) -> str:
     """``backend`` if cells can run there, checked before the first cell: ``local``, or ``ray`` with
     Ray installed and ``RAY_ADDRESS`` (if set) answering as a cluster; ``ValueError`` otherwise."""
     if backend not in BACKENDS:
-        raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
+        raise BadInput(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
     if backend == "ray":
         try:
             import ray  # noqa: F401
         except ImportError:
-            raise ValueError('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
+            raise BadInput('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
         _check_ray_address(os.environ.get("RAY_ADDRESS", ""))
     return backend
 
@@ -244,7 +244,7 @@ def _init_ray(ray: Any, address: str) -> None:
         try:
             ray.init(logging_level=logging.WARNING, log_to_driver=False)
         except ConnectionError as error:  # RAY_ADDRESS=auto and no cluster running
-            raise ValueError(
+            raise BadInput(
                 f"RAY_ADDRESS {address}: no running Ray cluster found ({' '.join(str(error).split())[:200]}); "
                 "start one (ray start --head) or unset RAY_ADDRESS for a local Ray"
             ) from None
@@ -257,7 +257,7 @@ def _init_ray(ray: Any, address: str) -> None:
             with _time_limit(RAY_CONNECT_TIMEOUT):
                 ray.init(logging_level=logging.WARNING, log_to_driver=False)
         except CallTimeout:
-            raise ValueError(
+            raise BadInput(
                 f"RAY_ADDRESS {address}: no Ray cluster answered there within {RAY_CONNECT_TIMEOUT:g} s; "
                 "start it, or unset RAY_ADDRESS for a local Ray"
             ) from None
@@ -276,7 +276,7 @@ def _ray_map(
     try:
         import ray
     except ImportError:
-        raise ValueError('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
+        raise BadInput('--backend ray needs Ray: pip install "ilc-steering[ray]"') from None
     if not ray.is_initialized():
         _init_ray(ray, os.environ.get("RAY_ADDRESS", ""))
 

@@ -30,6 +30,8 @@ from functools import cache, lru_cache
 from importlib import util
 from pathlib import Path
 
+from ilc_steering.errors import BadInput
+
 __all__ = ["PACKAGE", "checkout", "closure", "code_of", "root_of_entry"]
 
 PACKAGE = "ilc_steering"
@@ -57,7 +59,7 @@ def checkout() -> Path:
 def _package_folder(package: str) -> Path:
     spec = util.find_spec(package)
     if spec is None or not spec.submodule_search_locations:
-        raise ValueError(f"{package}: not an installed package")
+        raise BadInput(f"{package}: not an installed package")
     return Path(next(iter(spec.submodule_search_locations)))
 
 
@@ -160,11 +162,11 @@ def _resolve(root: str) -> tuple[str, Path, str | None]:
         if _ours(module):
             path = _module_file(module)
             if path is None:
-                raise ValueError(f"{root}: no module of {PACKAGE} of that name")
+                raise BadInput(f"{root}: no module of {PACKAGE} of that name")
             return _key(module, path), path, module
         spec = util.find_spec(module)  # a user's module (its folder on sys.path)
         if spec is None or not spec.origin or not spec.origin.endswith(".py"):
-            raise ValueError(f"{root}: no Python module of that name")
+            raise BadInput(f"{root}: no Python module of that name")
         return Path(spec.origin).name, Path(spec.origin), None
     head, _, rest = root.partition("/")
     if "." in head or head == PACKAGE:  # a package's data file
@@ -187,7 +189,7 @@ def closure(roots: Iterable[str]) -> dict[str, str]:
             continue
         seen.add(key)
         if not path.is_file():
-            raise ValueError(f"{key}: no such file ({path})")
+            raise BadInput(f"{key}: no such file ({path})")
         found[key] = _digest(path)
         if path.suffix != ".py":
             continue

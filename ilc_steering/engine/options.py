@@ -15,6 +15,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from ilc_steering.errors import BadInput
+
 __all__ = [
     "DEFAULT_CELL_TIMEOUT",
     "MAX_CELL_TIMEOUT",
@@ -92,5 +94,5 @@ def check_timeout(timeout: float | None, option: str = "--cell-timeout") -> floa
         return None
     number = isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
     if not (number and math.isfinite(timeout) and 0 < timeout <= MAX_CELL_TIMEOUT):
-        raise ValueError(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
+        raise BadInput(f"{option}: a time limit in (0, {MAX_CELL_TIMEOUT:g}] s (a week), got {timeout!r}")
     return float(timeout)

@@ -39,6 +39,7 @@ from typing import Any
 
 from ilc_steering import __version__
 from ilc_steering.engine.closure import closure, code_of
+from ilc_steering.errors import BadInput
 from ilc_steering.output import RECORD_KEYS
 
 __all__ = [
@@ -142,15 +143,15 @@ def read_run(folder: Path) -> tuple[dict[str, Any], RunRecord]:
     path = folder / "run.json"
     stored = read_json(path, 1 << 24)
     if not isinstance(stored, dict):
-        raise ValueError(f"{path}: not a run record (a JSON object)")
+        raise BadInput(f"{path}: not a run record (a JSON object)")
     parts = {key: stored[key] for key in RECORD_KEYS if key in stored}
     try:
         record: RunRecord = validate(RunRecord, parts)
     except ConfigError as error:
-        raise ValueError(f"{path}: {error}") from None
+        raise BadInput(f"{path}: {error}") from None
     for digest, made in record.codes.items():
         if code_of(made.files) != digest:
-            raise ValueError(
+            raise BadInput(
                 f"{path}: codes.{digest}: not the hash of its files ({code_of(made.files)}): the record contradicts "
                 "itself"
             )
@@ -321,10 +322,10 @@ def read_made(folder: Path) -> dict[str, MadeRecord]:
     try:
         records: dict[str, MadeRecord] = validate(dict[str, MadeRecord], read_json(path, 1 << 24))
     except ConfigError as error:
-        raise ValueError(f"{path}: {error}") from None
+        raise BadInput(f"{path}: {error}") from None
     for script, record in records.items():
         if code_of(record.files) != record.code:
-            raise ValueError(f"{path}: {script}.code: not the hash of its files: the record contradicts itself")
+            raise BadInput(f"{path}: {script}.code: not the hash of its files: the record contradicts itself")
     return records
 
 

@@ -35,6 +35,7 @@ from typing import Any, Generic, TypeVar
 from ilc_steering.engine.backends import run_calls
 from ilc_steering.engine.options import cell_bound
 from ilc_steering.engine.provenance import code, machine, provenance, record_codes
+from ilc_steering.errors import BadInput
 from ilc_steering.output import (
     MAX_RESULT_BYTES,
     RECORD_KEYS,
@@ -84,7 +85,7 @@ class RunFolder:
             check_output_file(self.out / name, "--out")
         results = self.out / self.results
         if results.exists() and not results.is_dir():
-            raise ValueError(f"{results}: exists and is not a folder; this is not a {self.command} run folder")
+            raise BadInput(f"{results}: exists and is not a folder; this is not a {self.command} run folder")
         written = [self.out / name for name in reports]
         resumed = check_run_settings(self.out, settings, results, configs, provenance(), written, self.command)
         results.mkdir(exist_ok=True)
@@ -97,10 +98,10 @@ class RunFolder:
             return
         stored = read_json(path, MAX_RESULT_BYTES)
         if not isinstance(stored, dict):
-            raise ValueError(f"{path}: not a run record (a JSON object); use another --out folder")
+            raise BadInput(f"{path}: not a run record (a JSON object); use another --out folder")
         stored = {k: v for k, v in stored.items() if k not in RECORD_KEYS}
         if stored != settings:
-            raise ValueError(f"{path} was written with other settings: {differences(stored, settings)}")
+            raise BadInput(f"{path} was written with other settings: {differences(stored, settings)}")
 
     @contextmanager
     def locked(self) -> Iterator[None]:
@@ -110,7 +111,7 @@ class RunFolder:
             try:
                 fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                raise ValueError(f"{self.out}: another {self.command} is running on this folder") from None
+                raise BadInput(f"{self.out}: another {self.command} is running on this folder") from None
             try:
                 yield
             finally:

@@ -41,6 +41,7 @@ from ilc_steering.engine.options import add_cell_options, check_cell_options
 from ilc_steering.engine.provenance import code, record_codes, record_report
 from ilc_steering.engine.runs import Cells, RunFolder, compute_cells, dry_run
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.errors import BadInput
 from ilc_steering.output import MAX_RESULT_BYTES, content_hash, output_folder, write_json
 from ilc_steering.readers import read_json
 from ilc_steering.sweep.report import write_sweep_report
@@ -127,10 +128,10 @@ def plan(args: SweepArgs) -> Plan:
 def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
     """Every option checked once, against the config loaded once; returns the axes' names."""
     if config.is_cyclic:
-        raise ValueError(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
+        raise BadInput(f"{args.config}: a cyclic config; sweep maps one-trial tasks")
     if is_external(config.plant.plant()):  # its plants cannot be varied: a map over it would be faked
         model = config.plant.model
-        raise ValueError(f"{args.config}: an external plant (plant.model {model}); sweep maps true factors")
+        raise BadInput(f"{args.config}: an external plant (plant.model {model}); sweep maps true factors")
     Scenario.from_config(config).refuse_disturbances("sweep")
     import gymnasium as gym
 
@@ -141,24 +142,24 @@ def _validate(args: SweepArgs, config: SteeringConfig) -> list[str]:
     env.close()
     for name, value, lo, hi in (("--grid", args.grid, 2, MAX_GRID), ("--trials", args.trials, 1, 100_000)):
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            raise ValueError(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")
+            raise BadInput(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")
     if not (np.isfinite(args.low) and np.isfinite(args.high) and 0 < args.low < args.high <= 100):
-        raise ValueError(f"--range must be two ratios 0 < low < high <= 100, got {args.low} {args.high}")
+        raise BadInput(f"--range must be two ratios 0 < low < high <= 100, got {args.low} {args.high}")
     for gain in args.nu_b:
         if not (np.isfinite(gain) and 0 < gain <= 2):
-            raise ValueError(f"--nu-b must be gains in (0, 2], got {gain}")
+            raise BadInput(f"--nu-b must be gains in (0, 2], got {gain}")
     for option, values in (("--methods", args.methods), ("--nu-b", args.nu_b)):
         repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
         if repeated:
-            raise ValueError(f"{option}: {repeated[0]} is given twice; each map is computed once")
+            raise BadInput(f"{option}: {repeated[0]} is given twice; each map is computed once")
     if not args.methods:
-        raise ValueError("--methods: give at least one")
+        raise BadInput("--methods: give at least one")
     mappable = [i for i in METHODS if REGISTRY[i].family != "RL"]
     for method in args.methods:
         if method in REGISTRY and REGISTRY[method].family == "RL":
-            raise ValueError(f"--methods {method}: RL trains a network per plant; sweep maps {tuple(mappable)}")
+            raise BadInput(f"--methods {method}: RL trains a network per plant; sweep maps {tuple(mappable)}")
         if method not in REGISTRY and not is_custom(method):
-            raise ValueError(f"--methods: unknown method {method!r}; choose from {mappable}")
+            raise BadInput(f"--methods: unknown method {method!r}; choose from {mappable}")
         if is_custom(method):
             lookup(method)  # imported now: a factory that cannot be imported is refused before any row
     if not args.axes:
@@ -183,21 +184,21 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
     """Two distinct numeric keys of the config's plant, each with a range, every plant of the grid
     valid and of the config's robot (one compiled call per kernel a row needs)."""
     if len(args.axes) != 2:
-        raise ValueError(f"--axis: give exactly two (KEY LOW HIGH each), got {len(args.axes)}")
+        raise BadInput(f"--axis: give exactly two (KEY LOW HIGH each), got {len(args.axes)}")
     keys = [key for key, _, _ in args.axes]
     if keys[0] == keys[1]:
-        raise ValueError(f"--axis: {keys[0]} is given twice; a map has two different axes")
+        raise BadInput(f"--axis: {keys[0]} is given twice; a map has two different axes")
     plant_config: Any = config.plant
     fields = _real_keys(type(plant_config))
     for key, low, high in args.axes:
         if key not in fields:
             known = key in {f.name for f in dataclass_fields(plant_config)}
             what = "takes no real number (a grid's values)" if known else "not a key of this plant"
-            raise ValueError(f"--axis {key}: {what}; choose from {sorted(fields)}")
+            raise BadInput(f"--axis {key}: {what}; choose from {sorted(fields)}")
         if not (np.isfinite(low) and np.isfinite(high) and low < high):
-            raise ValueError(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
+            raise BadInput(f"--axis {key}: a range LOW < HIGH of finite numbers, got {low} {high}")
     if (args.low, args.high) != (SweepArgs.low, SweepArgs.high):
-        raise ValueError("--range: the ratio axes' range; with --axis give each axis its own range (KEY LOW HIGH)")
+        raise BadInput("--range: the ratio axes' range; with --axis give each axis its own range (KEY LOW HIGH)")
     from ilc_steering.errors import ConfigError
 
     nominal = Scenario.from_config(config).nominal.solve()
@@ -208,7 +209,7 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
             except (ConfigError, ValueError, TypeError):
                 continue  # an invalid plant: named below, with the grid's
             if not np.array_equal(moved.solve(), nominal):
-                raise ValueError(
+                raise BadInput(
                     f"--axis {key}: a nominal parameter (the model the learner sees), not the true plant's; a map "
                     "varies the true plant: give a true_* key or an unmodeled one"
                 )
@@ -219,7 +220,7 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
             try:
                 replace(config, plant=replace(plant_config, **{k0: float(x), k1: float(y)}))
             except (ConfigError, ValueError, TypeError) as error:
-                raise ValueError(
+                raise BadInput(
                     f"--axis: the grid holds an invalid plant at {k0} = {x:g}, {k1} = {y:g}: {error}"
                 ) from None
 
@@ -228,9 +229,9 @@ def _check_axes(args: SweepArgs, config: SteeringConfig) -> None:
         try:
             plants = row_plants(args, config, row)
         except (ConfigError, ValueError, TypeError) as error:
-            raise ValueError(f"--axis: the grid holds an invalid plant: {error}") from None
+            raise BadInput(f"--axis: the grid holds an invalid plant: {error}") from None
         if any(plant.kind != kind for plant in plants):
-            raise ValueError(f"--axis: the grid holds plants of another kind than the config's {kind.name!r}")
+            raise BadInput(f"--axis: the grid holds plants of another kind than the config's {kind.name!r}")
 
 
 def run_rows(args: SweepArgs) -> dict[tuple[str, float], list[dict[str, Any]]]:
@@ -376,7 +377,7 @@ def from_namespace(ns: argparse.Namespace) -> SweepArgs:
         try:
             axes.append((key, float(low), float(high)))
         except ValueError:
-            raise ValueError(f"--axis {key}: LOW and HIGH must be numbers, got {low!r} {high!r}") from None
+            raise BadInput(f"--axis {key}: LOW and HIGH must be numbers, got {low!r} {high!r}") from None
     return SweepArgs(
         axes=tuple(axes),
         oracle=ns.oracle,

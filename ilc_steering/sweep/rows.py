@@ -24,6 +24,7 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import Plant
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.errors import BadInput
 from ilc_steering.loop import run_vector_trials
 from ilc_steering.oracle import SOLVED
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
@@ -257,16 +258,16 @@ def read_row(path: Path, key: dict[str, Any], size: int, trials: int) -> dict[st
     try:
         row: dict[str, Any] = read_json(path, MAX_RESULT_BYTES)
     except ValueError as error:
-        raise ValueError(f"not a sweep row: {error}; {hint}") from None
+        raise BadInput(f"not a sweep row: {error}; {hint}") from None
     check_record(RowRecord, row, path, hint)  # the types, the keys: each value below is of its type
     for name in ("trials_to", "error", "left_chart"):
         if len(row[name]) != size:
-            raise ValueError(
+            raise BadInput(
                 f"{path}: {name}: needs {size} values (a row of {size} plants), got {len(row[name])}; {hint}"
             )
     for name, value in key.items():
         if row.get(name) != value:
-            raise ValueError(f"{path}: holds {name} {row.get(name)!r}, not {value!r}; {hint}")
+            raise BadInput(f"{path}: holds {name} {row.get(name)!r}, not {value!r}; {hint}")
     problem = None
     if not all(0 <= t <= trials for t in row["trials_to"]):
         problem = f"trials_to holds a value outside the whole numbers 0 to the budget {trials}"
@@ -277,7 +278,7 @@ def read_row(path: Path, key: dict[str, Any], size: int, trials: int) -> dict[st
     elif not row["wall_s"] >= 0:
         problem = f"wall_s {row['wall_s']!r} is not a time >= 0 s"
     if problem:
-        raise ValueError(f"{path}: {problem}; {hint}")
+        raise BadInput(f"{path}: {problem}; {hint}")
     return row
 
 
@@ -291,12 +292,12 @@ def read_oracle(path: Path, key: dict[str, Any], size: int) -> dict[str, Any]:
     try:
         found = read_json(path, MAX_RESULT_BYTES)
     except ValueError as problem:
-        raise ValueError(f"not an oracle map: {problem}; {hint}") from None
+        raise BadInput(f"not an oracle map: {problem}; {hint}") from None
     if not isinstance(found, dict):
-        raise ValueError(f"{path}: not an oracle map (a JSON object); {hint}")
+        raise BadInput(f"{path}: not an oracle map (a JSON object); {hint}")
     for name, value in key.items():
         if found.get(name) != value:
-            raise ValueError(f"{path}: holds {name} {found.get(name)!r}, not {value!r}; {hint}")
+            raise BadInput(f"{path}: holds {name} {found.get(name)!r}, not {value!r}; {hint}")
     solvable: Any = found.get("solvable")
     errors: Any = found.get("error")
     shape_ok = all(
@@ -304,11 +305,11 @@ def read_oracle(path: Path, key: dict[str, Any], size: int) -> dict[str, Any]:
         for grid in (solvable, errors)
     )
     if not shape_ok:
-        raise ValueError(f"{path}: not a {size} x {size} oracle map; {hint}")
+        raise BadInput(f"{path}: not a {size} x {size} oracle map; {hint}")
     if not all(isinstance(v, bool) for r in solvable for v in r):
-        raise ValueError(f"{path}: solvable holds a value that is not true or false; {hint}")
+        raise BadInput(f"{path}: solvable holds a value that is not true or false; {hint}")
     if not all(v is None or (isinstance(v, (int, float)) and v >= 0) for r in errors for v in r):
-        raise ValueError(f"{path}: error holds a value that is not an error >= 0 or null; {hint}")
+        raise BadInput(f"{path}: error holds a value that is not an error >= 0 or null; {hint}")
     if any(s != (e is not None and e < SOLVED) for rs, re in zip(solvable, errors) for s, e in zip(rs, re)):
-        raise ValueError(f"{path}: solvable disagrees with error < {SOLVED:g}; {hint}")
+        raise BadInput(f"{path}: solvable disagrees with error < {SOLVED:g}; {hint}")
     return found

@@ -37,6 +37,7 @@ from importlib.metadata import entry_points
 from typing import Any
 
 from ilc_steering.entries import load_entry
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "ENTRY",
@@ -96,13 +97,13 @@ def register(name: str, entry: str) -> None:
     """Make robot ``name`` (its ``plant.model``) known: ``entry`` is ``"module:ConfigClass"``.
     Registering a name again with the same entry is a no-op; with another, an error."""
     if not isinstance(name, str) or not _NAME.fullmatch(name):
-        raise ValueError(
+        raise BadInput(
             f"a robot's name is 1-40 lower-case letters, digits or '_', starting with a letter; got {name!r}"
         )
     if not isinstance(entry, str) or not ENTRY.fullmatch(entry):
-        raise ValueError(f"a robot's entry is 'package.module:ConfigClass', got {entry!r}")
+        raise BadInput(f"a robot's entry is 'package.module:ConfigClass', got {entry!r}")
     if ROBOTS.get(name, entry) != entry:
-        raise ValueError(f"robot {name!r} is registered already, as {ROBOTS[name]!r}")
+        raise BadInput(f"robot {name!r} is registered already, as {ROBOTS[name]!r}")
     ROBOTS[name] = entry
 
 
@@ -177,7 +178,7 @@ def config_class(name: str, folders: tuple[str, ...] = ()) -> Any:
         return _from_entry(name, folders)
     _read_plugins()  # once per process; a plugin that conflicts is reported whatever is asked for
     if name not in ROBOTS:
-        raise ValueError(f"no robot is registered as {name!r}; registered: {names()}")
+        raise BadInput(f"no robot is registered as {name!r}; registered: {names()}")
     if name not in _LOADED:
         _LOADED[name] = _load(ROBOTS[name], f"robot {name!r} ({_source(name)})", name)
     return _LOADED[name]
@@ -214,26 +215,26 @@ def check_robot(cls: Any, who: str, name: str | None = None) -> None:
     if it runs its own trials, :data:`EXTERNAL_METHODS`)."""
     what = getattr(cls, "__qualname__", repr(cls)[:80])
     if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
-        raise ValueError(f"{who}: {what} is not a robot's config class (a frozen dataclass; docs/robots.md)")
+        raise BadInput(f"{who}: {what} is not a robot's config class (a frozen dataclass; docs/robots.md)")
     if not cls.__dataclass_params__.frozen:  # type: ignore[attr-defined]
-        raise ValueError(f"{who}: {what} must be a frozen dataclass (@dataclass(frozen=True))")
+        raise BadInput(f"{who}: {what} must be a frozen dataclass (@dataclass(frozen=True))")
     try:
         model = model_name(cls)
     except Exception as error:
-        raise ValueError(f"{who}: {what}: its type hints cannot be read ({type(error).__name__}: {error})") from None
+        raise BadInput(f"{who}: {what}: its type hints cannot be read ({type(error).__name__}: {error})") from None
     if not model or (name is not None and model != name):
         wanted = f'Literal["{name}"]' if name else 'Literal["<name>"]'
-        raise ValueError(f"{who}: {what} needs a field model: {wanted} (its registered name; docs/robots.md)")
+        raise BadInput(f"{who}: {what} needs a field model: {wanted} (its registered name; docs/robots.md)")
     for attribute in ("kind", "plant_class", "dimension", "steering_limit", *CONFIG_METHODS):
         if not hasattr(cls, attribute) and attribute not in {f.name for f in dataclasses.fields(cls)}:
-            raise ValueError(f"{who}: {what} has no {attribute!r} (the PlantConfig protocol, docs/robots.md)")
+            raise BadInput(f"{who}: {what} has no {attribute!r} (the PlantConfig protocol, docs/robots.md)")
     plant: Any = getattr(cls, "plant_class")  # noqa: B009  (a class that passed the checks above)
     external = callable(getattr(plant, "run_trials", None))
     protocol = "the ExternalPlant protocol" if external else "the Plant protocol"
     for attribute in EXTERNAL_METHODS if external else PLANT_METHODS:
         if not callable(getattr(plant, attribute, None)):
             where = getattr(plant, "__qualname__", repr(plant)[:80])
-            raise ValueError(f"{who}: its plant class {where} has no method {attribute!r} ({protocol})")
+            raise BadInput(f"{who}: its plant class {where} has no method {attribute!r} ({protocol})")
 
 
 def nominal_plant(chained_map: Any, dimension: int, steering_limit: float | None = None) -> Any:

@@ -1,25 +1,16 @@
-r"""The car-like robot (eq. 3) and its chained form (eqs. 4-5).
+r"""The car-like robot (eq. 3) as a plant: its true geometry and perturbations, its config keys.
 
 Configuration ``q = (x, y, theta, phi)``: rear-axle midpoint [m], body orientation [rad] and
 steering angle [rad]. Inputs: ``u1`` the driving-wheel angular velocity [rad/s], ``u2`` the
-steering rate [rad/s]. The change of coordinates :math:`z = \alpha(q)`,
+steering rate [rad/s]. The car's kinematics, eq. 3, the chained form of eq. 4 and the input
+transformation of eq. 5, are :mod:`ilc_steering.core.robots.car_model` (re-exported here): the
+controller uses them with the *nominal* geometry, the plant (:class:`CarPlant`, ``plant.model:
+car``) moves with the true one.
 
-.. math::
-
-    z_1 = x, \quad z_2 = \frac{\tan\phi}{\ell \cos^3\theta}, \quad z_3 = \tan\theta, \quad z_4 = y,
-
-and the input transformation :math:`u = \beta(q) v` (eqs. 4-5) put the car in the chained form of
-eq. 1 when they use the car's true wheelbase ``ell`` and wheel radius ``rho``. The controller
-only knows *nominal* values; the plant (:class:`CarPlant`, ``plant.model: car``) uses the true ones.
-
-The maths, the plant, its config keys and its drawing are plain numpy, so a learner that needs
-the map pays for no compiler; the car's compiled fields are in
-:mod:`ilc_steering.core.robots.car_fields` (the car with servos), :mod:`ilc_steering.core.robots.car_lab`
-(the lab robot) and :mod:`ilc_steering.core.tangent` (the batched kernel), imported when a car is first simulated.
-
-The map is defined for ``|theta| < pi/2`` and ``|phi| < pi/2``. A task whose orientations do not
-fit is handled by rotating the x-y frame (the remark at the end of section 4): see
-:func:`frame_angle`.
+The plant, its config keys and its drawing are plain numpy, so a learner that needs the map pays
+for no compiler; the car's compiled fields are in :mod:`ilc_steering.core.robots.car_fields` (the
+car with servos), :mod:`ilc_steering.core.robots.car_lab` (the lab robot) and
+:mod:`ilc_steering.core.tangent` (the batched kernel), imported when a car is first simulated.
 """
 
 from __future__ import annotations
@@ -32,7 +23,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.core.checks import check_factors, renamed, require, require_length
+from ilc_steering.core.checks import check_factors, renamed, require
 from ilc_steering.core.plants import (
     CHART_MARGIN,
     FactorFamily,
@@ -43,8 +34,10 @@ from ilc_steering.core.plants import (
     check_magnitude,
     check_steering_limit,
 )
+from ilc_steering.core.robots.car_model import CarModel, car_velocity, chained_inputs
 from ilc_steering.core.robots.chart import check_chart, frame_angle, rotate
 from ilc_steering.core.robots.outline import car_outline
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "CAR",
@@ -66,27 +59,6 @@ __all__ = [
 Array = npt.NDArray[np.float64]
 
 
-def car_velocity(
-    theta: Any, phi: Any, u1: Any, u2: Any, wheelbase: float, wheel_radius: float
-) -> tuple[Any, Any, Any, Any]:
-    """Eq. (3): ``(dx, dy, dtheta, dphi)`` of a rear-wheel-drive car [m/s, m/s, rad/s, rad/s].
-
-    ``theta``, ``phi`` [rad], ``u1`` [rad/s] and ``u2`` [rad/s] are scalars or arrays of one shape.
-    """
-    speed = wheel_radius * u1
-    return np.cos(theta) * speed, np.sin(theta) * speed, np.tan(phi) * speed / wheelbase, u2
-
-
-def chained_inputs(theta: Any, phi: Any, v1: Any, v2: Any, wheelbase: float, wheel_radius: float) -> tuple[Any, Any]:
-    """Eqs. (4)-(5): the car inputs ``(u1, u2)`` [rad/s] that realise chained inputs ``(v1, v2)`` at ``q``."""
-    c = np.cos(theta)
-    s_phi = np.sin(phi)
-    c_phi = np.cos(phi)
-    u1 = v1 / (wheel_radius * c)
-    u2 = -3.0 / wheelbase * np.sin(theta) / c**2 * s_phi**2 * v1 + wheelbase * c**3 * c_phi**2 * v2
-    return u1, u2
-
-
 CAR = PlantKind("car", True, ("x [m]", "y [m]", "θ [rad]", "φ [rad]"), ("u1 [rad/s]", "u2 [rad/s]"))
 MAX_BACKLASH = 0.2
 """[rad] the largest ``steering_backlash`` of a car plant."""
@@ -96,58 +68,6 @@ MAX_STEERING_OFFSET = 0.5
 """[rad] the largest ``|steering_offset|`` of a car plant."""
 MAX_LAG = 10.0
 """[s] the largest servo time constant of a car plant."""
-
-
-@dataclass(frozen=True)
-class CarModel:
-    """A car-like robot's geometry: ``wheelbase`` ``ell`` [m] and ``wheel_radius`` ``rho`` [m]."""
-
-    wheelbase: float
-    wheel_radius: float
-    robot: ClassVar[str] = "car"
-    has_pose: ClassVar[bool] = True
-
-    def __post_init__(self) -> None:
-        for name in ("wheelbase", "wheel_radius"):
-            require_length(name, getattr(self, name))
-
-    def to_chained(self, q: Array) -> Array:
-        """The change of coordinates ``z = alpha(q)`` of section 2.1, for ``q`` of shape ``(..., 4)``."""
-        q = np.asarray(q, dtype=np.float64)
-        check_chart(q)
-        z = np.empty(q.shape)
-        z[..., 0] = q[..., 0]
-        z[..., 1] = np.tan(q[..., 3]) / (self.wheelbase * np.cos(q[..., 2]) ** 3)
-        z[..., 2] = np.tan(q[..., 2])
-        z[..., 3] = q[..., 1]
-        return z
-
-    def from_chained(self, z: Array) -> Array:
-        """The inverse map ``q = alpha^{-1}(z)``, for ``z`` of shape ``(..., 4)``."""
-        z = np.asarray(z, dtype=np.float64)
-        z1, z2, z3, z4 = np.moveaxis(z, -1, 0)
-        theta = np.arctan(z3)
-        phi = np.arctan(z2 * self.wheelbase * np.cos(theta) ** 3)
-        return np.stack([z1, z4, theta, phi], axis=-1)
-
-    def inputs(self, q: Array, v1: Array | float, v2: Array | float) -> tuple[Array, Array]:
-        """``u = beta(q) v`` (eqs. 4-5): wheel speed ``u1`` [rad/s] and steering rate ``u2`` [rad/s]."""
-        q = np.asarray(q, dtype=np.float64)
-        u1, u2 = chained_inputs(q[..., 2], q[..., 3], np.asarray(v1), np.asarray(v2), self.wheelbase, self.wheel_radius)
-        return np.asarray(u1), np.asarray(u2)
-
-    def outline(self, q: Array) -> list[tuple[Array, bool]]:
-        """The bicycle model of Fig. 1 [m]: the body, the rear wheel at ``(x, y)`` and the front wheel
-        one wheelbase ahead, turned by ``phi`` (the wheels drawn thick); for configurations
-        ``(..., 4)``, polylines ``(..., k, 2)``."""
-        body, rear, front = car_outline(q, self.wheelbase)
-        return [(body, False), (rear, True), (front, True)]
-
-    def curvature_cost(self, q: Array, dt: Array) -> Array:
-        """``int kappa^2 ds`` [1/m] of the rear axle's path, ``kappa = tan(phi) / ell`` at each step's middle."""
-        ds = np.linalg.norm(np.diff(q[..., :2], axis=1), axis=-1)
-        kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / self.wheelbase
-        return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -315,7 +235,7 @@ class CarPlant(FactorFamily):
         servo integrating ``u2``. Not for the lab robot, whose events need
         :func:`ilc_steering.core.reference.lab_car_trial`."""
         if self.lab:
-            raise ValueError("the lab robot's reference is ilc_steering.core.reference.lab_car_trial (its events)")
+            raise NotImplementedError("the lab robot's reference is core.reference.lab_car_trial (its events)")
         limit = np.inf if self.steering_limit is None else self.steering_limit
         nominal, true = self.nominal, self.true
         offset, steering_lag, speed_lag, servo = self.steering_offset, self.steering_lag, self.speed_lag, self.servo
@@ -394,7 +314,7 @@ class CarPlantConfig:
                 "which would not resolve it; lower max_step or set the lag to 0",
             )
         if cyclic and (self.steering_backlash or self.encoder_pulses):  # a rule of two keys: named by both
-            raise ValueError(
+            raise BadInput(
                 "steering_backlash and encoder_pulses are for one-trial tasks (a cycle would carry the "
                 "dead-reckoned estimate from trial to trial)"
             )

@@ -81,6 +81,7 @@ from ilc_steering.core.plants import (
 from ilc_steering.core.robots.car import CarModel
 from ilc_steering.core.robots.car_trailer_fields import KERNEL, LANES_KERNEL, LAYOUT, trailer_inputs, trailer_velocity
 from ilc_steering.core.robots.outline import WHEEL_HALF_LENGTH, box, direction, segment
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "CAR_TRAILER",
@@ -103,13 +104,13 @@ def check_trailer_chart(q: Array) -> None:
     angle ``|delta|`` at or past ``pi/2`` (the last is the jackknife)."""
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1] != 5:
-        raise ValueError(f"a car-trailer configuration is (x1, y1, theta1, phi, delta); got shape {q.shape}")
+        raise BadInput(f"a car-trailer configuration is (x1, y1, theta1, phi, delta); got shape {q.shape}")
     if not np.all(np.isfinite(q)):
-        raise ValueError(f"configuration must be finite, got {q.tolist()}")
+        raise BadInput(f"configuration must be finite, got {q.tolist()}")
     for index, name, needs in _CHART:
         angle = np.asarray(q[..., index])
         if np.any(np.abs(angle) >= pi / 2):
-            raise ValueError(f"{name} = {angle.tolist()} rad: {needs}")
+            raise BadInput(f"{name} = {angle.tolist()} rad: {needs}")
 
 
 _CHART = (

@@ -10,6 +10,8 @@ from math import pi
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.errors import BadInput
+
 __all__ = ["check_chart", "frame_angle", "rotate"]
 
 Array = npt.NDArray[np.float64]
@@ -19,19 +21,19 @@ def check_chart(q: Array) -> None:
     """Raise ``ValueError`` where the chained-form map of eq. 4 is undefined (``|theta|`` or ``|phi| >= pi/2``)."""
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1] != 4:
-        raise ValueError(f"a car configuration is (x, y, theta, phi); got shape {q.shape}")
+        raise BadInput(f"a car configuration is (x, y, theta, phi); got shape {q.shape}")
     if q.size and float(np.abs(q[..., 2:]).max()) < pi / 2 and np.isfinite(q[..., :2]).all():
         return  # the common case, in one pass; the checks below say what is wrong
     if not np.all(np.isfinite(q)):
-        raise ValueError(f"configuration must be finite, got {q.tolist()}")
+        raise BadInput(f"configuration must be finite, got {q.tolist()}")
     theta, phi = q[..., 2], q[..., 3]
     if np.any(np.abs(theta) >= pi / 2):
-        raise ValueError(
+        raise BadInput(
             f"theta = {np.asarray(theta).tolist()} rad: the chained form needs |theta| < pi/2 "
             "in the task frame (z3 = tan(theta)); rotate the frame with frame_angle()"
         )
     if np.any(np.abs(phi) >= pi / 2):
-        raise ValueError(f"phi = {np.asarray(phi).tolist()} rad: the chained form needs |phi| < pi/2")
+        raise BadInput(f"phi = {np.asarray(phi).tolist()} rad: the chained form needs |phi| < pi/2")
 
 
 def frame_angle(*thetas: float) -> float:
@@ -44,7 +46,7 @@ def frame_angle(*thetas: float) -> float:
     low, high = min(thetas), max(thetas)
     if high - low >= pi:
         middle = 0.5 * (low + high)
-        raise ValueError(
+        raise BadInput(
             f"orientations {low:.6g} and {high:.6g} rad are pi or more apart: no frame puts both in the "
             f"chained-form chart. Split the task at an intermediate configuration with theta = {middle:.6g} rad "
             "(section 4), or write one orientation 2*pi apart if the same heading by the shorter turn is meant."

@@ -44,6 +44,7 @@ from ilc_steering.core.robots.process_limits import ProcessLimits, check_path, s
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.entries import CONFIG_FOLDERS
+from ilc_steering.errors import BadInput
 
 __all__ = ["PROTOCOL", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message", "sample"]
 
@@ -60,7 +61,7 @@ RESULT_KEYS = frozenset({"type", "trial", "final", "trajectory", "log", "left_ch
 def profile_message(profile: InputProfile) -> dict[str, Any]:
     """The ``profile`` of a trial request: eqs. 15-17's pieces, fixed ``v1``, ``q``, and section 5's shape."""
     if not isinstance(profile, PiecewiseProfile):
-        raise ValueError(f"a process plant sends eqs. 15-17's profiles, got {type(profile).__name__}")
+        raise BadInput(f"a process plant sends eqs. 15-17's profiles, got {type(profile).__name__}")
     trapezoid = isinstance(profile, TrapezoidProfile)
     return {
         "pieces": list(profile.durations),

@@ -56,6 +56,7 @@ from ilc_steering.core.plants import (
 )
 from ilc_steering.core.robots.outline import direction, segment
 from ilc_steering.core.stepper import CHART_LIMIT
+from ilc_steering.errors import BadInput
 
 __all__ = [
     "KERNEL",
@@ -79,11 +80,11 @@ def check_unicycle_chart(q: Array) -> None:
     """``ValueError`` where the chained-form map is undefined (``|theta| >= pi/2``)."""
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1] != 3:
-        raise ValueError(f"a unicycle configuration is (x, y, theta); got shape {q.shape}")
+        raise BadInput(f"a unicycle configuration is (x, y, theta); got shape {q.shape}")
     if not np.all(np.isfinite(q)):
-        raise ValueError(f"configuration must be finite, got {q.tolist()}")
+        raise BadInput(f"configuration must be finite, got {q.tolist()}")
     if np.any(np.abs(q[..., 2]) >= pi / 2):
-        raise ValueError(
+        raise BadInput(
             f"theta = {np.asarray(q[..., 2]).tolist()} rad: the chained form needs |theta| < pi/2 "
             "in the task frame (z2 = tan(theta)); rotate the frame"
         )
