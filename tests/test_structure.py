@@ -384,3 +384,17 @@ def test_no_room_over_400_lines():
     assert len(sizes) > 100
     over = {name: lines for name, lines in sizes.items() if lines > MAX_LINES}
     assert not over, f"over {MAX_LINES} lines: {over}"
+
+
+def test_the_layout_page_states_the_floors_this_test_enforces():
+    """docs/layout.md's table of floors names, floor by floor, exactly the modules of FLOORS."""
+    text = (ROOT / "docs" / "layout.md").read_text()
+    start = text.index("| floor | modules | what it holds |")
+    rows = [line for line in text[start:].splitlines()[2:] if line.startswith("|")]
+    stated = {}
+    for row in rows[: len(FLOORS)]:
+        name, modules = (cell.strip() for cell in row.strip("|").split("|")[:2])
+        names = re.findall(r"`([a-z_/]+)`", re.sub(r"\([^)]*\)", "", modules))
+        stated[name] = sorted("ilc_steering." + n.rstrip("/").removesuffix(".py").replace("/", ".") for n in names)
+    enforced = {name: sorted(prefixes) for name, prefixes in FLOORS}
+    assert stated == enforced
