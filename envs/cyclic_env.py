@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -12,11 +12,12 @@ import numpy.typing as npt
 from gymnasium.wrappers import TimeLimit
 
 from ilc_steering.boxes import action_box
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.envs.frames import Scene, draw_scene
+from ilc_steering.envs.base import Kind, SteeringEnv, check_action
+from ilc_steering.envs.frames import Scene, TrialView
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.envs.steering_env import TrialView, check_action, check_flag, check_render_mode, reward, trial_info
+from ilc_steering.envs.trials import reward, trial_info
 from ilc_steering.errors import BadInput
 
 __all__ = ["CyclicSteeringEnv", "check_cycles", "make_cyclic_env"]
@@ -24,7 +25,7 @@ __all__ = ["CyclicSteeringEnv", "check_cycles", "make_cyclic_env"]
 Array = npt.NDArray[np.float64]
 
 
-class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
+class CyclicSteeringEnv(SteeringEnv):
     r"""Drive a robot around a repeating cycle of waypoints, one segment per step, never resetting it.
 
     ## Description
@@ -112,7 +113,7 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
     (4, 2, 2)
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    kind: ClassVar[Kind] = "cyclic"
 
     def __init__(
         self,
@@ -121,19 +122,13 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         record_trajectory: bool = False,
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
-        self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
-        self.config = load_config(config)
-        if not self.config.is_cyclic:
-            raise BadInput(
-                f"{self.config.name}: CyclicSteeringEnv needs task.waypoints; use ChainedSteering-v0 for start/goal"
-            )
+        self.open(config, render_mode, record_trajectory)
         self._scenario = Scenario.from_config(self.config, measurement_noise)
         self._scenario.refuse_disturbances("the cyclic env")
         models = self._scenario.nominals
         size = models[0].profile.num_coefficients  # the same for every segment (checked by the config)
         box = action_box(self._scenario.action_high)
-        self.action_space = box  # type: ignore[assignment]  # Box is Gymnasium's Space of arrays
+        self.action_space = box
         self._high = box.high
         self.num_segments = len(models)
         n = models[0].dimension
@@ -198,14 +193,6 @@ class CyclicSteeringEnv(gym.Env[Array, npt.NDArray[np.float32]]):
         self._segment = (leg + 1) % self.num_segments
         self._cycle += self._segment == 0
         return self._observation(info["z_final"]), float(reward(info)), False, False, info
-
-    def render(self) -> npt.NDArray[np.uint8] | None:
-        """An RGB frame ``(480, 480, 3)``: the waypoint cars (home, q1, ...), the paths of
-        the last ``r`` segments (one cycle) and the car along the last of them at eight instants."""
-        if self.render_mode is None:
-            gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
-            return None
-        return draw_scene(self.scene())
 
     def scene(self) -> Scene:
         """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene` (to draw it otherwise)."""

@@ -13,12 +13,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ilc_steering.boxes import action_box
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig
 from ilc_steering.core.nominal import NominalModel
+from ilc_steering.envs.base import check_action, check_flag, check_render_mode, open_config
 from ilc_steering.envs.cyclic_env import check_cycles
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.envs.steering_env import check_action, check_flag, check_render_mode, reward, trial_infos
 from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, check_num_envs, draw_noise, seed_streams
+from ilc_steering.envs.trials import reward, trial_infos
 from ilc_steering.errors import BadInput
 
 __all__ = ["CyclicSteeringVectorEnv"]
@@ -80,11 +81,7 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         self._streams: list[np.random.Generator] | None = None
         check_cycles(cycles)
         self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.config = load_config(config)
-        if not self.config.is_cyclic:
-            raise BadInput(
-                f"{self.config.name}: the cyclic vector env needs task.waypoints; use ChainedSteering-v0 for start/goal"
-            )
+        self.config = open_config(config, "cyclic", "the cyclic vector env")
         self._scenario = Scenario.from_config(self.config, measurement_noise)
         self._scenario.refuse_disturbances("the cyclic vector env")
         models = self._scenario.nominals

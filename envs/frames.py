@@ -12,15 +12,20 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.nominal import ChainedMap
+from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.raster import RGB, Layer, Pen, Raster, WorldToPixels
 from ilc_steering.envs.rendering import plane, robot_outline, snapshot_indices
 
-__all__ = ["GOAL", "HEIGHT", "PATH", "SNAPSHOTS", "START", "WIDTH", "Scene", "draw_scene", "view"]
+if TYPE_CHECKING:
+    from ilc_steering.envs.scenario import Scenario
+
+__all__ = ["GOAL", "HEIGHT", "PATH", "SNAPSHOTS", "START", "WIDTH", "Scene", "TrialView", "draw_scene", "view"]
 
 Array = npt.NDArray[np.float64]
 
@@ -170,3 +175,44 @@ def _ticks(to_pixels: WorldToPixels, axis: int) -> Ticks:
     pixels = np.floor(to_pixels(points)[:, axis]).astype(int)
     labels = [f"{v:.{decimals}f}" for v in values]
     return [(text[1:] if text.startswith("-") and float(text) == 0 else text, p) for text, p in zip(labels, pixels)]
+
+
+class TrialView:
+    """What the envs draw: the waypoints (world frame; ``robot`` the nominal map the robot is
+    drawn with, ``None`` for a chained plant, drawn as a point) and the paths of the last trials, with a title line of
+    the last trial's errors (Cartesian and orientation where the robot has a pose), as a
+    :class:`~ilc_steering.envs.frames.Scene`."""
+
+    def __init__(self, waypoints: Array, robot: ChainedMap, names: list[str], has_pose: bool) -> None:
+        self._waypoints = waypoints
+        self._robot = robot
+        self._names = names
+        self._has_pose = has_pose
+        self._paths: list[Array] = []
+        self._errors = ""
+        self.count = 0
+
+    @classmethod
+    def of(cls, scenario: Scenario, names: list[str]) -> TrialView:
+        """The view of a scenario's waypoints, the robot drawn with its nominal geometry."""
+        return cls(scenario.waypoints, scenario.nominal.chained_map, names, scenario.kind.has_pose)
+
+    def clear(self) -> None:
+        """Forget the trials."""
+        self._paths, self._errors, self.count = [], "", 0
+
+    def add(self, trajectory: Trajectory, info: dict[str, Any], keep: int) -> None:
+        """Remember a trial's path (the last ``keep`` of them are drawn) and its errors."""
+        self._paths = [*self._paths, trajectory.q][-keep:]
+        self.count += 1
+        if self._has_pose:
+            self._errors = f"error {info['cartesian_error']:.2e} m, {info['orientation_error']:.2e} rad"
+        else:
+            self._errors = f"error {info['error_norm']:.2e}"
+        if info["left_chart"]:
+            self._errors += ", left the chart"
+
+    def scene(self, label: str) -> Scene:
+        """What the frame shows, titled ``label`` and the last trial's errors."""
+        title = label + (f"\n{self._errors}" if self.count else "")
+        return Scene(self._waypoints, self._robot, self._names, self._paths, title)

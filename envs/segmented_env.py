@@ -29,13 +29,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig
 from ilc_steering.core.external import ExternalTrials, is_external
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
@@ -43,19 +43,11 @@ from ilc_steering.core.plants import CHART_MARGIN
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.score import TRUE_KEYS
 from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.envs.frames import Scene, draw_scene
+from ilc_steering.envs.base import Kind, SteeringEnv, check_action
+from ilc_steering.envs.frames import Scene, TrialView
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.segment_views import Carried, SegmentTask, SegmentView
-from ilc_steering.envs.steering_env import (
-    TrialView,
-    action_names,
-    check_action,
-    check_flag,
-    check_render_mode,
-    reward,
-    task_spaces,
-    trial_info,
-)
+from ilc_steering.envs.trials import action_names, reward, task_spaces, trial_info
 from ilc_steering.errors import BadInput
 
 __all__ = ["Carried", "SegmentTask", "SegmentView", "SegmentedSteeringEnv"]
@@ -108,7 +100,7 @@ def _joined(trajectories: Sequence[Trajectory]) -> Trajectory:
     return Trajectory(np.concatenate(t), np.concatenate(q), np.concatenate(u), any(x.left_chart for x in trajectories))
 
 
-class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
+class SegmentedSteeringEnv(SteeringEnv):
     r"""Steer a robot through a manoeuvre of several segments in one trial (see the module's design).
 
     ## Description
@@ -186,7 +178,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
     (2, True, True)
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    kind: ClassVar[Kind] = "segmented"
 
     def __init__(
         self,
@@ -195,14 +187,7 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
         record_trajectory: bool = False,
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
-        self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
-        self.config = load_config(config)
-        if not self.config.is_segmented:
-            raise BadInput(
-                f"{self.config.name}: SegmentedSteeringEnv needs task.segments beside task.start; "
-                "use ilc_steering/ChainedSteering-v0 for one segment"
-            )
+        self.open(config, render_mode, record_trajectory)
         plant = self.config.plant.plant()  # one car for every segment
         if is_external(plant) and not isinstance(plant, Carried):
             raise BadInput(
@@ -367,13 +352,6 @@ class SegmentedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float
                 "segments_driven": sum(bool(log["actions"]) for log in logs),
             }
         return info
-
-    def render(self) -> npt.NDArray[np.uint8] | None:
-        """An RGB frame ``(480, 480, 3)``: the waypoints and the last trial's segments."""
-        if self.render_mode is None:
-            gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
-            return None
-        return draw_scene(self.scene())
 
     def scene(self) -> Scene:
         """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene`."""

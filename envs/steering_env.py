@@ -2,120 +2,26 @@
 
 from __future__ import annotations
 
-import reprlib
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from ilc_steering.boxes import action_box
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig
 from ilc_steering.core.external import ExternalTrials
-from ilc_steering.core.nominal import ChainedMap, NominalModel
-from ilc_steering.core.score import TRUE_KEYS, trial_cost
-from ilc_steering.core.trajectory import Trajectory
-from ilc_steering.envs.frames import Scene, draw_scene
+from ilc_steering.core.nominal import NominalModel
+from ilc_steering.envs.base import Kind, SteeringEnv, check_action
+from ilc_steering.envs.frames import Scene, TrialView
 from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.trials import action_names, reward, task_spaces, trial_info
 from ilc_steering.errors import BadInput
 
-__all__ = [
-    "ChainedSteeringEnv",
-    "TrialView",
-    "action_names",
-    "check_action",
-    "check_flag",
-    "check_render_mode",
-    "reward",
-    "task_spaces",
-    "trial_info",
-    "trial_infos",
-]
-
-Array = npt.NDArray[np.float64]
+__all__ = ["ChainedSteeringEnv"]
 
 
-def check_action(action: Any, shape: tuple[int, ...], names: str, what: str = "action") -> Array:
-    """``action`` as float64 of exactly ``shape``, or ``ValueError`` saying what is wrong: it must be
-    real numbers (integers or floats; not complex, text, dates, booleans or a masked array),
-    finite and within the float64 range."""
-    if isinstance(action, np.ma.MaskedArray):
-        raise BadInput(f"{what} must be a plain array of {names}, not a masked array")
-    try:
-        raw = np.asarray(action)
-    except (TypeError, ValueError) as error:
-        raise BadInput(f"{what} must be numeric {names}: {error}") from None
-    if raw.dtype.kind == "O":
-        try:
-            raw = np.asarray(action, dtype=np.float64)
-        except OverflowError:
-            raise BadInput(f"{what} has a value beyond the float64 range") from None
-        except (TypeError, ValueError):
-            raise BadInput(f"{what} must be numeric {names}, got {reprlib.repr(action)}") from None
-    if raw.dtype.kind not in "iuf":
-        raise BadInput(f"{what} must be numeric {names} (real integers or floats), got dtype {raw.dtype}")
-    c = np.asarray(raw, dtype=np.float64)
-    if c.shape != shape:
-        raise BadInput(f"{what} must have shape {shape} = {names}, got shape {c.shape}")
-    finite = np.isfinite(c)
-    if not np.all(finite):
-        if c.ndim == 1:
-            raise BadInput(f"{what} must be finite, got {c.tolist()}")
-        rows = np.flatnonzero(~finite.all(axis=-1))
-        raise BadInput(f"{what} must be finite; rows {rows[:10].tolist()} are not ({rows.size} in all)")
-    return c
-
-
-def check_flag(value: Any, name: str, none: bool = False) -> Any:
-    """``value`` if it is ``True`` or ``False`` (or ``None``, with ``none``): a string such as ``"no"``
-    would read as true."""
-    if not (isinstance(value, (bool, np.bool_)) or (none and value is None)):
-        allowed = "True, False or None" if none else "True or False"
-        raise BadInput(f"{name} must be {allowed}, got {value!r:.80}")
-    return None if value is None else bool(value)
-
-
-def check_render_mode(render_mode: str | None, metadata: dict[str, Any]) -> str | None:
-    if render_mode is not None and render_mode not in metadata["render_modes"]:
-        raise BadInput(f"render_mode must be one of {metadata['render_modes']} or None, got {render_mode!r}")
-    return render_mode
-
-
-def trial_infos(measured: dict[str, Array], applied: Array, requested: Array) -> dict[str, Array]:
-    """The per-trial ``info`` of a batch (arrays with a leading batch axis), from
-    ``Scenario.measure`` and the actions as applied (clipped) and as requested."""
-    return {**measured, "action": applied, "clipped": np.any(applied != requested, axis=-1)}
-
-
-def trial_info(measured: dict[str, Array], applied: Array, requested: Array) -> dict[str, Any]:
-    """The ``info`` of one trial from a batch-of-one measurement, with Python scalars."""
-    info: dict[str, Any] = {k: v[0] for k, v in trial_infos(measured, applied[None], requested[None]).items()}
-    for key in ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS):
-        if key in info:
-            info[key] = float(info[key])
-    for key in ("left_chart", "clipped"):
-        info[key] = bool(info[key])
-    return info
-
-
-def task_spaces(scenario: Scenario) -> tuple[gym.spaces.Box, gym.spaces.Box, npt.NDArray[np.float32]]:
-    """The action space, observation space and (constant) observation of a one-trial task."""
-    model = scenario.nominal
-    observation = np.concatenate([model.z_start, model.z_goal]).astype(np.float32)
-    limit = np.float32(10.0 * (np.abs(observation).max() + 1.0))
-    observation_space = gym.spaces.Box(-limit, limit, shape=observation.shape, dtype=np.float32)
-    return action_box(scenario.action_high), observation_space, observation
-
-
-def action_names(model: NominalModel) -> str:
-    """``"(c11, c21..c2q)"``, for error messages."""
-    q = model.profile.v2_terms
-    return f"(c11, c21..c2{q})" if q > 1 else "(c11, c21)"
-
-
-class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
+class ChainedSteeringEnv(SteeringEnv):
     r"""Steer a nonholonomic robot to a goal in one trial of fixed duration ``T``.
 
     ## Description
@@ -240,7 +146,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
     (True, False, True)
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    kind: ClassVar[Kind] = "one-trial"
 
     def __init__(
         self,
@@ -251,17 +157,11 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
         start_error: float | Sequence[float] | None = None,
         parameter_jitter: float | None = None,
     ) -> None:
-        self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.record_trajectory = check_flag(record_trajectory, "record_trajectory")
-        self.config = load_config(config)
-        if self.config.is_cyclic:
-            raise BadInput(
-                f"{self.config.name}: a cyclic config (task.waypoints); use ilc_steering/CyclicSteering-v0 for it"
-            )
+        self.open(config, render_mode, record_trajectory)
         self._scenario = Scenario.from_config(self.config, measurement_noise, start_error, parameter_jitter)
         action_space, observation_space, self._observation = task_spaces(self._scenario)
-        self.observation_space = observation_space  # type: ignore[assignment]
-        self.action_space = action_space  # type: ignore[assignment]  # Box is Gymnasium's Space of arrays
+        self.observation_space = observation_space
+        self.action_space = action_space
         self._low, self._high = action_space.low, action_space.high
         self._action_names = action_names(self._scenario.nominal)
         self._view = TrialView.of(self._scenario, ["start", "goal"])
@@ -302,62 +202,7 @@ class ChainedSteeringEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32
                 info["trajectory"] = trajectory
         return self._observation.copy(), float(reward(info)), True, False, info
 
-    def render(self) -> npt.NDArray[np.uint8] | None:
-        """An RGB frame ``(480, 480, 3)``: start and goal cars, the last trial's path and the car
-        along it at eight instants, and the trial's final errors in the title."""
-        if self.render_mode is None:
-            gym.logger.warn("render() needs render_mode='rgb_array' at construction; returning None")
-            return None
-        return draw_scene(self.scene())
-
     def scene(self) -> Scene:
         """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene` (to draw it otherwise)."""
         count = self._view.count
         return self._view.scene(f"{self.config.name}: " + (f"trial {count}" if count else "before the first trial"))
-
-
-class TrialView:
-    """What the envs draw: the waypoints (world frame; ``robot`` the nominal map the robot is
-    drawn with, ``None`` for a chained plant, drawn as a point) and the paths of the last trials, with a title line of
-    the last trial's errors (Cartesian and orientation where the robot has a pose), as a
-    :class:`~ilc_steering.envs.frames.Scene`."""
-
-    def __init__(self, waypoints: Array, robot: ChainedMap, names: list[str], has_pose: bool) -> None:
-        self._waypoints = waypoints
-        self._robot = robot
-        self._names = names
-        self._has_pose = has_pose
-        self._paths: list[Array] = []
-        self._errors = ""
-        self.count = 0
-
-    @classmethod
-    def of(cls, scenario: Scenario, names: list[str]) -> TrialView:
-        """The view of a scenario's waypoints, the robot drawn with its nominal geometry."""
-        return cls(scenario.waypoints, scenario.nominal.chained_map, names, scenario.kind.has_pose)
-
-    def clear(self) -> None:
-        """Forget the trials."""
-        self._paths, self._errors, self.count = [], "", 0
-
-    def add(self, trajectory: Trajectory, info: dict[str, Any], keep: int) -> None:
-        """Remember a trial's path (the last ``keep`` of them are drawn) and its errors."""
-        self._paths = [*self._paths, trajectory.q][-keep:]
-        self.count += 1
-        if self._has_pose:
-            self._errors = f"error {info['cartesian_error']:.2e} m, {info['orientation_error']:.2e} rad"
-        else:
-            self._errors = f"error {info['error_norm']:.2e}"
-        if info["left_chart"]:
-            self._errors += ", left the chart"
-
-    def scene(self, label: str) -> Scene:
-        """What the frame shows, titled ``label`` and the last trial's errors."""
-        title = label + (f"\n{self._errors}" if self.count else "")
-        return Scene(self._waypoints, self._robot, self._names, self._paths, title)
-
-
-def reward(info: dict[str, Any]) -> Any:
-    """Minus the weighted final error, for one trial's ``info`` or a batch's (see the ``## Rewards``
-    section of :class:`ChainedSteeringEnv`)."""
-    return -trial_cost(info)

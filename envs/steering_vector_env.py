@@ -16,16 +16,9 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import Plant
+from ilc_steering.envs.base import check_action, check_flag, check_render_mode
 from ilc_steering.envs.scenario import PlantGroups, Scenario
-from ilc_steering.envs.steering_env import (
-    action_names,
-    check_action,
-    check_flag,
-    check_render_mode,
-    reward,
-    task_spaces,
-    trial_infos,
-)
+from ilc_steering.envs.trials import action_names, reward, task_spaces, trial_infos
 from ilc_steering.errors import BadInput
 
 __all__ = ["MAX_ENVS", "ChainedSteeringVectorEnv", "check_num_envs", "draw_noise", "seed_streams"]

@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.boxes import RESIDUAL_SCALE, SearchBox, residual_box
-from ilc_steering.envs.steering_env import check_action
+from ilc_steering.envs.base import check_action
 from ilc_steering.errors import BadInput
 
 __all__ = ["MAX_SCALE", "ResidualAction"]

@@ -116,7 +116,7 @@ def solve_plants(scenario: Scenario, plants: Sequence[Plant], starts: Array) -> 
 
 def scenario_box(scenario: Scenario) -> tuple[Array, Array]:
     """The env's action box [physical units] (the oracle searches where a learner may act)."""
-    from ilc_steering.envs.steering_env import task_spaces
+    from ilc_steering.envs.trials import task_spaces
 
     space = task_spaces(scenario)[0]
     return np.asarray(space.low, dtype=np.float64), np.asarray(space.high, dtype=np.float64)

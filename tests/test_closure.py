@@ -44,15 +44,17 @@ def robot(config: str) -> str:
     return type(load_config(config).plant).__module__
 
 
-def test_the_closure_reads_lazy_tables_relative_imports_and_skips_type_checking() -> None:
+def test_the_closure_reads_lazy_tables_relative_imports_and_skips_type_checking(tmp_path) -> None:
     files = closure(["ilc_steering.compare.plan"])
     assert "ilc_steering/compare/args.py" in files  # imported for real there
     cells = closure(["ilc_steering.compare.cells"])
     assert "ilc_steering/compare/args.py" not in cells  # only under TYPE_CHECKING
-    wrappers = closure(["ilc_steering.envs.wrappers"])
-    assert "ilc_steering/envs/steering_env.py" in wrappers and "ilc_steering/boxes.py" in wrappers
-    script = closure(["benchmarks/highway_table.py"])
-    assert "benchmarks/highway_parking.py" in script  # a script's import of the file beside it
+    script = tmp_path / "mine.py"
+    script.write_text("def wrap(env):\n    from ilc_steering.envs import ResidualAction\n\n    return ResidualAction(env)\n")
+    lazy = closure([str(script)])  # a name of envs/__init__.py's lazy table: the module it names
+    assert "ilc_steering/envs/wrappers.py" in lazy and "ilc_steering/envs/base.py" in lazy
+    beside = closure(["benchmarks/highway_table.py"])
+    assert "benchmarks/highway_parking.py" in beside  # a script's import of the file beside it
     with pytest.raises(ValueError, match="no module of ilc_steering"):
         closure(["ilc_steering.agents.no_such_learner"])
 
