@@ -50,7 +50,8 @@ def test_the_closure_reads_lazy_tables_relative_imports_and_skips_type_checking(
     cells = closure(["ilc_steering.compare.cells"])
     assert "ilc_steering/compare/args.py" not in cells  # only under TYPE_CHECKING
     script = tmp_path / "mine.py"
-    script.write_text("def wrap(env):\n    from ilc_steering.envs import ResidualAction\n\n    return ResidualAction(env)\n")
+    code = "def wrap(env):\n    from ilc_steering.envs import ResidualAction\n\n    return ResidualAction(env)\n"
+    script.write_text(code)
     lazy = closure([str(script)])  # a name of envs/__init__.py's lazy table: the module it names
     assert "ilc_steering/envs/wrappers.py" in lazy and "ilc_steering/envs/base.py" in lazy
     beside = closure(["benchmarks/highway_table.py"])
