@@ -33,14 +33,13 @@ WHY_DIFFERENT = {
         "from its plots where we count trials to a 0.5 mm tolerance"
     ),
     "experiment_forward": (
-        "the simulated MARIO's imperfections are this library's modelling choices (configs/experiment_forward.yaml), "
-        "milder on this maneuver than the real robot's: its first trial lands within 7 cm, and no single one "
-        "of them, at its configured size, needs more than 3 trials"
+        "the simulated MARIO's unnamed imperfections (its wheels' rolling radius, the drive's lag, the steering's "
+        "trim and play) are calibrated on both experiments at once (benchmarks/calibrate_mario.py, docs/paper.md): "
+        "no candidate of the search that takes five on experiment 2 takes more than four here"
     ),
     "experiment_parallel": (
-        "the imperfections are modelling choices, and parallel parking is sensitive to them: the steering "
-        "linkage's play (0.02 rad) alone keeps eqs. 33-34 from converging in 15 trials (seed 0), each other "
-        "imperfection alone needs 3-4, all of them at half size 6 (docs/paper.md, 'Section 5')"
+        "the simulated MARIO's unnamed imperfections are calibrated on both experiments at once "
+        "(benchmarks/calibrate_mario.py, docs/paper.md)"
     ),
 }
 
