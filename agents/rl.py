@@ -65,6 +65,7 @@ __all__ = [
     "build",
     "log_reward",
     "make_learner",
+    "start_at_centre",
     "train",
 ]
 
@@ -137,7 +138,7 @@ def _start_at_centre_sbx(model: Any, algorithm: str, initial_std: float | None) 
     model.policy.actor_state = state.replace(**changes)
 
 
-def _start_at_centre(model: Any, algorithm: str, backend: str, initial_std: float | None) -> None:
+def start_at_centre(model: Any, algorithm: str, backend: str, initial_std: float | None) -> None:
     """Zero the policy's output layer, so that its first deterministic action is the search box's
     centre (under ``prior="nominal"``, the nominal solution); for a squashed-Gaussian policy,
     ``initial_std`` sets the spread of its first actions (``log_std_init`` acts only with ``use_sde``)."""
@@ -207,7 +208,7 @@ def build(
         kwargs["batch_size"] = min(kwargs.get("batch_size", 64), kwargs["n_steps"])
     model = cls(env=env, seed=seed, device="cpu", verbose=0, **kwargs)
     if params.get("start_at_centre"):
-        _start_at_centre(model, algorithm, backend, params.get("initial_std"))
+        start_at_centre(model, algorithm, backend, params.get("initial_std"))
     return model
 
 

@@ -33,6 +33,7 @@ __all__ = [
     "installed_backends",
     "rl_backend",
     "squashed",
+    "zoo_file",
 ]
 
 RL_ALGORITHMS = ids("RL")
@@ -142,6 +143,15 @@ def hyperparameters(algorithm: str, scenario: str, prior: str = "nominal") -> di
     if not isinstance(section[key], dict):
         raise ConfigError(f"{source}: {prior}.{key}: must be a mapping of hyperparameters")
     return check_hyperparameters(algorithm, dict(section[key]), f"{source}: {prior}.{key}")
+
+
+def zoo_file(algorithm: str) -> str:
+    """The path of the packaged hyperparameter file of ``algorithm`` in RL Zoo's own format,
+    ``.../ilc_steering/configs/rl_zoo/<algorithm>.yml``, for ``python -m rl_zoo3.train -conf``
+    (docs/usage.md, "Train with RL Zoo"): the ``nominal`` defaults of ``configs/rl/<algorithm>.yaml``
+    for every registered env that trains; ``ValueError`` for an algorithm that is not an RL baseline."""
+    facts(algorithm)
+    return str(resources.files("ilc_steering.configs") / "rl_zoo" / f"{algorithm}.yml")
 
 
 def check_hyperparameters(algorithm: str, params: dict[str, Any], where: str) -> dict[str, Any]:

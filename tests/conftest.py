@@ -27,6 +27,7 @@ EXTRAS = {
     "highway": ("highway_env",),
     "mujoco": ("mujoco",),
     "rosbags": ("rosbags",),
+    "zoo": ("rl_zoo3",),
 }
 """The modules each extra of pyproject.toml installs, as a test imports them."""
 

@@ -40,6 +40,6 @@ def test_wheel_ships_every_subpackage_and_config(tmp_path):
     ):
         for source in (ROOT / folder).glob("*.py"):
             assert f"{package}/{source.name}" in names
-    for config in (ROOT / "configs").rglob("*.yaml"):
+    for config in [*(ROOT / "configs").rglob("*.yaml"), *(ROOT / "configs").rglob("*.yml")]:  # rl_zoo/*.yml
         assert f"ilc_steering/configs/{config.relative_to(ROOT / 'configs').as_posix()}" in names
     assert not any(n.startswith(("envs/", "agents/", "tests/", "benchmarks/")) for n in names)

@@ -65,7 +65,9 @@ def test_block_runs_on_its_own(page, index, lang, code, tmp_path):
     script.write_text(code)
     command = [sys.executable, str(script)] if lang == "python" else ["bash", "-e", str(script)]
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
-    env["PYTHONPATH"] = str(ROOT / "tests")  # docs/robots.md registers tests/toy_robot.py by its import name
+    # docs/robots.md registers tests/toy_robot.py by its import name; a PYTHONPATH already set (a
+    # worktree's code over an editable install of another) stays behind it
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))
     work = tmp_path / "work"
     work.mkdir()
     result = subprocess.run(command, capture_output=True, text=True, cwd=work, env=env, timeout=900)

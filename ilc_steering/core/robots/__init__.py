@@ -25,6 +25,12 @@ that names a packaged robot (``car``) or a robot another package names, is skipp
 one-line warning on stderr: a packaged name is never replaced. A config class is checked against
 the :class:`~ilc_steering.core.plants.PlantConfig` protocol (and its plant class against
 :class:`~ilc_steering.core.plants.Plant`) when it is first loaded; a missing method is named.
+
+**The robot's side.** What a robot's own program computes to steer by the chained inputs ``v1,
+v2`` a trial sends (``docs/your_robot.md``): one function per packaged robot, re-exported here
+from its module and loaded on first use (``docs/modelling.md`` writes the maps out):
+:func:`car_inputs` (eqs. 4-5, ``car_model.chained_inputs``), :func:`unicycle_inputs` and
+:func:`trailer_inputs`.
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ import dataclasses
 import re
 import sys
 import typing
+from importlib import import_module
 from importlib.metadata import entry_points
 from typing import Any
 
@@ -44,6 +51,7 @@ __all__ = [
     "GROUP",
     "PACKAGED",
     "ROBOTS",
+    "car_inputs",
     "check_robot",
     "config_class",
     "model_name",
@@ -52,7 +60,17 @@ __all__ = [
     "register",
     "saved_name",
     "skipped",
+    "trailer_inputs",
+    "unicycle_inputs",
 ]
+
+_INPUTS = {
+    "car_inputs": ("ilc_steering.core.robots.car_model", "chained_inputs"),
+    "unicycle_inputs": ("ilc_steering.core.robots.unicycle", "unicycle_inputs"),
+    "trailer_inputs": ("ilc_steering.core.robots.car_trailer", "trailer_inputs"),
+}
+"""The robot's side, by its public name here: ``(module, name in it)``, imported on first use (the
+unicycle's and the trailer's modules load numba)."""
 
 ROBOTS: dict[str, str] = {
     "car": "ilc_steering.core.robots.car:CarPlantConfig",
@@ -242,3 +260,10 @@ def nominal_plant(chained_map: Any, dimension: int, steering_limit: float | None
     its true geometry the nominal one, of chained dimension ``dimension``."""
     plant_class = config_class(chained_map.robot).plant_class
     return plant_class.nominal_plant(chained_map, dimension, steering_limit)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _INPUTS:
+        module, attribute = _INPUTS[name]
+        return getattr(import_module(module), attribute)
+    raise AttributeError(f"module 'ilc_steering.core.robots' has no attribute {name!r}")

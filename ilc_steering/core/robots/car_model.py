@@ -51,7 +51,40 @@ def car_velocity(
 
 
 def chained_inputs(theta: Any, phi: Any, v1: Any, v2: Any, wheelbase: float, wheel_radius: float) -> tuple[Any, Any]:
-    """Eqs. (4)-(5): the car inputs ``(u1, u2)`` [rad/s] that realise chained inputs ``(v1, v2)`` at ``q``."""
+    r"""Eqs. (4)-(5): the car's inputs ``(u1, u2)`` that realise the chained inputs ``(v1, v2)``.
+
+    What a car's own program computes from its state at each instant of a trial, to steer by the
+    chained inputs the trial sends (``docs/your_robot.md``; the map is written out on
+    ``docs/modelling.md``), with the geometry it believes (the nominal one):
+
+    .. math::
+
+        u_1 = \frac{v_1}{\rho \cos\theta}, \qquad
+        u_2 = -\frac{3 \sin\theta \sin^2\phi}{\ell \cos^2\theta}\, v_1 + \ell \cos^3\theta \cos^2\phi\, v_2.
+
+    Driven so, the car of eq. 3 with this very geometry moves its chained coordinates
+    :math:`z = \alpha(q)` (:meth:`CarModel.to_chained`) by eq. 1: :math:`\dot z_1 = v_1`,
+    :math:`\dot z_2 = v_2`, :math:`\dot z_3 = z_2 v_1`, :math:`\dot z_4 = z_3 v_1`.
+    ``CarModel(wheelbase, wheel_radius).inputs(q, v1, v2)`` is this function at ``q``'s angles.
+
+    Parameters
+    ----------
+    theta, phi
+        The body's heading and the steering angle [rad] in the task frame: scalars or arrays of one
+        shape, within the chart ``|theta| < pi/2``, ``|phi| < pi/2`` (at its edge ``u1`` and ``u2``
+        grow without bound; nothing is checked here, so that a compiled or per-sample caller pays
+        nothing: :func:`~ilc_steering.core.robots.chart.check_chart` checks a configuration).
+    v1, v2
+        The chained inputs: ``v1`` [m/s] (the speed of ``z1 = x``) and ``v2`` [1/(m s)] (that of
+        ``z2 = tan(phi) / (ell cos^3 theta)``), broadcast against the angles.
+    wheelbase, wheel_radius
+        ``ell`` and ``rho`` [m].
+
+    Returns
+    -------
+    u1, u2
+        The driving wheel's angular velocity and the steering rate [rad/s].
+    """
     c = np.cos(theta)
     s_phi = np.sin(phi)
     c_phi = np.cos(phi)

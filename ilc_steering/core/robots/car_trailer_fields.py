@@ -35,9 +35,41 @@ def trailer_velocity(
 def trailer_inputs(
     theta1: Any, phi: Any, delta: Any, v1: Any, v2: Any, wheelbase: float, wheel_radius: float, hitch_length: float
 ) -> tuple[Any, Any]:
-    """``u = beta(q) v``: ``(u1, u2)`` [rad/s] that realise chained inputs ``(v1, v2)`` at ``q``.
+    r"""The car-with-trailer's inputs ``(u1, u2)`` that realise the chained inputs ``(v1, v2)``:
+    ``u = beta(q) v``, its equivalent of the car's eqs. 4-5 (after Sørdalen 1993; the derivation is
+    :mod:`ilc_steering.core.robots.car_trailer`'s docstring).
 
-    Plain arithmetic and numpy ufuncs, so that the compiled simulator compiles this very function.
+    What the towing car's own program computes from its state at each instant of a trial, to steer
+    the trailer by the chained inputs the trial sends (``docs/your_robot.md``, ``docs/modelling.md``):
+
+    .. math::
+
+        u_1 = \frac{v_1}{\rho \cos\delta \cos\theta_1}, \qquad u_2 = \frac{v_2 - a(q) v_1}{b(q)},
+
+    with :math:`a` and :math:`b = \partial z_2 / \partial\phi` of that derivation. Driven so, the
+    car and trailer with this very geometry move their chained coordinates ``z = alpha(q)``
+    (:meth:`~ilc_steering.core.robots.car_trailer.TrailerModel.to_chained`) by eq. 1 with ``n = 5``.
+    ``TrailerModel.inputs(q, v1, v2)`` is this function at ``q``'s angles. Plain arithmetic and
+    numpy ufuncs, so that the compiled simulator compiles this very function.
+
+    Parameters
+    ----------
+    theta1, phi, delta
+        The trailer's heading, the car's steering angle and the hitch angle ``theta0 - theta1``
+        [rad] in the task frame: scalars or arrays of one shape, within the chart (each below
+        ``pi/2`` in magnitude; at its edge the inputs grow without bound; nothing is checked here:
+        :func:`~ilc_steering.core.robots.car_trailer.check_trailer_chart` checks a configuration).
+    v1, v2
+        The chained inputs: ``v1`` [m/s] (the speed of ``z1 = x1``) and ``v2`` [1/(m^2 s)] (that of
+        ``z2``), broadcast against the angles.
+    wheelbase, wheel_radius, hitch_length
+        The car's ``ell`` and ``rho`` and the hitch length ``d`` from its rear axle to the trailer's
+        axle [m].
+
+    Returns
+    -------
+    u1, u2
+        The driving wheel's angular velocity and the steering rate [rad/s].
     """
     d = hitch_length
     c, s = np.cos(theta1), np.sin(theta1)

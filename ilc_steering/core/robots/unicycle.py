@@ -65,6 +65,7 @@ __all__ = [
     "UnicyclePlant",
     "UnicyclePlantConfig",
     "check_unicycle_chart",
+    "unicycle_inputs",
     "unicycle_velocity",
 ]
 
@@ -74,6 +75,42 @@ Array = npt.NDArray[np.float64]
 def unicycle_velocity(theta: Any, v: Any, omega: Any) -> tuple[Any, Any, Any]:
     """``(dx, dy, dtheta)`` [m/s, m/s, rad/s] of a unicycle at heading ``theta`` under ``(v, omega)``."""
     return np.cos(theta) * v, np.sin(theta) * v, omega
+
+
+def unicycle_inputs(theta: Any, v1: Any, v2: Any) -> tuple[Any, Any]:
+    r"""The unicycle's inputs ``(v, omega)`` that realise the chained inputs ``(v1, v2)``: its
+    equivalent of the car's eqs. 4-5 (the module docstring derives it).
+
+    What a differential drive's own program computes from its heading at each instant of a trial,
+    to steer by the chained inputs the trial sends (``docs/your_robot.md``, ``docs/modelling.md``):
+
+    .. math::
+
+        v = \frac{v_1}{\cos\theta}, \qquad \omega = v_2 \cos^2\theta.
+
+    Driven so, the unicycle moves its chained coordinates :math:`z = (x, \tan\theta, y)`
+    (:meth:`UnicycleModel.to_chained`) by eq. 1 with ``n = 3``: :math:`\dot z_1 = v_1`,
+    :math:`\dot z_2 = v_2`, :math:`\dot z_3 = z_2 v_1`. No geometry enters: the drive turns
+    ``(v, omega)`` into wheel speeds ``(v +- b omega / 2) / rho``. ``UnicycleModel.inputs(q, v1,
+    v2)`` is this function at ``q``'s heading.
+
+    Parameters
+    ----------
+    theta
+        The heading [rad] in the task frame: a scalar or an array, within the chart ``|theta| <
+        pi/2`` (at its edge ``v`` grows without bound; nothing is checked here:
+        :func:`check_unicycle_chart` checks a configuration).
+    v1, v2
+        The chained inputs: ``v1`` [m/s] (the speed of ``z1 = x``) and ``v2`` [1/s] (that of
+        ``z2 = tan(theta)``), broadcast against ``theta``.
+
+    Returns
+    -------
+    v, omega
+        The forward speed [m/s] and the turn rate [rad/s].
+    """
+    c = np.cos(theta)
+    return v1 / c, v2 * c * c
 
 
 def check_unicycle_chart(q: Array) -> None:
@@ -118,9 +155,9 @@ class UnicycleModel:
         return np.stack([z[..., 0], z[..., 2], np.arctan(z[..., 1])], axis=-1)
 
     def inputs(self, q: Array, v1: Array | float, v2: Array | float) -> tuple[Array, Array]:
-        """``(v, omega)`` [m/s, rad/s] that realise chained inputs ``(v1, v2)`` at ``q``."""
-        c = np.cos(np.asarray(q, dtype=np.float64)[..., 2])
-        return np.asarray(np.asarray(v1) / c), np.asarray(np.asarray(v2) * c * c)
+        """``(v, omega)`` [m/s, rad/s] that realise chained inputs ``(v1, v2)`` at ``q``: :func:`unicycle_inputs`."""
+        v, omega = unicycle_inputs(np.asarray(q, dtype=np.float64)[..., 2], np.asarray(v1), np.asarray(v2))
+        return np.asarray(v), np.asarray(omega)
 
     def outline(self, q: Array) -> list[tuple[Array, bool]]:
         """A round body on its axle [m], a heading mark and the two wheels (drawn thick); for
