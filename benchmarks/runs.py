@@ -207,7 +207,7 @@ def command(name: str, run: Run, out: Path) -> tuple[list[str], str]:
     return [sys.executable, "-m", "ilc_steering", *argv], " ".join(["ilc-steering", *argv])
 
 
-def roots(run: Run) -> tuple[str, ...]:
+def run_roots(run: Run) -> tuple[str, ...]:
     """Where a run's computation starts: the CLI, its learner and its robot."""
     robot = () if run.page else (type(load_config(run.config).plant).__module__,)
     learners = [root for learner in run.learners for root in lookup(learner).sources()]
@@ -240,14 +240,16 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"--only: no run named {unknown[0]!r}; --list names them")
     chosen = {name: RUNS[name] for name in args.only or RUNS}
-    folders: dict[Path, set[str]] = {}
+    folders = dict.fromkeys(args.out / Path(name).parent for name in chosen)
     for name, run in chosen.items():
         make(name, run, args.out)
-        folders.setdefault(args.out / Path(name).parent, set()).update(roots(run))
-    for folder, found in folders.items():
-        others = {n: r for n, r in RUNS.items() if args.out / Path(n).parent == folder}
-        every = set().union(*(roots(r) for r in others.values()))  # the folder's record covers all its runs
-        record_made(folder, __file__, ["--only", *sorted(others)], sorted(every | found))
+    for folder in folders:
+        every = {n: r for n, r in RUNS.items() if args.out / Path(n).parent == folder}
+        if set(every) <= set(chosen):  # only a folder whose every run was made now is of this code
+            roots = sorted(set().union(*(run_roots(r) for r in every.values())))
+            record_made(folder, __file__, ["--only", *sorted(every)], roots)
+        else:
+            print(f"{folder}: its made.json is left as it was: make all its runs to record them", flush=True)
     return 0
 
 
