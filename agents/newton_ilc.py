@@ -46,8 +46,8 @@ after each one:
 5. **The plant's scatter.** A robot that does not repeat itself scatters the final pose of one
    action; chasing each draw passes it on whole into the next trial. Once the learner can
    estimate the scatter :math:`\hat\sigma` from its trials' residuals against the refit model
-   (:func:`~ilc_steering.agents.model_based.trial_scatter`, :mod:`ilc_steering.core.scatter`)
-   and a trial lands within :data:`~ilc_steering.agents.model_based.BAND` times it, it averages:
+   (:func:`~ilc_steering.agents.scatter_band.trial_scatter`, :mod:`ilc_steering.core.scatter`)
+   and a trial lands within :data:`~ilc_steering.agents.scatter_band.BAND` times it, it averages:
    the offset :math:`d` of step 3 is the mean of :math:`d_j` over the band's trials, so the
    :math:`N`-th trial there moves by :math:`1/N` of a new draw (the shrinking gain of
    stochastic-approximation ILC, Saab 2001; Butcher, Karimi, Longchamp 2008), :math:`D = 0`, and
@@ -79,17 +79,12 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.model_based import (
-    Trial,
-    broyden_update,
-    in_scatter_band,
-    law_step,
-    levenberg_marquardt,
-    newton_solve,
-    shown_to_repeat,
-    trust_box,
-)
-from ilc_steering.core.family import MAX_LOG_RATIO, ModelFamily
+from ilc_steering.agents.identifier import local_fit
+from ilc_steering.agents.scatter_band import ScatterBand, shown_to_repeat
+from ilc_steering.agents.secant import broyden_update
+from ilc_steering.agents.solver import law_step, newton_solve, trust_box
+from ilc_steering.agents.trial import Trial
+from ilc_steering.core.family import ModelFamily
 from ilc_steering.core.nominal import NominalModel
 
 __all__ = ["FALLBACK_HALVINGS", "TRUST_RADIUS", "NewtonILC", "make_newton_ilc"]
@@ -98,14 +93,11 @@ Array = npt.NDArray[np.float64]
 
 TRUST_RADIUS = 2.0
 """The largest step of one update, in units of ``NominalModel.action_scale()`` per coefficient."""
-RIDGE = 1e-4
-"""[m or rad per unit of theta] the weight that pulls ``theta`` to 0 where the trials say nothing."""
 FALLBACK_HALVINGS = 3
 """Failed fall-backs in a row, each with half the last one's step, before the best trial is run again."""
 REACHED = 1e-10
 """[m and rad] a best trial this near the goal is at the integrator's accuracy: no tolerance fails it,
 and its fall-back is run as it is, however often."""
-_FIT_ITERATIONS = 20
 _SOLVE_ITERATIONS = 20
 
 
@@ -148,6 +140,8 @@ class NewtonILC:
         self.identify, self.secant = identify, secant
         self._goal_q = self.family.to_configuration(model.z_goal)
         self._scale = model.action_scale()
+        self.band = ScatterBand(model, self._goal_q)
+        """The plant's scatter and the trials of its band (step 5)."""
         self.reset()
 
     def reset(self) -> None:
@@ -162,10 +156,13 @@ class NewtonILC:
         self._measured: list[Trial] = []  # the best trial's measurements, when it was run again
         self.repeats = 0
         """Trials that ran the best trial's coefficients again, by the learner's choice (see the module)."""
-        self.scatter: npt.NDArray[np.float64] | None = None
-        """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
-        self._band: list[Trial] = []  # the trials since it entered the scatter's band (step 5)
+        self.band.reset()
         self._next = self.start.copy()
+
+    @property
+    def scatter(self) -> Array | None:
+        """The plant's scatter per coordinate group as last estimated (``[m, rad]`` for a pose), or None."""
+        return self.band.scatter
 
     def act(self, observation: Any = None) -> Array:
         return self._next.copy()
@@ -187,16 +184,15 @@ class NewtonILC:
         q = self.family.to_configuration(z)
         trial = Trial(c, z, q, float(np.linalg.norm(q - self._goal_q)))
         self._trials.append(trial)
-        if self._averaging(trial):
+        if self.band.update(self.family, self.theta, self._trials, trial):
             self._failures, self._measured = 0, []
             self._best = trial
             if self.identify:
-                self.theta = self._fit(self.theta)
+                self.theta = local_fit(self.family, self._trials, self.theta)
             self._D[:] = 0.0
             self._previous = None
-            z_model, ok = self._final_z(np.array([t.c for t in self._band]))
-            offsets = (np.array([t.z for t in self._band]) - z_model)[ok]
-            self._next = self._newton(trial, offsets.mean(axis=0) if ok.any() else None)
+            z_model, ok = self._final_z(self.band.actions())
+            self._next = self._newton(trial, self.band.offset(z_model, ok) if ok.any() else None)
             self.update_seconds.append(time.perf_counter() - began)
             return
         best = self._best
@@ -222,16 +218,9 @@ class NewtonILC:
         self._failures = 0
         self._best = trial
         if self.identify:
-            self.theta = self._fit(self.theta)
+            self.theta = local_fit(self.family, self._trials, self.theta)
         self._next = self._newton(trial)
         self.update_seconds.append(time.perf_counter() - began)
-
-    def _averaging(self, trial: Trial) -> bool:
-        """Whether ``trial`` is (still) in the scatter's band, where the learner averages (step 5)."""
-        self.scatter, inside = in_scatter_band(
-            self.model, self.family, self.theta, self._trials, self._goal_q, self._band, trial, self.scatter
-        )
-        return inside
 
     def _mean(self, trial: Trial) -> Trial:
         """The best trial with ``trial``, a repeat of it, among its measurements: their mean."""
@@ -243,20 +232,6 @@ class NewtonILC:
     def _fallback(self, trial: Trial) -> Array:
         """Eqs. 33-34 from ``trial``."""
         return self._project(trial.c, law_step(self.model, trial, self.nu_a, self.nu_b))
-
-    def _fit(self, theta: Array) -> Array:
-        """Levenberg-Marquardt on the trials' configuration residuals plus the ridge."""
-        c = np.array([t.c for t in self._trials])
-        y = np.array([t.q for t in self._trials])
-
-        def residuals(thetas: Array) -> Array:  # every hypothesis's trials in one kernel call
-            m, k = thetas.shape[0], c.shape[0]
-            q, ok = self.family.configurations_many(np.repeat(thetas, k, axis=0), np.tile(c, (m, 1)))
-            r = np.where(ok[:, None], q - np.tile(y, (m, 1)), 1.0)  # a halted model trial is a poor fit, not a NaN
-            return np.concatenate([r.reshape(m, -1), RIDGE * thetas], axis=1)
-
-        bound = np.full(theta.size, MAX_LOG_RATIO)
-        return levenberg_marquardt(residuals, theta, -bound, bound, _FIT_ITERATIONS)[0]
 
     def _newton(self, trial: Trial, offset: Array | None = None) -> Array:
         """Solve ``F(c; theta) + d + D (c - c_k) = z^d`` for the next ``c`` from ``c_k``; ``d`` is

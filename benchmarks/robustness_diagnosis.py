@@ -25,7 +25,8 @@ import gymnasium as gym
 import numpy as np
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents.model_based import gauss_newton, levenberg_marquardt
+from ilc_steering.agents.levenberg_marquardt import levenberg_marquardt
+from ilc_steering.agents.solver import gauss_newton
 from ilc_steering.arguments import Parser
 from ilc_steering.config import load_config
 from ilc_steering.core.family import ModelFamily

@@ -9,8 +9,9 @@ problems and on ``robust_ilc``'s own residuals (the family's simulations, geomet
 import numpy as np
 import pytest
 
-from ilc_steering.agents.model_based import Trial, levenberg_marquardt, levenberg_marquardt_many
-from ilc_steering.agents.robust_identify import FIT_TOLERANCE, HALVINGS, STALL, GlobalIdentification
+from ilc_steering.agents.identifier import FIT_TOLERANCE, HALVINGS, STALL, Identifier
+from ilc_steering.agents.levenberg_marquardt import levenberg_marquardt, levenberg_marquardt_many
+from ilc_steering.agents.trial import Trial
 from ilc_steering.config import load_config
 from ilc_steering.envs.scenario import Scenario
 
@@ -85,9 +86,9 @@ def test_lockstep_lm_equals_the_sequential_lm_bit_for_bit_on_random_problems(see
 def test_lockstep_lm_equals_the_sequential_lm_on_robust_ilcs_residuals(family_index):
     """The geometry's family and the servo's (offset), fitted to trials of a plant outside both:
     the batch of every start's probes runs on the compiled kernel, each row as alone."""
-    identification = GlobalIdentification(Scenario.from_config(load_config("experiment_parallel")).nominal)
-    family = identification._families[family_index]
-    truth = identification._families[2]  # a lagging servo with an offset: neither family explains it
+    identification = Identifier(Scenario.from_config(load_config("experiment_parallel")).nominal)
+    family = identification.families[family_index]
+    truth = identification.families[2]  # a lagging servo with an offset: neither family explains it
     rng = np.random.default_rng(5)
     solution = family.model.solve()
     c = solution * (1 + 0.05 * rng.standard_normal((5, solution.size)))
@@ -98,10 +99,10 @@ def test_lockstep_lm_equals_the_sequential_lm_on_robust_ilcs_residuals(family_in
         for ci, qi, oki in zip(c, q, ok)
     ]
     starts = rng.uniform(0.5 * family.low, 0.5 * family.high, (3, family.size))
-    fits = identification._levenberg_marquardt(family, starts, trials)
+    fits = identification.fits(family, starts, trials)
 
     def residuals(thetas):
-        return identification._residuals(thetas, trials, family)
+        return identification.residuals(thetas, trials, family)
 
     def done(r):
         return float(np.max(np.abs(r[: -family.size]), initial=0.0)) < 1e-3 * FIT_TOLERANCE

@@ -1,5 +1,5 @@
 """``robust_ilc`` on the maps' edges: an identified model whose continuation folds is searched again
-from other starts (:meth:`~ilc_steering.agents.robust_identify.GlobalIdentification.restarts`)."""
+from other starts (:meth:`~ilc_steering.agents.identifier.Identifier.restarts`)."""
 
 import dataclasses
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ilc_steering.agents.base import LearnerContext
-from ilc_steering.agents.robust_identify import RESTART_FACTORS
+from ilc_steering.agents.identifier import RESTART_FACTORS
 from ilc_steering.agents.robust_ilc import make_robust_ilc
 from ilc_steering.config import load_config
 from ilc_steering.envs.scenario import Scenario
@@ -48,14 +48,18 @@ def test_the_short_car_with_a_trailer_has_a_solution_on_another_branch():
 
 def test_restarts_run_once_per_estimate_and_only_where_it_explains_the_trials():
     trials, _, learner = learn("trailer_bay", 2, true_hitch_length=0.3, true_wheelbase=0.1)
-    learner._thorough = True
-    learner._restarted = None
+    identifier = learner.identifier
+    identifier.restarted = None
     goal = learner.model.z_goal
-    assert learner.restarts(goal).shape == (len(RESTART_FACTORS), learner.start.size)
-    assert learner.restarts(goal).shape[0] == 0  # the same estimate: searched already
-    learner._restarted = None
-    learner.theta = learner.theta + 0.1  # an estimate that does not explain the trials
-    assert learner.restarts(goal).shape[0] == 0
+
+    def restarts():
+        return identifier.restarts(goal, learner.trials, learner.best, thorough=True)
+
+    assert restarts().shape == (len(RESTART_FACTORS), learner.start.size)
+    assert restarts().shape[0] == 0  # the same estimate: searched already
+    identifier.restarted = None
+    identifier.theta = identifier.theta + 0.1  # an estimate that does not explain the trials
+    assert restarts().shape[0] == 0
 
 
 @pytest.mark.slow  # about 10 s: the servo kernel

@@ -1,4 +1,4 @@
-"""``robust_ilc``'s secant correction (:func:`~ilc_steering.agents.robust_identify.fit_secant`) against
+"""``robust_ilc``'s secant correction (:func:`~ilc_steering.agents.secant.fit_secant`) against
 closed forms, and the simulated lab robot's experiment 2 over the seeds ``reproduce`` reports."""
 
 import statistics
@@ -6,7 +6,7 @@ import statistics
 import numpy as np
 import pytest
 
-from ilc_steering.agents.robust_identify import SECANT_PRIOR, fit_secant
+from ilc_steering.agents.secant import SECANT_PRIOR, fit_secant
 from ilc_steering.runner import run_ilc
 
 RNG = np.random.default_rng(7)

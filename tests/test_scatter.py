@@ -189,7 +189,8 @@ def test_a_model_s_misfit_on_a_plant_that_repeats_itself_is_not_averaged_away(le
     is sent a third time, and the band ends."""
     import numpy as np
 
-    from ilc_steering.agents.model_based import Trial, shown_to_repeat
+    from ilc_steering.agents.scatter_band import shown_to_repeat
+    from ilc_steering.agents.trial import Trial
     from ilc_steering.config import load_config
     from ilc_steering.core.score import within_tolerance
 

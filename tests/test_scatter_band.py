@@ -1,12 +1,14 @@
-"""The scatter's band of the model-based learners (``agents/model_based.py``'s ``in_scatter_band``):
-the trials before its entry count, and the last estimate stands in while the trials give none."""
+"""The scatter's band of the model-based learners (``agents/scatter_band.py``'s ``ScatterBand``), alone
+on synthetic trials: the trials before its entry count, and the last estimate stands in while the
+trials give none."""
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import ilc_steering  # noqa: F401  (registers the envs)
-from ilc_steering.agents.model_based import BAND, Trial, in_scatter_band
+from ilc_steering.agents.scatter_band import BAND, ScatterBand
+from ilc_steering.agents.trial import Trial
 from ilc_steering.config import load_config
 from ilc_steering.core.family import ModelFamily
 
@@ -39,11 +41,12 @@ def test_a_band_begins_with_the_near_trials_before_it(plant):
     rng = np.random.default_rng(3)
     far = np.full(goal_q.size, 200 * SIGMA)  # a first trial far off: not a draw of the scatter
     trials = draws(plant, [far, *rng.normal(0.0, SIGMA, (5, goal_q.size))])
-    band: list[Trial] = []
-    scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[-1])
+    band = ScatterBand(model, goal_q)
+    inside = band.update(family, np.zeros(family.size), trials, trials[-1])
+    scatter = band.scatter
     assert scatter is not None and inside
     assert np.all(scatter > SIGMA / 3) and np.all(scatter < 3 * SIGMA)
-    assert [id(t) for t in band] == [id(t) for t in trials[1:]]  # the five near trials, not the far one
+    assert [id(t) for t in band.trials] == [id(t) for t in trials[1:]]  # the five near trials, not the far one
 
 
 def test_a_trial_beyond_twice_the_band_is_not_counted_into_it(plant):
@@ -52,22 +55,23 @@ def test_a_trial_beyond_twice_the_band_is_not_counted_into_it(plant):
     offsets = rng.normal(0.0, SIGMA, (6, goal_q.size))
     offsets[2] = 2.5 * BAND * 5 * SIGMA  # well beyond twice the band of any estimate of these draws
     trials = draws(plant, offsets)
-    band: list[Trial] = []
-    scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[-1])
-    assert inside and [id(t) for t in band] == [id(t) for t in trials[3:]]
+    band = ScatterBand(model, goal_q)
+    inside = band.update(family, np.zeros(family.size), trials, trials[-1])
+    assert inside and [id(t) for t in band.trials] == [id(t) for t in trials[3:]]
 
 
 def test_the_last_estimate_stands_in_while_the_band_lasts(plant):
     model, family, goal_q, _ = plant
     trials = draws(plant, [np.full(goal_q.size, SIGMA), np.full(goal_q.size, -SIGMA)])  # too few to estimate
     last = np.array([SIGMA, SIGMA])
-    band = [trials[0]]
-    scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[1], last)
-    assert inside and scatter is last and len(band) == 2
+    band = ScatterBand(model, goal_q)
+    band.scatter, band.trials = last, [trials[0]]
+    inside = band.update(family, np.zeros(family.size), trials, trials[1])
+    assert inside and band.scatter is last and len(band.trials) == 2
     # Without a band, no estimate means no band: the last estimate does not start one.
-    band = []
-    scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[1], last)
-    assert scatter is None and not inside and band == []
+    band.scatter, band.trials = last, []
+    inside = band.update(family, np.zeros(family.size), trials, trials[1])
+    assert band.scatter is None and not inside and band.trials == []
 
 
 def test_a_trial_at_another_action_is_not_counted_into_it(plant):
@@ -80,6 +84,22 @@ def test_a_trial_at_another_action_is_not_counted_into_it(plant):
     q_moved, ok = family.configurations(np.zeros(family.size), np.array([c, moved]))
     assert ok.all() and np.linalg.norm(q_moved[1] - q_moved[0]) > 50 * SIGMA  # the model moves it far
     trials[3] = trial(model, family, moved, trials[3].q)
-    band: list[Trial] = []
-    scatter, inside = in_scatter_band(model, family, np.zeros(family.size), trials, goal_q, band, trials[-1])
-    assert inside and [id(t) for t in band] == [id(t) for t in trials[4:]]
+    band = ScatterBand(model, goal_q)
+    inside = band.update(family, np.zeros(family.size), trials, trials[-1])
+    assert inside and [id(t) for t in band.trials] == [id(t) for t in trials[4:]]
+
+
+def test_the_band_averages_the_draws_of_its_trials(plant):
+    """The offset the learner corrects in the band is the mean of its trials' draws, not the last draw."""
+    model, family, goal_q, _ = plant
+    rng = np.random.default_rng(4)
+    trials = draws(plant, rng.normal(0.0, SIGMA, (6, goal_q.size)))
+    band = ScatterBand(model, goal_q)
+    assert band.update(family, np.zeros(family.size), trials, trials[-1])
+    assert len(band.trials) >= 4
+    q_model, ok = family.configurations(np.zeros(family.size), band.actions())
+    predicted = family.to_chained(q_model)  # the nominal model at the nominal solution: the goal
+    offset = band.offset(predicted, ok)
+    mean = np.mean([t.z - model.z_goal for t in band.trials], axis=0)
+    np.testing.assert_allclose(offset, mean, rtol=0, atol=1e-9)
+    assert np.linalg.norm(offset - (band.trials[-1].z - model.z_goal)) > SIGMA / 10
