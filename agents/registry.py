@@ -34,7 +34,9 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any
 
+from ilc_steering.agents import rl_settings
 from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
+from ilc_steering.agents.rl_settings import RLAlgorithm
 from ilc_steering.entries import load_entry
 from ilc_steering.errors import BadInput
 
@@ -64,24 +66,7 @@ _ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
 _INSTALLED: dict[str, tuple[str, str]] = {}  # name -> (entry, package), read once per process
 _READ: list[bool] = []
 _RL = "ilc_steering.agents.rl"
-_RL_SETTINGS = "ilc_steering.agents.rl_settings"
 _BLACKBOX = "ilc_steering.agents.blackbox"
-
-
-@dataclass(frozen=True)
-class RLAlgorithm:
-    """What the RL family needs to know of one algorithm."""
-
-    class_name: str
-    """Its class in SB3, sb3-contrib and SBX (``"TQC"``)."""
-    sb3_module: str
-    """The PyTorch package that has it: ``stable_baselines3`` or ``sb3_contrib`` (SBX has them all)."""
-    actor: str
-    """``"deterministic"`` (an action layer and a target actor: TD3), ``"squashed"`` (a
-    squashed-Gaussian actor, mean then log-std layers: SAC, CrossQ, TQC) or ``"gaussian"`` (an action
-    layer and a state-independent std: PPO)."""
-    on_policy: bool = False
-    """Collects rollouts of ``n_steps`` trials before each update (PPO)."""
 
 
 @dataclass(frozen=True)
@@ -140,7 +125,7 @@ class LearnerSpec:
         (:func:`~ilc_steering.engine.closure.closure`): the entries it is built from, which no
         import statement reaches, and for RL its hyperparameter file."""
         if self.family == "RL":
-            return (f"{_RL}:make_learner", f"{_RL_SETTINGS}:hyperparameters", f"ilc_steering.configs/rl/{self.id}.yaml")
+            return (f"{_RL}:make_learner", rl_settings.__name__, f"ilc_steering.configs/rl/{self.id}.yaml")
         if self.family == "black-box":
             return (self.entry_point, f"{_BLACKBOX}:make_learner")
         return (self.entry_point,)
@@ -153,7 +138,7 @@ class LearnerSpec:
         """Its budget [trials] under ``budgets`` on the config named ``task`` (RL reads its
         hyperparameter file there when ``budgets.rl_trials`` is None; bayes_opt is capped at its own)."""
         if self.family == "RL" and budgets.rl_trials is None:
-            return int(load_entry(f"{_RL_SETTINGS}:hyperparameters", self.id)(self.id, task, prior)["n_timesteps"])
+            return int(rl_settings.hyperparameters(self.id, task, prior)["n_timesteps"])
         trials = int(getattr(budgets, self.budget_key))
         return trials if self.max_trials is None else min(trials, self.max_trials)
 
@@ -163,7 +148,7 @@ class LearnerSpec:
         from importlib import metadata
 
         if self.family == "RL":
-            return str(load_entry(f"{_RL_SETTINGS}:implementation", self.id)(self.id))
+            return rl_settings.implementation(self.id)
         if self.family == "yours":
             return self.id if self.entry_point == self.id else self.summary
         if self.package is not None:
@@ -181,9 +166,8 @@ class LearnerSpec:
         from ilc_steering.errors import INTERRUPTS, LearnerError, described
 
         if self.family == "RL":
-            settings = f"{_RL_SETTINGS}:%s"
-            backend = load_entry(settings % "rl_backend", self.id)()  # a bad ILC_STEERING_RL_BACKEND is bad input
-            params = load_entry(settings % "hyperparameters", self.id)(self.id, context.task, context.prior)
+            backend = rl_settings.rl_backend()  # a bad ILC_STEERING_RL_BACKEND is bad input
+            params = rl_settings.hyperparameters(self.id, context.task, context.prior)
             make_rl = load_entry(f"{_RL}:make_learner", self.id)
             learner: Any = make_rl(self.id, params, budget, context.progress_bar, context, backend)
         elif self.family == "black-box":
@@ -216,7 +200,8 @@ def _blackbox(id: str, optimizer: str, summary: str, package: str, **extra: Any)
     return LearnerSpec(id, "black-box", entry, "blackbox_trials", summary, package=package, **extra)
 
 
-def _rl(id: str, algorithm: RLAlgorithm, **extra: Any) -> LearnerSpec:
+def _rl(id: str, **extra: Any) -> LearnerSpec:
+    algorithm = rl_settings.ALGORITHMS[id]
     return LearnerSpec(
         id, "RL", f"{_RL}:make_learner", "rl_trials", algorithm.class_name, trial_seconds=5e-3, rl=algorithm, **extra
     )
@@ -264,14 +249,14 @@ REGISTRY: dict[str, LearnerSpec] = {
             trial_seconds=0.1,
             max_trials=300,
         ),
-        _rl("ppo", RLAlgorithm("PPO", "stable_baselines3", "gaussian", on_policy=True)),
-        _rl("sac", RLAlgorithm("SAC", "stable_baselines3", "squashed")),
-        _rl("td3", RLAlgorithm("TD3", "stable_baselines3", "deterministic")),
+        _rl("ppo"),
+        _rl("sac"),
+        _rl("td3"),
         # CrossQ gives NaN actions at trial 5 on unicycle_parking and trailer_bay under prior=nominal,
         # and at trial 110 (10 trials after it starts learning) under prior=none, measured at full
         # budget (results/tuning/sweep2/crossq.md): run only when named.
-        _rl("crossq", RLAlgorithm("CrossQ", "sb3_contrib", "squashed"), by_default=False),
-        _rl("tqc", RLAlgorithm("TQC", "sb3_contrib", "squashed")),
+        _rl("crossq", by_default=False),
+        _rl("tqc"),
     )
 }
 """Every method id of the library, once."""

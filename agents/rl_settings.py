@@ -10,19 +10,21 @@ import math
 import os
 import re
 from collections.abc import Iterable
+from dataclasses import dataclass
 from importlib import import_module, metadata, resources
 from typing import Any
 
 from ilc_steering.agents.base import PRIORS
-from ilc_steering.agents.registry import REGISTRY, RLAlgorithm, ids
 from ilc_steering.errors import BadInput, ConfigError
 from ilc_steering.yaml_reader import load_yaml
 
 __all__ = [
+    "ALGORITHMS",
     "BACKEND_VARIABLE",
     "OWN_KEYS",
     "RL_ALGORITHMS",
     "RL_BACKENDS",
+    "RLAlgorithm",
     "algorithm_class",
     "backend_setting",
     "check_hyperparameters",
@@ -36,8 +38,34 @@ __all__ = [
     "zoo_file",
 ]
 
-RL_ALGORITHMS = ids("RL")
-"""The RL method ids (a view of the registry, which holds each algorithm's facts: :class:`RLAlgorithm`)."""
+
+@dataclass(frozen=True)
+class RLAlgorithm:
+    """What the RL family needs to know of one algorithm."""
+
+    class_name: str
+    """Its class in SB3, sb3-contrib and SBX (``"TQC"``)."""
+    sb3_module: str
+    """The PyTorch package that has it: ``stable_baselines3`` or ``sb3_contrib`` (SBX has them all)."""
+    actor: str
+    """``"deterministic"`` (an action layer and a target actor: TD3), ``"squashed"`` (a
+    squashed-Gaussian actor, mean then log-std layers: SAC, CrossQ, TQC) or ``"gaussian"`` (an action
+    layer and a state-independent std: PPO)."""
+    on_policy: bool = False
+    """Collects rollouts of ``n_steps`` trials before each update (PPO)."""
+
+
+ALGORITHMS: dict[str, RLAlgorithm] = {
+    "ppo": RLAlgorithm("PPO", "stable_baselines3", "gaussian", on_policy=True),
+    "sac": RLAlgorithm("SAC", "stable_baselines3", "squashed"),
+    "td3": RLAlgorithm("TD3", "stable_baselines3", "deterministic"),
+    "crossq": RLAlgorithm("CrossQ", "sb3_contrib", "squashed"),
+    "tqc": RLAlgorithm("TQC", "sb3_contrib", "squashed"),
+}
+"""Each RL method id's facts; the learner registry (:mod:`~ilc_steering.agents.registry`) makes a
+learner of each."""
+RL_ALGORITHMS = tuple(ALGORITHMS)
+"""The RL method ids."""
 RL_BACKENDS = ("sbx", "sb3")
 """``sbx``: SBX (JAX); ``sb3``: Stable-Baselines3 and sb3-contrib (PyTorch), the reference."""
 BACKEND_VARIABLE = "ILC_STEERING_RL_BACKEND"
@@ -87,10 +115,10 @@ def _module(algorithm: str, backend: str) -> str:
 
 def facts(algorithm: str) -> RLAlgorithm:
     """The registry's facts of RL method ``algorithm``; ``ValueError`` for any other id."""
-    spec = REGISTRY.get(algorithm)
-    if spec is None or spec.rl is None:
+    found = ALGORITHMS.get(algorithm)
+    if found is None:
         raise BadInput(f"algorithm must be one of {RL_ALGORITHMS}, got {algorithm!r}")
-    return spec.rl
+    return found
 
 
 def squashed(algorithm: str) -> bool:

@@ -51,8 +51,19 @@ def root_of_entry(entry: str) -> str:
 
 @lru_cache(maxsize=1)
 def checkout() -> Path:
-    """The folder that holds the package's folder: a checkout's root (a script's paths are relative to it)."""
-    return _package_folder(PACKAGE).parent
+    """A checkout's root, the folder a script's paths (``benchmarks/noisy.py``) are relative to: the
+    folder that holds the package's folder when that is a checkout (an editable install), else the
+    nearest checkout at or above the working directory (a wheel's package lives in site-packages,
+    its scripts in the checkout it was built from), else the working directory."""
+    beside = _package_folder(PACKAGE).parent
+    if _is_checkout(beside):
+        return beside
+    here = Path.cwd().resolve()
+    return next((folder for folder in (here, *here.parents) if _is_checkout(folder)), here)
+
+
+def _is_checkout(folder: Path) -> bool:
+    return (folder / "pyproject.toml").is_file() and (folder / PACKAGE).is_dir()
 
 
 @cache
