@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from ilc_steering.arguments import Parser
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
@@ -61,6 +63,21 @@ EXIT_CODES = {
     130: "interrupted (run wrote the trials before it)",
 }
 """The CLI's exit codes, as its ``--help`` prints them."""
+
+
+NUMBER = re.compile(r"^-(?:(?:\d[\d_]*\.?[\d_]*|\.\d[\d_]*)(?:[eE][-+]?\d[\d_]*)?|inf(?:inity)?|nan)$", re.I)
+"""A negative number as a program prints it (``repr``, ``%g``, ``%e``: ``-1e-05``, ``-.5``, ``-inf``): an
+argument, never an option. argparse's own pattern knows ``-1`` and ``-0.5`` only, so ``--final 1.8 0.8
+-1e-05`` was "unrecognized arguments: -1e-05"."""
+
+
+class _Parser(Parser):
+    """The command line's parser (and, through ``add_subparsers``, each subcommand's): an argument
+    that reads as a negative number (:data:`NUMBER`) is a value, whatever its notation."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NUMBER
 
 
 def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
@@ -159,7 +176,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = Parser(
+    parser = _Parser(
         prog="ilc-steering",
         description="Iterative learning control of nonholonomic robots (Oriolo, Panzieri, Ulivi 1998).",
         epilog="Exit codes: " + "; ".join(f"{code} {meaning}" for code, meaning in EXIT_CODES.items()) + ".",
