@@ -34,6 +34,7 @@ import numpy as np
 
 from ilc_steering import __version__
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config.loading import resolve_config
 from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig
 from ilc_steering.errors import BadInput, ConfigError, LimitError, PlantError
 from ilc_steering.output import check_output_dir, open_lock, write_atomic, write_json
@@ -206,9 +207,11 @@ class Session:
             os.close(handle)
 
     @classmethod
-    def new(cls, folder: Path, config: Path, learner: str, seed: int, trials: int | None) -> Session:
-        """Start a session in ``folder`` (new or empty) from a process-plant ``config``."""
-        steering = load_config(config)
+    def new(cls, folder: Path, config: str | Path, learner: str, seed: int, trials: int | None) -> Session:
+        """Start a session in ``folder`` (new or empty) from a process-plant ``config`` (a path or a
+        packaged config's name, read once: its text is the session's ``config.yaml``)."""
+        source = resolve_config(config)
+        steering = load_config(source)
         _session_config(steering, folder)  # refused before anything is written
         learner_spec(learner)
         budget = steering.learning.trials if trials is None else trials
@@ -218,7 +221,7 @@ class Session:
         if folder.exists() and any(folder.iterdir()):
             raise BadInput(f"{folder}: exists and is not empty; a session starts in a new or empty folder")
         check_output_dir(folder, "session folder")
-        write_atomic(folder / CONFIG, Path(config).read_bytes())
+        write_atomic(folder / CONFIG, source.text)
         record = {"learner": learner, "seed": seed, "trials": budget, "version": __version__, "created": _now()}
         write_json(folder / SESSION, record)
         return cls(folder)

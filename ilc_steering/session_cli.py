@@ -104,7 +104,7 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="session_command", required=True, metavar="ACTION")
     new = sub.add_parser("new", help="start a session in a new folder from a process-plant config")
     new.add_argument("folder", type=output_folder, metavar="DIR")
-    new.add_argument("--config", type=Path, required=True, help="a config with plant.model: process")
+    new.add_argument("--config", required=True, help="a config with plant.model: process (a path or a packaged name)")
     new.add_argument("--learner", default="ilc_paper", help="a learner id or module:attr (default: ilc_paper)")
     new.add_argument("--seed", type=int, default=1, help="the learner's seed (default: 1)")
     new.add_argument("--trials", type=int, default=None, help="the budget (default: the config's learning.trials)")
