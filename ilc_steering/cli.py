@@ -24,7 +24,9 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
@@ -102,11 +104,21 @@ def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
     return int(args.hold)
 
 
-def _interrupted(done: int, unit: str, args: argparse.Namespace) -> KeyboardInterrupt:
-    """The interrupt of a run whose ``done`` trials (cycles, goals) were kept: its one line says so."""
+class Terminated(KeyboardInterrupt):
+    """A ``SIGTERM`` (a supervisor, ``kill``, a CI job's end), taken as Ctrl-C is: the run stops, its
+    robot program is stopped, the trials run so far are kept (exit 130)."""
+
+
+def _terminate(signum: int, frame: Any) -> None:
+    raise Terminated("by SIGTERM")
+
+
+def _interrupted(done: int, unit: str, args: argparse.Namespace, error: KeyboardInterrupt) -> KeyboardInterrupt:
+    """The interrupt ``error`` of a run whose ``done`` trials (cycles, goals) were kept: its one line says so."""
     where = [str(path) for path in (args.json, getattr(args, "plots", None)) if path is not None]
     note = f"; what ran is kept in {' and '.join(where)}" if done and where else ""
-    return KeyboardInterrupt(f"after {done} {unit[:-1] if done == 1 else unit}{note}")
+    cause = f"{error} " if isinstance(error, Terminated) else ""
+    return type(error)(f"{cause}after {done} {unit[:-1] if done == 1 else unit}{note}")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -133,7 +145,7 @@ def _run(args: argparse.Namespace) -> int:
             if done:
                 save(partial, args.json, args.plots)  # the trials it completed are kept
         if isinstance(error, KeyboardInterrupt):  # still an interrupt (exit 130), saying what was kept
-            raise _interrupted(done, "cycles" if config.is_cyclic else "trials", args) from error
+            raise _interrupted(done, "cycles" if config.is_cyclic else "trials", args, error) from error
         raise
     save(result, args.json, args.plots)
     if result.converged_at is not None:
@@ -157,7 +169,7 @@ def _run_goals(args: argparse.Namespace) -> int:
         if isinstance(partial, list) and partial:
             save_goals(partial, args.json)  # the goals it completed are kept
         if isinstance(error, KeyboardInterrupt):
-            raise _interrupted(done, "goals", args) from error
+            raise _interrupted(done, "goals", args, error) from error
         raise
     save_goals(results, args.json)
     if all(r.converged_at is not None for r in results):
@@ -334,10 +346,21 @@ def _one_line(error: BaseException) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    handled = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if handled else None
+    try:
+        return _main(args)
+    finally:
+        if handled:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _main(args: argparse.Namespace) -> int:
     try:
         return int(args.handler(args))
-    except KeyboardInterrupt as error:  # run keeps the trials before it, and says where
-        print(f"ilc-steering: interrupted {_one_line(error)}".rstrip(), file=sys.stderr)
+    except KeyboardInterrupt as error:  # run keeps the trials before it, and says where (SIGTERM as Ctrl-C)
+        word = "terminated" if isinstance(error, Terminated) else "interrupted"
+        print(f"ilc-steering: {word} {_one_line(error)}".rstrip(), file=sys.stderr)
         return 130
     except BrokenPipeError:  # stdout closed early (ilc-steering list | head -1): nothing left to say
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -173,7 +173,7 @@ class ProcessPlant(ExternalPlantBase):
         outcomes = []
         for b, request in enumerate(requests):
             k = request["trial"]
-            cable.send(request, f"trial {k}")
+            cable.send(request, f"trial {k}", self.timeout)
             self._link.sent = k
             outcomes.append(self._result(cable, k, cable.receive(self.timeout, f"trial {k}"), x0[b]))
         final = np.array([o[0] for o in outcomes])
@@ -194,14 +194,15 @@ class ProcessPlant(ExternalPlantBase):
 
     def _cable(self) -> Cable:
         """The running program, started and greeted on the first trial."""
-        if self._link.cables:
+        if self._link.cables and not self._link.cables[0].closed:
             return self._link.cables[0]
+        self._link.cables.clear()  # stopped at the end of a run (cable.owned): this is another run
         command = [sys.executable if self.command[0] == "python" else self.command[0], *self.command[1:]]
         cable = Cable(command, self.folder)
         cable.name = self.who
         self._link.cables.append(cable)
         hello = {"type": "hello", "protocol": PROTOCOL, "robot": self.chained_map.robot, "dimension": self.dimension}
-        cable.send(hello, "the hello")
+        cable.send(hello, "the hello", self.timeout)
         answer = cable.receive(self.timeout, "the hello")
         greeted = answer.get("type") == "hello" and answer.get("protocol") == PROTOCOL
         if not greeted or not isinstance(answer.get("name"), str):
