@@ -109,8 +109,9 @@ def load_config(source: str | Path | ConfigSource | SteeringConfig | dict[str, A
         raise ConfigError(
             f"config must be a YAML path, a packaged config name, a mapping or a SteeringConfig, got {show(source)}"
         )
+    folders: tuple[str, ...] = ()
     if isinstance(source, dict):
-        data, origin, folders = source, "<mapping>", ()
+        data, origin = source, "<mapping>"
         if count_values(data) > MAX_VALUES:
             raise ConfigError(f"{origin}: more than {MAX_VALUES} values; not a config")
         try:
