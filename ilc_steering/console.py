@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ilc_steering.config import SteeringConfig
+from ilc_steering.core.robots.process_limits import WRAPPED
 from ilc_steering.core.scatter import FLOOR, HOLD
 from ilc_steering.errors import BadInput
 from ilc_steering.output import write_json
@@ -63,6 +64,9 @@ def print_row(record: TrialRecord | CycleRecord) -> None:
         index, values, left, clipped = record.trial, _values(record), record.left_chart, record.clipped
     note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
     note += "  action clipped to the box (task.action_bound)" if clipped else ""
+    wrapped = record.plant.get(WRAPPED) if isinstance(record, TrialRecord) and record.plant else None
+    if isinstance(wrapped, dict):  # the robot reported a heading unwrapped (whole turns): read wrapped, said so
+        note += "  " + ", ".join(f"{name} {v[0]:.6g} rad read as {v[1]:.6g}" for name, v in wrapped.items())
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 

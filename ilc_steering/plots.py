@@ -27,6 +27,7 @@ from matplotlib.figure import Figure
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import PlantKind
+from ilc_steering.core.robots.process import without_program
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
 from ilc_steering.errors import BadInput, ConfigError
@@ -96,7 +97,8 @@ def load_run(source: Path | dict[str, Any]) -> Run:
             "written by `ilc-steering run --json`)"
         )
     try:
-        config = load_config(data["config"])
+        with without_program():  # a run of a robot program is drawn wherever the program is now
+            config = load_config(data["config"])
     except ConfigError as error:
         raise BadInput(f"{origin}: its config: {error}") from None
     kind = data["kind"]

@@ -10,6 +10,7 @@ from ``/proc``: a process gone, or a zombie nobody reaps in a container, is not 
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
@@ -17,10 +18,26 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ilc_steering.cli import main
+from ilc_steering.config import load_config
+from ilc_steering.core.plants import CHART_MARGIN
+from ilc_steering.core.robots.car import CAR
+from ilc_steering.core.robots.process_limits import (
+    MAX_LOG_BYTES,
+    MAX_SAMPLES,
+    MAX_TURNS,
+    ProcessLimits,
+    kept_log,
+    reported_pose,
+    reported_trajectory,
+)
+from ilc_steering.errors import PlantError
 
 ROBOT = r"""
 import json, math, os, subprocess, sys, time
@@ -188,3 +205,94 @@ def test_a_cell_past_its_time_limit_takes_its_robot_program_with_it(tmp_path, ca
     assert main(argv) == 4
     assert "CallTimeout" in "".join(capsys.readouterr())
     assert len((tmp_path / "pids.txt").read_text().split()) == 2 and not left_running(tmp_path)
+
+
+@pytest.mark.slow  # 72 MB through a pipe and back from disk
+def test_megabytes_of_logs_make_a_run_record_that_plot_reads(tmp_path, capsys):
+    out = tmp_path / "run.json"
+    assert (
+        main(["run", str(write_config(tmp_path, "big_log")), "--trials", "6", "--hold", "1", "--json", str(out)]) == 0
+    )
+    logs = [trial["plant"] for trial in json.loads(out.read_text())["trials"]]
+    assert all(log == {"dropped": f"a log of 12000015 bytes, over the {MAX_LOG_BYTES} kept"} for log in logs)
+    assert main(["plot", str(out), "--out", str(tmp_path / "figures")]) == 0
+
+
+def test_a_process_run_is_plotted_after_its_program_has_moved(tmp_path, capsys):
+    out = tmp_path / "run.json"
+    assert main(["run", str(write_config(tmp_path, "honest", executable=True)), "--json", str(out)]) in (0, 1)
+    (tmp_path / "robot.py").rename(tmp_path / "elsewhere.py")  # ./robot.py is no program any more
+    assert main(["plot", str(out), "--out", str(tmp_path / "figures")]) == 0
+
+
+def test_a_relative_plant_folder_is_the_configs_not_the_working_directorys(tmp_path, monkeypatch, capsys):
+    (tmp_path / "lab").mkdir()
+    config = write_config(tmp_path / "lab", "honest", folder="lab")
+    config = config.rename(tmp_path / "fake_robot.yaml")
+    monkeypatch.chdir(tmp_path / "lab")  # run from elsewhere: "lab" would be lab/lab
+    assert Path(load_config(str(config)).plant.folder) == tmp_path / "lab"
+    assert main(["run", str(config), "--trials", "3"]) in (0, 1)
+
+
+# -- what a program reports, as properties --------------------------------------------------------
+
+LIMITS = ProcessLimits((-3.0, 3.0, -3.0, 3.0), 1.0, 1.5, 5.0)
+EDGE = math.pi / 2 - CHART_MARGIN
+
+
+def _fail(problem: str) -> Exception:
+    return PlantError(problem)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    heading=st.floats(-EDGE + 1e-6, EDGE - 1e-6),
+    turns=st.integers(-MAX_TURNS + 1, MAX_TURNS - 1),
+    frame=st.floats(-1.0, 1.0),
+)
+def test_a_heading_unwrapped_by_whole_turns_is_read_wrapped_and_the_wrap_stated(heading, turns, frame):
+    world = heading + frame + 2 * math.pi * turns
+    q, left, wrapped = reported_pose(LIMITS, CAR, [0.1, 0.2, world, 0.05], frame, "trial 1", _fail)
+    assert q[2] == pytest.approx(heading, abs=1e-12) and not left
+    assert bool(wrapped) == (turns != 0)
+    if turns:
+        assert wrapped["θ"][0] == world and wrapped["θ"][1] == pytest.approx(heading + frame, abs=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(angle=st.floats(allow_nan=False, allow_infinity=False), steering=st.booleans())
+def test_an_angle_is_read_in_the_chart_left_the_chart_or_refused_as_no_radians(angle, steering):
+    final = [0.1, 0.2, 0.3, angle] if steering else [0.1, 0.2, angle, 0.05]
+    bound = math.pi if steering else 2 * math.pi * MAX_TURNS
+    try:
+        q, left, _ = reported_pose(LIMITS, CAR, final, 0.0, "trial 1", _fail)
+    except PlantError as error:
+        assert abs(angle) > bound and "not an angle in radians (in degrees?" in str(error)
+        return
+    assert abs(angle) <= bound and np.all(np.abs(q[2:]) <= EDGE) and np.all(np.isfinite(q))
+    assert left == (abs(angle if steering else math.remainder(angle, 2 * math.pi)) > EDGE)
+
+
+@pytest.mark.parametrize("heading", [45.0, 1e9, -90.0])
+def test_a_heading_in_degrees_ends_the_run_naming_the_program_not_the_limits(tmp_path, capsys, heading):
+    assert main(["run", str(write_config(tmp_path, "heading", at=2, value=heading)), "--trials", "3"]) == 4
+    err = one_line(capsys)
+    assert "reported trial 2's θ as" in err and "in degrees?" in err and "plant.limits" not in err
+    assert not left_running(tmp_path)
+
+
+def test_headings_reported_unwrapped_run_as_wrapped_ones_and_say_so(tmp_path, capsys):
+    assert main(["run", str(write_config(tmp_path, "turns")), "--trials", "3"]) in (0, 1)
+    out = capsys.readouterr().out
+    assert out.count(" rad read as ") == 2  # trial 1 as it is, trial 2 a turn more, trial 3 a turn less
+
+
+@settings(max_examples=50, deadline=None)
+@given(size=st.integers(0, 3 * MAX_LOG_BYTES), samples=st.integers(2, 5 * MAX_SAMPLES))
+def test_what_a_trial_keeps_of_a_program_is_bounded(size, samples):
+    log = kept_log({"text": "x" * size})
+    assert len(json.dumps(log)) <= MAX_LOG_BYTES
+    t = list(np.linspace(0.0, 5.0, samples))
+    path = reported_trajectory({"t": t, "q": [[v, 0.0, 0.0, 0.0] for v in t]}, 4, "trial 1", _fail)
+    assert path is not None and len(path[0]) == min(samples, MAX_SAMPLES)
+    assert path[0][0] == 0.0 and path[0][-1] == 5.0 and np.all(np.diff(path[0]) > 0)
