@@ -34,11 +34,13 @@ from typing import Any
 
 from ilc_steering.arguments import Parser
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
-from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
-from ilc_steering.console import learn, learn_goals, save, save_goals
+from ilc_steering.config import load_config, packaged_configs
+from ilc_steering.config.loading import resolve_config
+from ilc_steering.console import check_counts, check_outputs, learn, learn_goals, save, save_goals
 from ilc_steering.core.scatter import HOLD
 from ilc_steering.errors import ENDS_A_RUN, BadInput, ConfigError, LearnerError, PlantError
-from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
+from ilc_steering.output import check_output_dir, output_file, output_folder
+from ilc_steering.readers import check_apart
 from ilc_steering.reproduce import PAPER
 from ilc_steering.reproduce import reproduce as reproduce_paper
 from ilc_steering.runner import (
@@ -82,28 +84,6 @@ class _Parser(Parser):
         self._negative_number_matcher = NUMBER
 
 
-def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
-    """``--trials`` and ``--hold`` checked against each other and the configs; the ``--hold`` to use."""
-    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
-        raise BadInput(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
-    if args.hold is None:  # the default: a run too short for it says "not converged", as it is
-        return HOLD
-    if not 1 <= args.hold <= MAX_TRIALS:
-        raise BadInput(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
-    for config in configs:
-        unit = "cycles" if config.is_cyclic else "trials"
-        count = config.learning.trials if args.trials is None else args.trials
-        budget = (
-            f"--trials {count}" if args.trials is not None else f"the {count} {unit} of {config.name} (learning.trials)"
-        )
-        if args.hold > count:
-            raise BadInput(
-                f"--hold {args.hold} is more than {budget}: the run could never hold {args.hold} {unit} "
-                f"within the tolerance; give --hold at most {count}, or more --trials"
-            )
-    return int(args.hold)
-
-
 class Terminated(KeyboardInterrupt):
     """A ``SIGTERM`` (a supervisor, ``kill``, a CI job's end), taken as Ctrl-C is: the run stops, its
     robot program is stopped, the trials run so far are kept (exit 130)."""
@@ -126,12 +106,10 @@ def _run(args: argparse.Namespace) -> int:
         return _run_goals(args)
     if args.carry:
         raise BadInput("--carry needs two or more configs (goals of one robot, in order)")
-    config = load_config(args.config[0])
-    hold = _counts(args, [config])
-    if args.json is not None:
-        check_output_file(args.json, "--json")
-    if args.plots is not None:
-        check_output_dir(args.plots, "--plots")
+    source = resolve_config(args.config[0])
+    config = load_config(source)
+    hold = check_counts(args.trials, args.hold, [config])
+    check_outputs(args.json, args.plots, [config], [source])
     warning = step_warning(config)
     if warning is not None:
         print(f"ilc-steering: {warning}", file=sys.stderr)
@@ -155,12 +133,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def _run_goals(args: argparse.Namespace) -> int:
     """``run A B C [--carry]``: one run per goal, in order, the learner carrying what it learned."""
-    configs = [load_config(name) for name in args.config]
-    hold = _counts(args, configs)
+    sources = [resolve_config(name) for name in args.config]
+    configs = [load_config(source) for source in sources]
+    hold = check_counts(args.trials, args.hold, configs)
     if args.plots is not None:
         raise BadInput("--plots draws one run: give one config (or plot a goal's run from --json)")
-    if args.json is not None:
-        check_output_file(args.json, "--json")
+    check_outputs(args.json, None, configs, sources)
     try:
         results = learn_goals(configs, args.trials, args.learner, hold, args.carry)
     except ENDS_A_RUN as error:
@@ -178,9 +156,10 @@ def _run_goals(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from ilc_steering.plots import load_run, write_plots
+    from ilc_steering.plots import figure_paths, load_run, write_plots
 
     run = load_run(args.run)
+    check_apart([("--out", path) for path in figure_paths(args.out, run.name, run.cyclic)], [args.run])
     check_output_dir(args.out, "--out")
     for path in write_plots(run, args.out):
         print(f"wrote {path}")
