@@ -36,6 +36,8 @@ def test_a_run_too_short_for_the_default_hold_is_refused(tmp_path, capsys, trial
         ["run", "forward_parking", "--trials", "3", "--plots", "{loop}"],
         ["run", "forward_parking", "--trials", "3", "--json", "{loop}/run.json"],
         ["reproduce", "--json-dir", "{loop}"],
+        ["session", "new", "{loop}", "--config", "experiment_forward_process"],
+        ["session", "new", "{loop}/s", "--config", "experiment_forward_process"],
         ["sweep", "forward_parking", "--out", "{loop}"],
         ["compare", "--scenarios", "forward_parking", "--methods", "ilc", "--out", "{loop}"],
     ],
