@@ -1,5 +1,6 @@
 """A run refused before it starts where it could not end well (issue 64): a hold its trials can never
-reach, an output folder that is a loop of links, for every command that makes one."""
+reach, a MuJoCo task that is no whole number of control periods (the config's error, not the
+plant's), an output folder that is a loop of links, for every command that makes one."""
 
 from __future__ import annotations
 
@@ -28,6 +29,17 @@ def test_a_run_too_short_for_the_default_hold_is_refused(tmp_path, capsys, trial
     assert main(["run", str(path), *(["--trials", trials] if trials else [])]) == 2
     assert f"the default --hold 3 is more than {says}: the run could never hold 3 trials" in one_line(capsys)
     assert main(["run", str(path), "--hold", "2", *(["--trials", trials] if trials else [])]) in (0, 1, 5)
+
+
+@pytest.mark.extra("mujoco")
+def test_a_mujoco_task_of_no_whole_control_periods_is_the_configs_error(tmp_path, capsys):
+    data = yaml.safe_load((CONFIGS / "mujoco_forward_parking.yaml").read_text())
+    data["task"]["pieces"] = [5.005]  # 500.5 periods of 0.01 s
+    path = tmp_path / "mujoco.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert main(["run", str(path), "--trials", "3"]) == 2
+    err = one_line(capsys)
+    assert err.startswith("ilc-steering: config error: task.pieces: add up to 5.005 s, not a whole number")
 
 
 @pytest.mark.parametrize(
