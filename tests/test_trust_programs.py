@@ -296,3 +296,36 @@ def test_what_a_trial_keeps_of_a_program_is_bounded(size, samples):
     path = reported_trajectory({"t": t, "q": [[v, 0.0, 0.0, 0.0] for v in t]}, 4, "trial 1", _fail)
     assert path is not None and len(path[0]) == min(samples, MAX_SAMPLES)
     assert path[0][0] == 0.0 and path[0][-1] == 5.0 and np.all(np.diff(path[0]) > 0)
+
+
+READER = r"""
+import os, sys, time
+wanted, got = int(sys.argv[1]), 0
+while got < wanted:
+    chunk = os.read(0, min(65536, wanted - got))
+    if not chunk:
+        break
+    got += len(chunk)
+time.sleep(3600)  # then it reads no more, and never exits by itself
+"""
+
+
+@pytest.mark.slow  # a program per example, and a deadline each
+@pytest.mark.timeout(600)
+@settings(max_examples=30, deadline=None)
+@given(size=st.integers(1, 4 << 20), read=st.integers(0, 4 << 20))
+def test_a_request_is_taken_whole_or_refused_at_the_deadline_and_the_program_stopped(tmp_path_factory, size, read):
+    """Whatever part of a request a program reads before it stops reading, ``send`` returns (the rest
+    fits the pipe) or raises one PlantError at ``plant.timeout``; never hangs; the program is gone after."""
+    from ilc_steering.core.cable import Cable
+
+    folder = tmp_path_factory.mktemp("reader")
+    cable = Cable([sys.executable, "-c", READER, str(read)], str(folder))
+    try:
+        cable.send({"type": "trial", "blob": "x" * size}, "trial 1", 0.5)
+    except PlantError as error:
+        assert "stopped reading trial 1: it took" in str(error) and "\n" not in str(error)
+        assert read < size  # refused only if it did stop reading before the end
+    finally:
+        cable.close(kill=True)
+    assert not running(cable.process.pid)
