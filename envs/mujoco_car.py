@@ -50,7 +50,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require, require_length
-from ilc_steering.core.external import ExternalPlantBase, plant_generator
+from ilc_steering.core.external import ExternalPlantBase, ExternalTrials, plant_generator
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
@@ -64,6 +64,7 @@ from ilc_steering.envs.mujoco_model import (
     bicycle_angle,
     mjcf,
 )
+from ilc_steering.errors import ConfigError
 
 __all__ = ["MUJOCO_CAR", "MujocoCarConfig", "MujocoCarPlant", "ackermann", "bicycle_angle", "mjcf"]
 
@@ -152,6 +153,17 @@ class MujocoCarPlant(ExternalPlantBase):
 
     def control_period(self) -> float:
         return float(self.config.control_period)
+
+    def run_trials(self, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> ExternalTrials:
+        """The base's, a task whose pieces are no whole number of control periods refused as the
+        config's error (exit 2, nothing run), not the plant's failure."""
+        total, period = sum(profile.durations), self.control_period()
+        if abs(round(total / period) * period - total) >= 1e-9:
+            raise ConfigError(
+                f"task.pieces: add up to {total:g} s, not a whole number of {self.name}'s control periods "
+                f"(plant.control_period = {period:g} s); make each piece a multiple of it"
+            )
+        return super().run_trials(profile, x0, c, record)
 
     def _measure(self, sim: MujocoSim) -> Array:
         """The car's configuration in the task frame: the rear axle's midpoint [m], the chassis'

@@ -23,18 +23,24 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from ilc_steering.arguments import Parser
 from ilc_steering.compare.command import add_arguments as add_compare_arguments
-from ilc_steering.config import MAX_TRIALS, SteeringConfig, load_config, packaged_configs
-from ilc_steering.console import learn, learn_goals, save, save_goals
+from ilc_steering.config import load_config, packaged_configs
+from ilc_steering.config.loading import resolve_config
+from ilc_steering.console import check_counts, check_outputs, learn, learn_goals, save, save_goals
 from ilc_steering.core.scatter import HOLD
 from ilc_steering.errors import ENDS_A_RUN, BadInput, ConfigError, LearnerError, PlantError
-from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
+from ilc_steering.output import check_output_dir, output_file, output_folder
+from ilc_steering.readers import check_apart
 from ilc_steering.reproduce import PAPER
 from ilc_steering.reproduce import reproduce as reproduce_paper
 from ilc_steering.runner import (
@@ -63,33 +69,36 @@ EXIT_CODES = {
 """The CLI's exit codes, as its ``--help`` prints them."""
 
 
-def _counts(args: argparse.Namespace, configs: list[SteeringConfig]) -> int:
-    """``--trials`` and ``--hold`` checked against each other and the configs; the ``--hold`` to use."""
-    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
-        raise BadInput(f"--trials must be a whole number in [1, {MAX_TRIALS}], got {args.trials}")
-    if args.hold is None:  # the default: a run too short for it says "not converged", as it is
-        return HOLD
-    if not 1 <= args.hold <= MAX_TRIALS:
-        raise BadInput(f"--hold must be a whole number in [1, {MAX_TRIALS}], got {args.hold}")
-    for config in configs:
-        unit = "cycles" if config.is_cyclic else "trials"
-        count = config.learning.trials if args.trials is None else args.trials
-        budget = (
-            f"--trials {count}" if args.trials is not None else f"the {count} {unit} of {config.name} (learning.trials)"
-        )
-        if args.hold > count:
-            raise BadInput(
-                f"--hold {args.hold} is more than {budget}: the run could never hold {args.hold} {unit} "
-                f"within the tolerance; give --hold at most {count}, or more --trials"
-            )
-    return int(args.hold)
+NUMBER = re.compile(r"^-(?:(?:\d[\d_]*\.?[\d_]*|\.\d[\d_]*)(?:[eE][-+]?\d[\d_]*)?|inf(?:inity)?|nan)$", re.I)
+"""A negative number as a program prints it (``repr``, ``%g``, ``%e``: ``-1e-05``, ``-.5``, ``-inf``): an
+argument, never an option. argparse's own pattern knows ``-1`` and ``-0.5`` only, so ``--final 1.8 0.8
+-1e-05`` was "unrecognized arguments: -1e-05"."""
 
 
-def _interrupted(done: int, unit: str, args: argparse.Namespace) -> KeyboardInterrupt:
-    """The interrupt of a run whose ``done`` trials (cycles, goals) were kept: its one line says so."""
+class _Parser(Parser):
+    """The command line's parser (and, through ``add_subparsers``, each subcommand's): an argument
+    that reads as a negative number (:data:`NUMBER`) is a value, whatever its notation."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NUMBER
+
+
+class Terminated(KeyboardInterrupt):
+    """A ``SIGTERM`` (a supervisor, ``kill``, a CI job's end), taken as Ctrl-C is: the run stops, its
+    robot program is stopped, the trials run so far are kept (exit 130)."""
+
+
+def _terminate(signum: int, frame: Any) -> None:
+    raise Terminated("by SIGTERM")
+
+
+def _interrupted(done: int, unit: str, args: argparse.Namespace, error: KeyboardInterrupt) -> KeyboardInterrupt:
+    """The interrupt ``error`` of a run whose ``done`` trials (cycles, goals) were kept: its one line says so."""
     where = [str(path) for path in (args.json, getattr(args, "plots", None)) if path is not None]
     note = f"; what ran is kept in {' and '.join(where)}" if done and where else ""
-    return KeyboardInterrupt(f"after {done} {unit[:-1] if done == 1 else unit}{note}")
+    cause = f"{error} " if isinstance(error, Terminated) else ""
+    return type(error)(f"{cause}after {done} {unit[:-1] if done == 1 else unit}{note}")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -97,12 +106,10 @@ def _run(args: argparse.Namespace) -> int:
         return _run_goals(args)
     if args.carry:
         raise BadInput("--carry needs two or more configs (goals of one robot, in order)")
-    config = load_config(args.config[0])
-    hold = _counts(args, [config])
-    if args.json is not None:
-        check_output_file(args.json, "--json")
-    if args.plots is not None:
-        check_output_dir(args.plots, "--plots")
+    source = resolve_config(args.config[0])
+    config = load_config(source)
+    hold = check_counts(args.trials, args.hold, [config])
+    check_outputs(args.json, args.plots, [config], [source])
     warning = step_warning(config)
     if warning is not None:
         print(f"ilc-steering: {warning}", file=sys.stderr)
@@ -116,7 +123,7 @@ def _run(args: argparse.Namespace) -> int:
             if done:
                 save(partial, args.json, args.plots)  # the trials it completed are kept
         if isinstance(error, KeyboardInterrupt):  # still an interrupt (exit 130), saying what was kept
-            raise _interrupted(done, "cycles" if config.is_cyclic else "trials", args) from error
+            raise _interrupted(done, "cycles" if config.is_cyclic else "trials", args, error) from error
         raise
     save(result, args.json, args.plots)
     if result.converged_at is not None:
@@ -126,12 +133,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def _run_goals(args: argparse.Namespace) -> int:
     """``run A B C [--carry]``: one run per goal, in order, the learner carrying what it learned."""
-    configs = [load_config(name) for name in args.config]
-    hold = _counts(args, configs)
+    sources = [resolve_config(name) for name in args.config]
+    configs = [load_config(source) for source in sources]
+    hold = check_counts(args.trials, args.hold, configs)
     if args.plots is not None:
         raise BadInput("--plots draws one run: give one config (or plot a goal's run from --json)")
-    if args.json is not None:
-        check_output_file(args.json, "--json")
+    check_outputs(args.json, None, configs, sources)
     try:
         results = learn_goals(configs, args.trials, args.learner, hold, args.carry)
     except ENDS_A_RUN as error:
@@ -140,7 +147,7 @@ def _run_goals(args: argparse.Namespace) -> int:
         if isinstance(partial, list) and partial:
             save_goals(partial, args.json)  # the goals it completed are kept
         if isinstance(error, KeyboardInterrupt):
-            raise _interrupted(done, "goals", args) from error
+            raise _interrupted(done, "goals", args, error) from error
         raise
     save_goals(results, args.json)
     if all(r.converged_at is not None for r in results):
@@ -149,9 +156,10 @@ def _run_goals(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from ilc_steering.plots import load_run, write_plots
+    from ilc_steering.plots import figure_paths, load_run, write_plots
 
     run = load_run(args.run)
+    check_apart([("--out", path) for path in figure_paths(args.out, run.name, run.cyclic)], [args.run])
     check_output_dir(args.out, "--out")
     for path in write_plots(run, args.out):
         print(f"wrote {path}")
@@ -159,7 +167,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = Parser(
+    parser = _Parser(
         prog="ilc-steering",
         description="Iterative learning control of nonholonomic robots (Oriolo, Panzieri, Ulivi 1998).",
         epilog="Exit codes: " + "; ".join(f"{code} {meaning}" for code, meaning in EXIT_CODES.items()) + ".",
@@ -317,10 +325,21 @@ def _one_line(error: BaseException) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    handled = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if handled else None
+    try:
+        return _main(args)
+    finally:
+        if handled:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _main(args: argparse.Namespace) -> int:
     try:
         return int(args.handler(args))
-    except KeyboardInterrupt as error:  # run keeps the trials before it, and says where
-        print(f"ilc-steering: interrupted {_one_line(error)}".rstrip(), file=sys.stderr)
+    except KeyboardInterrupt as error:  # run keeps the trials before it, and says where (SIGTERM as Ctrl-C)
+        word = "terminated" if isinstance(error, Terminated) else "interrupted"
+        print(f"ilc-steering: {word} {_one_line(error)}".rstrip(), file=sys.stderr)
         return 130
     except BrokenPipeError:  # stdout closed early (ilc-steering list | head -1): nothing left to say
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -1,17 +1,24 @@
 """A run on the console: its header, a row per trial (or cycle) as it finishes, the verdict (held,
 relapses, the plant's floor), and the run's JSON and figures where asked. ``run`` and
-``reproduce`` print through it."""
+``reproduce`` print through it. Before the run, :func:`check_counts` and :func:`check_outputs`
+refuse what could not end well: a hold the trials could never reach, an output that cannot be
+written or that names one of the run's inputs (its config, its robot program's files)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 
-from ilc_steering.config import SteeringConfig
+from ilc_steering.config import MAX_TRIALS, SteeringConfig
+from ilc_steering.config.loading import ConfigSource
+from ilc_steering.core.robots.process import ProcessPlantConfig
+from ilc_steering.core.robots.process_limits import WRAPPED
 from ilc_steering.core.scatter import FLOOR, HOLD
 from ilc_steering.errors import BadInput
-from ilc_steering.output import write_json
+from ilc_steering.output import check_output_dir, check_output_file, write_json
+from ilc_steering.readers import check_apart
 from ilc_steering.runner import (
     DEFAULT_LEARNER,
     CycleRecord,
@@ -24,7 +31,55 @@ from ilc_steering.runner import (
     run_ilc,
 )
 
-__all__ = ["learn", "learn_goals", "print_header", "print_row", "save", "save_goals"]
+__all__ = ["check_counts", "check_outputs", "learn", "learn_goals", "print_header", "print_row", "save", "save_goals"]
+
+
+def check_counts(trials: int | None, hold: int | None, configs: list[SteeringConfig]) -> int:
+    """``--trials`` and ``--hold`` checked against each other and the configs; the hold to use. A run
+    whose trials could never hold within the tolerance as long as its hold asks (the default's
+    included: ``--trials 2`` against a hold of 3) is refused before it runs."""
+    for option, value in (("--trials", trials), ("--hold", hold)):
+        if value is not None and not 1 <= value <= MAX_TRIALS:
+            raise BadInput(f"{option} must be a whole number in [1, {MAX_TRIALS}], got {value}")
+    used = HOLD if hold is None else hold
+    for config in configs:
+        unit = "cycles" if config.is_cyclic else "trials"
+        count = config.learning.trials if trials is None else trials
+        budget = f"--trials {count}" if trials is not None else f"the {count} {unit} of {config.name} (learning.trials)"
+        if used > count:
+            given = f"--hold {hold}" if hold is not None else f"the default --hold {HOLD}"
+            raise BadInput(
+                f"{given} is more than {budget}: the run could never hold {used} {unit} within the tolerance; "
+                f"give --hold at most {count}, or more --trials"
+            )
+    return used
+
+
+def check_outputs(
+    json_path: Path | None,
+    plots: Path | None,
+    configs: list[SteeringConfig],
+    sources: list[ConfigSource],
+    files: list[Path] | None = None,
+) -> None:
+    """Check, before the first trial, that the run's JSON and figures can be written and name none of
+    its inputs: the config files, the files a robot program's command names, and ``files``."""
+    outputs = [] if json_path is None else [("--json", json_path)]
+    if plots is not None:
+        from ilc_steering.plots import figure_paths
+
+        outputs += [("--plots", path) for path in figure_paths(plots, configs[0].name, configs[0].is_cyclic)]
+    inputs = [source.path for source in sources if source.path is not None] + (files or [])
+    for config in configs:
+        plant = config.plant
+        if isinstance(plant, ProcessPlantConfig):
+            named = [Path(str(plant.folder), word) for word in plant.command]
+            inputs += [path for path in named if os.path.isfile(path)]
+    check_apart(outputs, inputs)
+    if json_path is not None:
+        check_output_file(json_path, "--json")
+    if plots is not None:
+        check_output_dir(plots, "--plots")
 
 
 def _columns(config: SteeringConfig) -> list[str]:
@@ -63,6 +118,9 @@ def print_row(record: TrialRecord | CycleRecord) -> None:
         index, values, left, clipped = record.trial, _values(record), record.left_chart, record.clipped
     note = "  left the chart (the robot halted where eqs. 4-5 break down)" if left else ""
     note += "  action clipped to the box (task.action_bound)" if clipped else ""
+    wrapped = record.plant.get(WRAPPED) if isinstance(record, TrialRecord) and record.plant else None
+    if isinstance(wrapped, dict):  # the robot reported a heading unwrapped (whole turns): read wrapped, said so
+        note += "  " + ", ".join(f"{name} {v[0]:.6g} rad read as {v[1]:.6g}" for name, v in wrapped.items())
     print(f"{index:>5}  " + "  ".join(f"{v:>17.3e}" for v in values) + note, flush=True)
 
 

@@ -12,14 +12,16 @@ umask 022), a replaced one keeps its mode; a symbolic link to a regular file is 
 from __future__ import annotations
 
 import argparse
+import errno
 import hashlib
 import io
 import json
 import os
 import re
+import shutil
 import stat
 import tempfile
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +38,8 @@ __all__ = [
     "content_hash",
     "differences",
     "injective_name",
+    "make_folder",
+    "move_all",
     "open_lock",
     "output_file",
     "output_folder",
@@ -44,10 +48,6 @@ __all__ = [
     "write_figure",
     "write_json",
 ]
-
-
-def _problem(error: OSError) -> str:
-    return describe(error)
 
 
 def output_file(text: str) -> Path:
@@ -81,7 +81,7 @@ def check_output_dir(path: Path, option: str) -> Path:
         with tempfile.NamedTemporaryFile(dir=path, prefix=".write-check-"):
             pass
     except OSError as error:
-        raise BadInput(f"{option} {path}: cannot write there ({_problem(error)})") from None
+        raise BadInput(f"{option} {path}: cannot write there ({describe(error)})") from None
     return path
 
 
@@ -95,7 +95,7 @@ def _not_regular(path: Path, option: str = "") -> str | None:
     except NotADirectoryError:
         raise BadInput(f"{option} {path}: a part of the path is a file, not a folder".lstrip()) from None
     except OSError as error:
-        raise BadInput(f"{option} {path}: cannot use it ({_problem(error)})".lstrip()) from None
+        raise BadInput(f"{option} {path}: cannot use it ({describe(error)})".lstrip()) from None
     return None if stat.S_ISREG(mode) else kind_of(mode)
 
 
@@ -130,7 +130,7 @@ def check_output_file(path: Path, option: str) -> Path:
             os.close(os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
             os.unlink(target)
     except OSError as error:
-        raise BadInput(f"{option} {path}: cannot be written ({_problem(error)})") from None
+        raise BadInput(f"{option} {path}: cannot be written ({describe(error)})") from None
     return path
 
 
@@ -139,20 +139,74 @@ def check_writable(path: Path, option: str = "output") -> Path:
     return check_output_file(Path(path), option)
 
 
-def open_lock(path: Path) -> int:
+def open_lock(path: Path, shared: bool = False) -> int:
     """A descriptor of the lock file ``path`` (created if absent, mode 0644 under umask 022), opened so
     that a FIFO cannot block it and checked to be a regular file; ``ValueError`` naming it otherwise.
-    Hold ``fcntl.flock`` on it, and ``os.close`` it when the run ends."""
+    Hold ``fcntl.flock`` on it, and ``os.close`` it when the run ends. A ``shared`` lock (a reader's)
+    in a folder that cannot be written (read-only, archived) is opened for reading; ``-1`` when it
+    cannot be made there: nobody can be writing in that folder."""
     flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
     try:
         descriptor = os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o666)
     except OSError as error:  # ENXIO: a FIFO with no reader; ELOOP, EACCES, ...
-        raise BadInput(f"{path}: cannot open the run folder's lock ({_problem(error)})") from None
+        if not (shared and error.errno in (errno.EROFS, errno.EACCES, errno.EPERM)):
+            raise BadInput(f"{path}: cannot open the run folder's lock ({describe(error)})") from None
+        try:
+            descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        except FileNotFoundError:
+            return -1
+        except OSError as again:
+            raise BadInput(f"{path}: cannot open the run folder's lock ({describe(again)})") from None
     mode = os.fstat(descriptor).st_mode
     if not stat.S_ISREG(mode):
         os.close(descriptor)
         raise BadInput(f"{path}: the run folder's lock is {kind_of(mode)}, not a regular file; remove it")
     return descriptor
+
+
+def move_all(moves: Sequence[tuple[Path, Path]], into: Path, what: str) -> None:
+    """Rename each ``(source, target)`` in order into the folder ``into`` (made if absent), all or
+    none: after a failure (a target taken, ``into`` a file, a folder that cannot be written, another
+    file system) those done are renamed back, ``into`` removed if made for them, and ``ValueError``
+    says so, naming ``what`` was being done."""
+    done: list[tuple[Path, Path]] = []
+    made = not os.path.lexists(into)
+    try:
+        into.mkdir(exist_ok=True)  # a file there: FileExistsError; a link to a folder: taken
+        for source, target in moves:
+            if os.path.lexists(target):
+                raise FileExistsError(errno.EEXIST, "exists", str(target))
+            os.rename(source, target)
+            done.append((source, target))
+    except BaseException as error:
+        for source, target in reversed(done):
+            os.rename(target, source)
+        if made:
+            shutil.rmtree(into, ignore_errors=True)
+        if not isinstance(error, OSError):
+            raise
+        name = error.filename or into
+        raise BadInput(f"{what}: cannot move into {name} ({describe(error)}); nothing was changed") from None
+
+
+def make_folder(folder: Path, files: dict[str, str], what: str) -> None:
+    """Make ``folder`` holding ``files`` (name -> text), all or none: built aside in its parent and
+    renamed into place (over an empty folder), so a failure leaves no trace of it, nor of the
+    folders made for it."""
+    missing = [path for path in (folder.parent, *folder.parent.parents) if not os.path.lexists(path)]
+    aside: list[Path] = missing[-1:]
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        aside.append(Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name[:24]}.")))
+        for name, text in files.items():
+            write_atomic(aside[-1] / name, text)
+        os.rename(aside[-1], folder)
+    except BaseException as error:
+        for path in aside[::-1]:
+            shutil.rmtree(path, ignore_errors=True)
+        if isinstance(error, OSError):
+            raise BadInput(f"{folder}: cannot make {what} there ({describe(error)})") from None
+        raise
 
 
 def check_reports(folder: Path, names: Collection[str], option: str = "--out") -> None:
@@ -191,7 +245,7 @@ def write_atomic(path: Path, content: str | bytes) -> None:
         # a short prefix: the temporary name must fit wherever the name itself fits
         handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:24]}.", suffix=".tmp")
     except OSError as error:
-        raise BadInput(f"{path}: cannot be written ({_problem(error)})") from None
+        raise BadInput(f"{path}: cannot be written ({describe(error)})") from None
     try:
         with os.fdopen(handle, "wb") as file:
             file.write(content.encode("utf-8") if isinstance(content, str) else content)
@@ -201,7 +255,7 @@ def write_atomic(path: Path, content: str | bytes) -> None:
         os.replace(temporary, path)
     except OSError as error:
         Path(temporary).unlink(missing_ok=True)
-        raise BadInput(f"{path}: cannot be written ({_problem(error)})") from None
+        raise BadInput(f"{path}: cannot be written ({describe(error)})") from None
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise

@@ -27,13 +27,14 @@ from matplotlib.figure import Figure
 
 from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.core.plants import PlantKind
+from ilc_steering.core.robots.process import without_program
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.rendering import draw_pose, draw_trial, draw_waypoints, plane, setup_workspace
 from ilc_steering.errors import BadInput, ConfigError
 from ilc_steering.output import safe_name, write_figure
 from ilc_steering.readers import read_json
 
-__all__ = ["Run", "load_run", "write_plots"]
+__all__ = ["Run", "figure_paths", "load_run", "write_plots"]
 
 TRIAL_FIGURES = ("trajectory", "coordinates", "inputs", "errors")
 CYCLIC_FIGURES = ("path", "waypoint_errors")
@@ -96,7 +97,8 @@ def load_run(source: Path | dict[str, Any]) -> Run:
             "written by `ilc-steering run --json`)"
         )
     try:
-        config = load_config(data["config"])
+        with without_program():  # a run of a robot program is drawn wherever the program is now
+            config = load_config(data["config"])
     except ConfigError as error:
         raise BadInput(f"{origin}: its config: {error}") from None
     kind = data["kind"]
@@ -377,11 +379,14 @@ FIGURES = {
 def write_plots(source: Run | Path | dict[str, Any], out: Path) -> list[Path]:
     """Write the run's figures as ``out/<scenario>_<figure>.png`` and return their paths."""
     run = source if isinstance(source, Run) else load_run(source)
-    figures = [(kind, FIGURES[kind](run)) for kind in (CYCLIC_FIGURES if run.cyclic else TRIAL_FIGURES)]
+    figures = [FIGURES[kind](run) for kind in (CYCLIC_FIGURES if run.cyclic else TRIAL_FIGURES)]
     out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for kind, figure in figures:
-        path = out / f"{safe_name(run.name)}_{kind}.png"  # inside out, whatever the run's name
+    paths = figure_paths(out, run.name, run.cyclic)
+    for path, figure in zip(paths, figures):
         write_figure(path, figure)  # the one writer: a special file is refused, the umask kept
-        paths.append(path)
     return paths
+
+
+def figure_paths(out: Path, name: str, cyclic: bool) -> list[Path]:
+    """The files :func:`write_plots` writes for a run of ``name`` in ``out`` (checked before the run)."""
+    return [out / f"{safe_name(name)}_{kind}.png" for kind in (CYCLIC_FIGURES if cyclic else TRIAL_FIGURES)]

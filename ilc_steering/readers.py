@@ -1,7 +1,9 @@
 """One way in for every file the library reads: its size checked before it is read, its depth after.
 
 Configs (YAML), run files (``plot``), the rows and cells of a resumed run, committed runs
-(``--against``) and the oracle all come through :func:`read_text`. It opens only regular files,
+(``--against``), a session's files and the oracle all come through :func:`read_text`. What is
+looked at without being read is here too: whether an output names one of a command's inputs
+(:func:`check_apart`), whether a folder is new or empty (:func:`check_new_folder`). It opens only regular files,
 with ``O_NONBLOCK`` so that a FIFO cannot block it (:func:`open_regular`), and turns every
 ``OSError`` into a one-line ``ValueError`` naming the path. A file larger than its limit is
 refused from its size, before a byte is read (and read at most ``limit + 1`` bytes, should it
@@ -15,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import stat
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -22,8 +25,11 @@ from ilc_steering.errors import BadInput
 
 __all__ = [
     "MAX_DEPTH",
+    "check_apart",
     "check_depth",
+    "check_new_folder",
     "describe",
+    "holds",
     "is_file",
     "kind_of",
     "open_regular",
@@ -99,6 +105,50 @@ def read_text(path: Path, limit: int, origin: str | None = None) -> str:
         return raw.decode("utf-8")
     except UnicodeDecodeError as error:
         raise BadInput(f"{where}: not UTF-8 text (byte {error.start})") from None
+
+
+def check_apart(outputs: Collection[tuple[str, Path]], inputs: Collection[Path]) -> None:
+    """Refuse, before anything is written, an output (``(option, path)``) that names one of the
+    command's ``inputs``, whatever the way: the same path, a link to it, another name of the file."""
+
+    def identity(path: Path) -> tuple[Any, ...]:
+        try:
+            found = os.stat(path)
+        except (OSError, ValueError):
+            return ("path", os.path.realpath(path))
+        return ("file", found.st_dev, found.st_ino)
+
+    taken = {identity(path): path for path in inputs}
+    taken.update({("path", os.path.realpath(path)): path for path in inputs})
+    for option, path in outputs:
+        source = taken.get(identity(path), taken.get(("path", os.path.realpath(path))))
+        if source is not None:
+            raise BadInput(f"{option} {path}: is {source}, which this command reads; write somewhere else")
+
+
+def check_new_folder(folder: Path, what: str) -> Path:
+    """``folder`` if ``what`` (a session) can start there: absent, or an empty folder (the one a link
+    names); ``ValueError`` saying why not (a file, not empty, a loop of links, ...)."""
+    try:
+        mode = os.stat(folder).st_mode
+        empty = not stat.S_ISDIR(mode) or not any(os.scandir(folder))
+    except FileNotFoundError:
+        return folder
+    except OSError as error:
+        raise BadInput(f"{folder}: cannot start {what} there ({describe(error)})") from None
+    if not stat.S_ISDIR(mode) or not empty:
+        problem = "exists and is not empty" if stat.S_ISDIR(mode) else f"is {kind_of(mode)}, not a folder"
+        raise BadInput(f"{folder}: {problem}; {what} starts in a new or empty folder")
+    return Path(os.path.realpath(folder))
+
+
+def holds(path: Path, text: str, limit: int) -> bool:
+    """Whether the regular file ``path`` holds ``text`` (UTF-8, at most ``limit`` bytes); a file that
+    cannot be read does not."""
+    try:
+        return read_text(path, limit) == text
+    except ValueError:
+        return False
 
 
 def is_file(path: Path) -> bool:

@@ -23,6 +23,7 @@ from ilc_steering.agents.cyclic_ilc import CyclicILCAgent
 from ilc_steering.agents.registry import LearnerSpec, lookup
 from ilc_steering.config import SteeringConfig, config_data, load_config
 from ilc_steering.core import scatter as scatter_
+from ilc_steering.core.cable import owned
 from ilc_steering.core.score import within_tolerance
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.errors import ENDS_A_RUN, BadInput, keep_partial
@@ -208,7 +209,8 @@ def run_ilc(
             on_trial(records[-1])
 
     try:
-        rollout = run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner, transfer=transfer)
+        with owned():  # a robot program this run starts is stopped when it ends, however it ends
+            rollout = run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner, transfer=transfer)
     except ENDS_A_RUN as error:  # the trials before it are kept
         keep_partial(error, RunResult(config, records, judged(met), started_from=started_from))
         raise

@@ -7,9 +7,9 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.console import print_header, print_row, print_verdict, save
+from ilc_steering.console import check_outputs, print_header, print_row, print_verdict, save
 from ilc_steering.errors import BadInput
-from ilc_steering.output import check_output_dir, check_output_file, output_file, output_folder
+from ilc_steering.output import output_file, output_folder
 from ilc_steering.pose_files import final_pose
 from ilc_steering.session import Session
 
@@ -36,7 +36,7 @@ def _new(args: argparse.Namespace) -> int:
 
 def _next(args: argparse.Namespace) -> int:
     session = Session(args.folder)
-    with session.locked():
+    with session.locked(write=not args.dry_run):
         replay = session.replay(write=not args.dry_run)
     if replay.refused is not None:
         raise replay.refused
@@ -47,6 +47,8 @@ def _next(args: argparse.Namespace) -> int:
     if args.dry_run:
         print("(a dry run: nothing written)")
         return 0
+    if replay.restored:  # cut short, deleted or edited since `next` wrote them: the robot must not play those
+        print(f"wrote {' and '.join(replay.restored)} again: they were not this trial's (cut short, deleted, edited)")
     print(f"the commands are in {replay.pending_folder}/commands.csv and request.json")
     print(f"after the run: ilc-steering session record {args.folder} --final X Y THETA [PHI]")
     return 0
@@ -54,9 +56,10 @@ def _next(args: argparse.Namespace) -> int:
 
 def _record(args: argparse.Namespace) -> int:
     session = Session(args.folder)
-    final = args.final if args.pose_file is None else final_pose(args.pose_file, args.topic)
     if args.topic is not None and args.pose_file is None:
         raise BadInput("--topic: names a topic of --pose-file's bag; give --pose-file")
+    kind = session.config.plant.kind
+    final = args.final if args.pose_file is None else final_pose(args.pose_file, args.topic, kind)
     with session.locked():
         replay = session.record(final)
     for record in replay.result.trials:
@@ -74,13 +77,10 @@ def _withdraw(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
-
     session = Session(args.folder)
-    for path, option in ((args.json, "--json"), (args.plots, "--plots")):
-        if path is not None:
-            (check_output_dir if option == "--plots" else check_output_file)(path, option)
-    with session.locked():
-        replay = session.replay(write=False)
+    with session.locked(write=False):
+        check_outputs(args.json, args.plots, [session.recorded], [], _inputs(session.folder))
+        replay = session.replay(write=False, paths=args.json is not None or args.plots is not None)
     print_header(session.config, session.trials)
     for record in replay.result.trials:
         print_row(record)
@@ -99,12 +99,20 @@ def _status(args: argparse.Namespace) -> int:
     return 0
 
 
+def _inputs(folder: Path) -> list[Path]:
+    """The files of the session at ``folder``: none of them is an output."""
+    found = [folder / name for name in ("session.json", "config.yaml", ".lock")]
+    for part in ("trials", "withdrawn"):
+        found += [path for path in (folder / part).rglob("*") if not path.is_dir()]
+    return found
+
+
 def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``session`` subcommands."""
     sub = parser.add_subparsers(dest="session_command", required=True, metavar="ACTION")
     new = sub.add_parser("new", help="start a session in a new folder from a process-plant config")
     new.add_argument("folder", type=output_folder, metavar="DIR")
-    new.add_argument("--config", type=Path, required=True, help="a config with plant.model: process")
+    new.add_argument("--config", required=True, help="a config with plant.model: process (a path or a packaged name)")
     new.add_argument("--learner", default="ilc_paper", help="a learner id or module:attr (default: ilc_paper)")
     new.add_argument("--seed", type=int, default=1, help="the learner's seed (default: 1)")
     new.add_argument("--trials", type=int, default=None, help="the budget (default: the config's learning.trials)")

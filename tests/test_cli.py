@@ -27,7 +27,7 @@ def test_run_writes_json_and_exits_0_when_converged(tmp_path, capsys):
 
 
 def test_run_exits_1_when_the_tolerance_is_not_met(capsys):
-    assert main(["run", "forward_parking", "--trials", "2"]) == 1
+    assert main(["run", "forward_parking", "--trials", "2", "--hold", "2"]) == 1
     assert "not converged within 2 trials" in capsys.readouterr().out
 
 
@@ -158,7 +158,7 @@ def test_an_output_path_that_path_would_change_is_refused_and_nothing_written(
 ):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(SystemExit) as stopped:
-        main(["run", "forward_parking", "--trials", "1", option, value])
+        main(["run", "forward_parking", "--trials", "1", "--hold", "1", option, value])
     assert stopped.value.code == 2
     err = capsys.readouterr().err
     assert says in err and len(err.splitlines()) == 1
@@ -177,7 +177,9 @@ def test_a_hold_longer_than_the_run_is_refused_naming_both(capsys, argv, says):
     assert main(["run", "forward_parking", *argv]) == 2
     err = capsys.readouterr().err
     assert says in err and len(err.splitlines()) == 1
-    assert main(["run", "forward_parking", "--trials", "2"]) == 1  # the default --hold: a short run, not an error
+    # the default --hold as well (issue 64: before, a short run "not converged", which it could never be)
+    assert main(["run", "forward_parking", "--trials", "2"]) == 2
+    assert "the default --hold 3 is more than --trials 2" in capsys.readouterr().err
 
 
 def test_a_value_error_deep_in_the_numerics_is_a_bug_not_the_users_input(monkeypatch, capsys):
@@ -189,11 +191,11 @@ def test_a_value_error_deep_in_the_numerics_is_a_bug_not_the_users_input(monkeyp
         raise ValueError("math domain error")
 
     monkeypatch.setattr(nominal.NominalModel, "solve", broken)
-    assert main(["run", "forward_parking", "--trials", "1"]) == 3
+    assert main(["run", "forward_parking", "--trials", "1", "--hold", "1"]) == 3
     err = capsys.readouterr().err.strip()
     assert err.startswith("ilc-steering: internal error: ValueError: math domain error. This is a bug")
     assert len(err.splitlines()) == 1
-    assert main(["--debug", "run", "forward_parking", "--trials", "1"]) == 3
+    assert main(["--debug", "run", "forward_parking", "--trials", "1", "--hold", "1"]) == 3
     assert "Traceback (most recent call last)" in capsys.readouterr().err
 
 

@@ -97,7 +97,7 @@ def test_every_field_type_loads(tmp_path):
 )
 def test_a_wrong_value_is_refused_in_one_line_naming_the_file_and_the_key(tmp_path, capsys, plant, message):
     path = write(tmp_path, plant)
-    assert main(["run", str(path), "--trials", "1"]) == 2
+    assert main(["run", str(path), "--trials", "1", "--hold", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert str(path) in err and message in err, err

@@ -102,7 +102,7 @@ def test_bad_arguments_exit_2(capsys):
 
 def test_plot_on_malformed_records_names_the_file_and_the_record(tmp_path, capsys):
     run = tmp_path / "run.json"
-    assert main(["run", "forward_parking", "--trials", "2", "--json", str(run)]) == 1
+    assert main(["run", "forward_parking", "--trials", "2", "--hold", "2", "--json", str(run)]) == 1
     data = json.loads(run.read_text())
     for broken in (
         {**data, "trials": [{"trial": 1}]},
@@ -175,7 +175,7 @@ def test_configs_asking_for_unbounded_work_are_refused(tmp_path, changes, messag
 
 def test_a_trial_that_leaves_the_chart_says_so_in_the_table(tmp_path, capsys):
     path = config_file(tmp_path, simulation={"max_step": 5.0})
-    assert main(["run", str(path), "--trials", "1"]) == 1
+    assert main(["run", str(path), "--trials", "1", "--hold", "1"]) == 1
     assert "left the chart" in capsys.readouterr().out
 
 

@@ -90,7 +90,21 @@ def test_cyclic_arrivals_are_numbered_in_order(cyclic):
 def test_cli_run_and_plot_write_the_same_figures(tmp_path, capsys):
     run_json = tmp_path / "run.json"
     assert (
-        main(["run", "parallel_parking", "--trials", "2", "--json", str(run_json), "--plots", str(tmp_path / "a")]) == 1
+        main(
+            [
+                "run",
+                "parallel_parking",
+                "--trials",
+                "2",
+                "--hold",
+                "2",
+                "--json",
+                str(run_json),
+                "--plots",
+                str(tmp_path / "a"),
+            ]
+        )
+        == 1
     )
     assert main(["plot", str(run_json), "--out", str(tmp_path / "b")]) == 0
     written = sorted(p.name for p in (tmp_path / "a").iterdir())

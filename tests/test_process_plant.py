@@ -202,7 +202,7 @@ def test_a_hostile_program_is_one_line_exit_4_and_the_trial_not_counted(tmp_path
 
 def test_a_bad_hello_and_a_program_that_cannot_start(tmp_path, capsys):
     config = write_config(tmp_path, "bad_hello")
-    assert main(["run", str(config), "--trials", "1"]) == 4
+    assert main(["run", str(config), "--trials", "1", "--hold", "1"]) == 4
     err = capsys.readouterr().err
     assert "answered the hello with {'type': 'hi'}" in err and [m["type"] for m in received(tmp_path)] == ["hello"]
     data = yaml.safe_load(config.read_text())
@@ -223,7 +223,7 @@ def test_a_bad_hello_and_a_program_that_cannot_start(tmp_path, capsys):
 )
 def test_commands_beyond_the_limits_are_refused_before_anything_is_sent(tmp_path, capsys, limit, message):
     config = write_config(tmp_path, **limit)
-    assert main(["run", str(config), "--trials", "2"]) == 2
+    assert main(["run", str(config), "--trials", "2", "--hold", "2"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and __import__("re").search(message, err[0]), err
     assert "refused before sending it to plant process 'python robot.py honest 0'" in err[0]

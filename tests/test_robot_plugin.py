@@ -161,7 +161,11 @@ def test_a_robot_module_beside_its_config_runs_through_the_installed_script(tmp_
     script = Path(sys.executable).parent / "ilc-steering"
     command = [str(script)] if script.exists() else [sys.executable, "-m", "ilc_steering"]
     result = subprocess.run(
-        [*command, "run", str(folder / "skate.yaml"), "--trials", "2"], capture_output=True, text=True, cwd=cwd, env=env
+        [*command, "run", str(folder / "skate.yaml"), "--trials", "2", "--hold", "2"],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
     )
     assert result.returncode in (0, 1), result.stderr[-2000:]  # converged or not: it ran, the module was found
     assert "skate_parking: 2 trials" in result.stdout, result.stdout[-2000:]

@@ -560,7 +560,7 @@ def test_a_users_in_process_plant_gone_wrong_is_named_as_the_failure(counted, mo
     with pytest.raises(PlantError, match=re.escape(says)) as caught:
         run_ilc(counted(), trials=2)
     assert "the counted car" in str(caught.value)
-    assert main(["run", str(counted()), "--trials", "2"]) == 4
+    assert main(["run", str(counted()), "--trials", "2", "--hold", "2"]) == 4
     err = capsys.readouterr().err
     assert "the counted car" in err and len(err.splitlines()) == 1 and "bug" not in err
 

@@ -117,7 +117,7 @@ def test_run_json_onto_a_special_file_is_refused_and_the_file_kept(tmp_path, cap
         os.mkfifo(target)
     else:
         target.mkdir()
-    assert main(["run", "forward_parking", "--trials", "1", "--json", str(target)]) == 2
+    assert main(["run", "forward_parking", "--trials", "1", "--hold", "1", "--json", str(target)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--json" in err and ("regular file" in err or "folder" in err)
     assert (stat.S_ISFIFO if kind == "fifo" else stat.S_ISDIR)(os.lstat(target).st_mode)
@@ -720,7 +720,7 @@ def test_a_coarse_integrator_step_is_found_by_halving_it(tmp_path, capsys):
     path.write_text(FORWARD + "simulation: {max_step: 1.0}\n")
     warning = step_warning(load_config(path))
     assert warning is not None and "simulation.max_step = 1 s is too coarse" in warning
-    assert main(["run", str(path), "--trials", "1"]) == 1
+    assert main(["run", str(path), "--trials", "1", "--hold", "1"]) == 1
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "lower simulation.max_step" in err
 
@@ -739,7 +739,7 @@ def test_clipped_actions_are_reported_by_run_and_compare(tmp_path, capsys):
     assert main(["run", str(boxed), "--trials", "4"]) == 1
     out = capsys.readouterr().out
     assert out.count("action clipped to the box") == 3 and "3 of 4 actions were clipped" in out
-    assert main(["run", "forward_parking", "--trials", "2"]) == 1
+    assert main(["run", "forward_parking", "--trials", "2", "--hold", "2"]) == 1
     assert "clipped" not in capsys.readouterr().out
 
 

@@ -223,7 +223,7 @@ def test_a_users_robot_config_that_raises_is_bad_input_naming_the_file_the_model
         load_config(path)
     from ilc_steering.cli import main
 
-    assert main(["run", str(path), "--trials", "1"]) == 2
+    assert main(["run", str(path), "--trials", "1", "--hold", "1"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("ilc-steering: config error: ") and says in err and len(err.splitlines()) == 1
 
@@ -243,12 +243,12 @@ def test_a_run_of_a_users_robot_is_saved_as_its_module_and_loads_back_in_another
     text = (HERE.parent / "configs" / "unicycle_parking.yaml").read_text()
     path, out = fresh / "mine.yaml", fresh / "run.json"
     path.write_text(text.replace("  model: unicycle", "  model: my_unicycle:Config", 1))
-    main(["run", str(path), "--trials", "2", "--json", str(out)])
+    main(["run", str(path), "--trials", "2", "--hold", "2", "--json", str(out)])
     assert json.loads(out.read_text())["config"]["plant"]["model"] == "my_unicycle:Config"
     for state in (robots.ROBOTS, robots._LOADED, robots._SOURCES):  # as a fresh process has them
         state.pop("my_unicycle", None)
     run = load_run(out)
     assert run.config == load_config(path) and run.config.plant.model == "my_unicycle"
     packaged = fresh / "packaged.json"
-    main(["run", "unicycle_parking", "--trials", "1", "--json", str(packaged)])
+    main(["run", "unicycle_parking", "--trials", "1", "--hold", "1", "--json", str(packaged)])
     assert json.loads(packaged.read_text())["config"]["plant"]["model"] == "unicycle"  # a packaged name stays

@@ -5,7 +5,10 @@ named by ``plant.model: module:ConfigClass`` is found beside the config too."""
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
+import stat
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -22,7 +25,15 @@ from ilc_steering.readers import check_depth, read_text
 from ilc_steering.schema import show, validate
 from ilc_steering.yaml_reader import MAX_VALUES, count_values, load_yaml
 
-__all__ = ["MAX_FILE_BYTES", "config_data", "load_config", "packaged_configs", "plant_config"]
+__all__ = [
+    "MAX_FILE_BYTES",
+    "ConfigSource",
+    "config_data",
+    "load_config",
+    "packaged_configs",
+    "plant_config",
+    "resolve_config",
+]
 
 MAX_FILE_BYTES = 1 << 20
 """Largest config file read [bytes]."""
@@ -37,43 +48,80 @@ def packaged_configs() -> list[str]:
     return sorted(p.name.removesuffix(".yaml") for p in root.iterdir() if p.name.endswith(".yaml"))
 
 
-def _read(source: str | Path) -> tuple[Any, str]:
+@dataclass(frozen=True)
+class ConfigSource:
+    """A config as a command names it, resolved once, at the start, to what it names: its text, read
+    then. Everything after (a session's copy, a sweep's workers, a run's record) takes this, never
+    the name again: a folder of the same name made later (``sweep NAME --out NAME``) changes nothing."""
+
+    text: str
+    """The YAML."""
+    origin: str
+    """How messages name it: its path, or ``NAME.yaml (packaged)``."""
+    path: Path | None
+    """The file it was read from (an input of the command, which no output may be); the packaged
+    config's own file where the package is on disk."""
+    folder: str | None
+    """The folder a robot's module beside it is found in, and a program it names runs in; ``None``
+    for a packaged config."""
+
+
+def _is_regular(path: Path) -> bool | None:
+    """Whether ``path`` is a regular file (links followed); ``None`` when nothing is there at all."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except FileNotFoundError:
+        return None if not os.path.islink(path) else False  # a dangling link is there: reading it says so
+    except (OSError, ValueError):
+        return False  # a loop of links, a name too long, a NUL: reading it names the problem
+
+
+def resolve_config(source: str | Path) -> ConfigSource:
+    """What the config ``source`` names, read now: a YAML file, or a packaged config by its bare name
+    (``forward_parking``), unless a regular file of that name is in the working directory. A folder
+    named like a packaged config is not a config: the name is the packaged one's."""
+    text = str(source)
     path = Path(source)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        if not path.is_file():
-            raise ConfigError(f"{path}: no such config file")
-        try:
-            text = read_text(path, MAX_FILE_BYTES)
-        except ValueError as error:
-            raise ConfigError(str(error)) from None
-        return load_yaml(text, str(path)), str(path)
-    if not isinstance(source, str) or not re.fullmatch(r"[A-Za-z0-9_\-]+", source):
-        raise ConfigError(f"{source!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
-    resource = resources.files("ilc_steering.configs") / f"{source}.yaml"
-    if not resource.is_file():
-        raise ConfigError(f"{source!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
-    origin = f"{source}.yaml (packaged)"
-    return load_yaml(resource.read_text(encoding="utf-8"), origin), origin  # the package's own: small, UTF-8
+    bare = re.fullmatch(r"[A-Za-z0-9_\-]+", text) is not None
+    resource = resources.files("ilc_steering.configs") / f"{text}.yaml" if bare else None
+    here = _is_regular(path)
+    if resource is not None and resource.is_file() and not here:
+        origin = f"{text}.yaml (packaged)"
+        return ConfigSource(resource.read_text(encoding="utf-8"), origin, Path(str(resource)), None)
+    if here is None and path.suffix not in (".yaml", ".yml"):
+        raise ConfigError(f"{text!r} is neither a YAML file nor a packaged config; packaged: {packaged_configs()}")
+    if here is None:
+        raise ConfigError(f"{path}: no such config file")
+    try:
+        content = read_text(path, MAX_FILE_BYTES)
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
+    return ConfigSource(content, str(path), path, str(path.parent))
 
 
-def load_config(source: str | Path | SteeringConfig | dict[str, Any]) -> SteeringConfig:
-    """A scenario from a YAML path, a packaged config name (``"forward_parking"``), a mapping,
-    or an already built config (returned as is)."""
+def load_config(source: str | Path | ConfigSource | SteeringConfig | dict[str, Any]) -> SteeringConfig:
+    """A scenario from a YAML path, a packaged config name (``"forward_parking"``, see
+    :func:`resolve_config`), a config resolved before, a mapping, or an already built config
+    (returned as is)."""
     if isinstance(source, SteeringConfig):
         return source
-    if not isinstance(source, (str, Path, dict)):
+    if not isinstance(source, (str, Path, ConfigSource, dict)):
         raise ConfigError(
             f"config must be a YAML path, a packaged config name, a mapping or a SteeringConfig, got {show(source)}"
         )
-    data, origin = (source, "<mapping>") if isinstance(source, dict) else _read(source)
+    folders: tuple[str, ...] = ()
     if isinstance(source, dict):
+        data, origin = source, "<mapping>"
         if count_values(data) > MAX_VALUES:
             raise ConfigError(f"{origin}: more than {MAX_VALUES} values; not a config")
         try:
             check_depth(data, origin)
         except ValueError as error:
             raise ConfigError(f"{error}; not a config") from None
-    folders = (str(Path(source).parent),) if isinstance(source, (str, Path)) and Path(source).is_file() else ()
+    else:
+        found = source if isinstance(source, ConfigSource) else resolve_config(source)
+        data, origin = load_yaml(found.text, found.origin), found.origin
+        folders = () if found.folder is None else (found.folder,)
     token = _FOLDERS.set(folders)  # a robot's module beside its config is found (entries.load_entry)
     try:
         return _config(data)

@@ -1,11 +1,18 @@
 """A program on the other end of a cable: one JSON object per line over its stdin and stdout.
 
 :class:`Cable` starts the program, writes a message as one line of UTF-8 JSON and reads one back
-within a deadline. Whatever the program does wrong (it cannot start, dies, hangs past the
-deadline, writes half a line, a line that is not JSON, a NaN or an infinity, a line longer than
-:data:`MAX_LINE` bytes) is a :class:`~ilc_steering.errors.PlantError` whose one line names the
-program by its command. The program's stderr is the library's (its log, passed through); its
-stdout is the protocol's alone. POSIX only (``select`` on a pipe).
+within a deadline, and writes within one too: a program that stops reading while a request bigger
+than the pipe is on its way cannot hold the library past it. Whatever the program does wrong (it
+cannot start, dies, hangs past the deadline, stops reading, writes half a line, a line that is not
+JSON, a NaN or an infinity, a line longer than :data:`MAX_LINE` bytes) is a
+:class:`~ilc_steering.errors.PlantError` whose one line names the program by its command. The
+program's stderr is the library's (its log, passed through); its stdout is the protocol's alone.
+
+The program is a child the library owns: it runs in a process group of its own, and stopping it
+stops the group (what it started included). Every program started inside :func:`owned` is stopped
+when that block ends, however it ends; a watcher (:func:`watch`) hears of each group as it starts
+and stops, so a process that cannot run the block's end (a worker killed for its time limit) is
+followed by one that stops the group for it. POSIX only (``poll`` on a pipe, process groups).
 """
 
 from __future__ import annotations
@@ -14,14 +21,17 @@ import json
 import os
 import select
 import shlex
+import signal
 import subprocess
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 from ilc_steering.errors import BadInput, PlantError
 
-__all__ = ["MAX_LINE", "STOP_SECONDS", "Cable", "describe"]
+__all__ = ["MAX_LINE", "STOP_SECONDS", "Cable", "describe", "owned", "stop_group", "watch"]
 
 MAX_LINE = 64 << 20
 """[bytes] the longest line read from a program (a trajectory at 1 kHz for a minute fits many times)."""
@@ -38,6 +48,45 @@ def _no_constant(name: str) -> Any:
     raise BadInput(f"{name} is not a number JSON allows")
 
 
+_OWNED: ContextVar[list[Cable] | None] = ContextVar("_OWNED", default=None)
+_WATCHERS: list[Callable[[int, bool], None]] = []
+
+
+@contextmanager
+def owned() -> Iterator[None]:
+    """Every program started inside the block is stopped when it ends: returned, raised, interrupted."""
+    cables: list[Cable] = []
+    token = _OWNED.set(cables)
+    try:
+        yield
+    finally:
+        _OWNED.reset(token)
+        for cable in cables:
+            cable.close()
+
+
+def watch(callback: Callable[[int, bool], None]) -> None:
+    """Call ``callback(group, started)`` as each program's process group starts (``True``) and once it
+    is stopped (``False``), in this process."""
+    _WATCHERS.append(callback)
+
+
+def stop_group(group: int) -> None:
+    """Kill every process of the process group ``group`` that is left (none: nothing happens)."""
+    try:
+        os.killpg(group, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _tell(group: int, started: bool) -> None:
+    for callback in _WATCHERS:
+        try:
+            callback(group, started)
+        except (OSError, ValueError):  # a watcher whose other end has gone: nobody to tell
+            pass
+
+
 class Cable:
     """A running program and the lines exchanged with it.
 
@@ -52,12 +101,24 @@ class Cable:
     def __init__(self, command: Sequence[str], folder: str) -> None:
         self.name = describe(command)
         try:
-            self.process = subprocess.Popen(  # the user's own program, by design
-                list(command), cwd=folder, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0
+            self.process = subprocess.Popen(  # the user's own program, by design; a group of its own
+                list(command),
+                cwd=folder,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                bufsize=0,
+                start_new_session=True,
             )
         except OSError as error:
             raise PlantError(f"{self.name}: cannot start it in {folder}: {error.strerror or error}") from None
+        self.closed = False
         self._buffer = b""
+        owners = _OWNED.get()
+        if owners is not None:
+            owners.append(self)
+        _tell(self.process.pid, True)
+        assert self.process.stdin is not None  # Popen with stdin=PIPE
+        os.set_blocking(self.process.stdin.fileno(), False)  # written within a deadline (send)
 
     def fail(self, problem: str) -> PlantError:
         """A :class:`PlantError` naming the program; the program is stopped (its next answer could
@@ -65,16 +126,32 @@ class Cable:
         self.close(kill=True)
         return PlantError(f"{self.name}: {problem}")
 
-    def send(self, message: dict[str, Any], what: str) -> None:
-        """Write ``message`` as one line; a program that has gone is named, with ``what`` was sent."""
-        line = json.dumps(message, allow_nan=False, separators=(",", ":")) + "\n"
+    def send(self, message: dict[str, Any], what: str, timeout: float | None = None) -> None:
+        """Write ``message`` as one line, all of it taken by the program within ``timeout`` [s] (``None``:
+        no limit); a program that has gone, or stops reading, is named, with ``what`` was sent."""
+        data = memoryview((json.dumps(message, allow_nan=False, separators=(",", ":")) + "\n").encode("utf-8"))
         stdin = self.process.stdin
-        try:
-            assert stdin is not None  # Popen with stdin=PIPE
-            stdin.write(line.encode("utf-8"))
-            stdin.flush()
-        except (BrokenPipeError, ConnectionResetError, ValueError):
-            raise self.fail(f"died before {what} could be sent ({self._exit()})") from None
+        if stdin is None or stdin.closed:
+            raise self.fail(f"was stopped before {what} could be sent")
+        deadline = None if timeout is None else time.monotonic() + timeout
+        poller = select.poll()
+        poller.register(stdin.fileno(), select.POLLOUT)
+        sent = 0
+        while sent < len(data):
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                raise self.fail(
+                    f"stopped reading {what}: it took {sent} of its {len(data)} bytes within plant.timeout = "
+                    f"{timeout:g} s (it is stopped)"
+                )
+            if not poller.poll(None if left is None else max(1, int(left * 1000))):
+                continue
+            try:
+                sent += os.write(stdin.fileno(), data[sent:])
+            except BlockingIOError:
+                continue
+            except (BrokenPipeError, ConnectionResetError):
+                raise self.fail(f"died before {what} could be sent ({self._exit()})") from None
 
     def receive(self, timeout: float, what: str) -> dict[str, Any]:
         """The next line, as a JSON object, within ``timeout`` [s]; ``what`` is what was awaited."""
@@ -96,8 +173,9 @@ class Cable:
             if left <= 0:
                 half = f" after half a line ({len(self._buffer)} bytes: {_show(self._buffer)})" if self._buffer else ""
                 raise self.fail(f"gave no answer to {what} within plant.timeout = {timeout:g} s{half}")
-            ready, _, _ = select.select([fd], [], [], left)
-            if not ready:
+            poller = select.poll()
+            poller.register(fd, select.POLLIN)
+            if not poller.poll(max(1, int(left * 1000))):
                 continue
             chunk = os.read(fd, 1 << 16)
             if not chunk:
@@ -125,7 +203,7 @@ class Cable:
 
     def close(self, kill: bool = False) -> None:
         """End the program: its stdin closed (the end of the run), :data:`STOP_SECONDS` to exit, then
-        killed; with ``kill``, at once."""
+        killed; with ``kill``, at once. Either way what is left of its process group is killed."""
         process = self.process
         if process.poll() is None and not kill:
             try:
@@ -134,15 +212,19 @@ class Cable:
                 process.wait(timeout=STOP_SECONDS)
             except (OSError, subprocess.TimeoutExpired):
                 pass
+        stop_group(process.pid)  # the program, if it lives on, and whatever it started
         if process.poll() is None:
             process.kill()
-            process.wait()
+        process.wait()
         for stream in (process.stdin, process.stdout):
             if stream is not None:
                 try:
                     stream.close()
                 except OSError:
                     pass
+        if not self.closed:
+            self.closed = True
+            _tell(process.pid, False)
 
 
 def _show(line: bytes) -> str:

@@ -17,7 +17,9 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["STARTED", "STARTUP_ALLOWANCE", "Failed", "Finish", "killable_map"]
+from ilc_steering.core.cable import owned, stop_group, watch
+
+__all__ = ["GROUP", "STARTED", "STARTUP_ALLOWANCE", "Failed", "Finish", "killable_map"]
 
 Finish = Callable[[Any, Any], None]
 """``finish(key, result)``: a call's result, handed over in the calling process as it arrives."""
@@ -28,11 +30,17 @@ STARTUP_ALLOWANCE = 60.0
 """[s] a fresh worker's imports before its call starts, on top of the call's time limit."""
 STARTED = "started"
 """What a killable worker sends once it holds its call, imports done: the call's clock starts then."""
+GROUP = "group"
+"""What a killable worker sends, with a process group and whether it started, of each robot program it runs."""
 
 
 def _serve(connection: Any) -> None:
     """A killable worker's loop: run each ``(function, args)`` it is sent and send back ``(True,
-    result)`` or ``(False, message)``, until it is sent None or its parent goes."""
+    result)`` or ``(False, message)``, until it is sent None or its parent goes. A robot program a
+    call starts is stopped when the call ends (:func:`~ilc_steering.core.cable.owned`), and its
+    process group is told to the parent as it starts and stops (``(GROUP, group, started)``), so
+    that the parent stops it when it kills this worker."""
+    watch(lambda group, started: connection.send((GROUP, group, started)))
     while True:
         try:
             task = connection.recv()
@@ -43,7 +51,8 @@ def _serve(connection: Any) -> None:
         function, args = task  # unpickled: the function's modules are imported by now
         connection.send(STARTED)  # the cell's time limit starts here, not at the worker's imports
         try:
-            outcome: tuple[bool, Any] = (True, function(*args))
+            with owned():
+                outcome: tuple[bool, Any] = (True, function(*args))
         except Exception as error:
             outcome = (False, f"{type(error).__name__}: {error}")
         try:
@@ -63,10 +72,14 @@ class _Worker:
         theirs.close()
         self.key: Any = None
         self.deadline: float | None = None
+        self.groups: set[int] = set()  # the process groups of the robot programs its call runs
 
     def stop(self, kill: bool = False) -> None:
         if kill:
             self.process.kill()
+            for group in self.groups:  # its robot programs, which it can no longer stop itself
+                stop_group(group)
+            self.groups.clear()
         else:
             try:
                 self.connection.send(None)
@@ -112,6 +125,9 @@ def killable_map(
                         message = (None, None)
                     if message == STARTED:
                         worker.deadline = None if timeout is None else time.monotonic() + timeout
+                        continue
+                    if isinstance(message, tuple) and len(message) == 3 and message[0] == GROUP:
+                        (worker.groups.add if message[2] else worker.groups.discard)(message[1])
                         continue
                     ok, value = message
                     if ok is not None:

@@ -36,6 +36,7 @@ import numpy as np
 from ilc_steering import __version__
 from ilc_steering.agents.registry import METHODS, REGISTRY, is_custom, lookup
 from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config.loading import resolve_config
 from ilc_steering.core.external import is_external
 from ilc_steering.engine.options import add_cell_options, check_cell_options
 from ilc_steering.engine.provenance import code, record_codes, record_report
@@ -116,12 +117,15 @@ def plan(args: SweepArgs) -> Plan:
     """The frozen plan of ``args``: the config loaded once, every option checked once."""
     from ilc_steering.runner import step_warning
 
-    config = load_config(args.config)
+    source = resolve_config(args.config)
+    config = load_config(source)
     names = _validate(args, config)
     check_cell_options(args.backend, args.workers, args.cell_timeout)
     gains: list[float | None] = list(args.nu_b) or [None]
     given = {config.learning.nu_b if g is None else g: g for g in gains}
     rows = tuple((m, gain, r) for m in args.methods for gain in given for r in range(args.grid))
+    if source.path is not None:  # the rows and the oracle load what the name named now, not what it names later
+        args = replace(args, config=os.path.abspath(source.path))
     return Plan(args, config, content_hash(asdict(config)), names, rows, given, step_warning(config))
 
 

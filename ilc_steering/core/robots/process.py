@@ -24,8 +24,11 @@ import os
 import shutil
 import sys
 import weakref
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
-from math import isfinite, pi
+from math import isfinite
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -37,16 +40,34 @@ from ilc_steering.core.checks import require
 from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
 from ilc_steering.core.grid import MAX_STEPS_PER_TRIAL
 from ilc_steering.core.integrate import LEFT_CHART, OK
-from ilc_steering.core.plants import CHART_MARGIN, PlantConfig, PlantKind
+from ilc_steering.core.plants import PlantConfig, PlantKind
 from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
 from ilc_steering.core.robots.car import rotate
-from ilc_steering.core.robots.process_limits import ProcessLimits, check_path, steering_index
+from ilc_steering.core.robots.process_limits import (
+    WRAPPED,
+    ProcessLimits,
+    brief,
+    check_path,
+    kept_log,
+    number_list,
+    reported_pose,
+    reported_trajectory,
+    steering_index,
+)
 from ilc_steering.core.simulate import simulate
 from ilc_steering.core.trapezoid import TrapezoidProfile
 from ilc_steering.entries import CONFIG_FOLDERS
 from ilc_steering.errors import BadInput
 
-__all__ = ["PROTOCOL", "ProcessPlant", "ProcessPlantConfig", "nominal_path", "profile_message", "sample"]
+__all__ = [
+    "PROTOCOL",
+    "ProcessPlant",
+    "ProcessPlantConfig",
+    "nominal_path",
+    "profile_message",
+    "sample",
+    "without_program",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -56,6 +77,20 @@ SUBSTEPS = 10
 """Integrator steps of the nominal path per control period, at each of which the limits are checked."""
 RESULT_KEYS = frozenset({"type", "trial", "final", "trajectory", "log", "left_chart"})
 """The keys a ``result`` may hold."""
+
+
+_PROGRAM_CHECKED: ContextVar[bool] = ContextVar("_PROGRAM_CHECKED", default=True)
+
+
+@contextmanager
+def without_program() -> Iterator[None]:
+    """Configs loaded inside the block are not checked for their ``plant.command`` (a program on the
+    ``PATH``, an executable file): for what runs none, a session or a run's record read back."""
+    token = _PROGRAM_CHECKED.set(False)
+    try:
+        yield
+    finally:
+        _PROGRAM_CHECKED.reset(token)
 
 
 def profile_message(profile: InputProfile) -> dict[str, Any]:
@@ -103,15 +138,6 @@ class _Link:
 def _stop(cables: list[Cable]) -> None:
     for cable in cables:
         cable.close()
-
-
-def _number_list(value: Any, size: int | None) -> list[float] | None:
-    """``value`` as finite floats (``size`` of them, when given), or ``None``."""
-    if not isinstance(value, list) or (size is not None and len(value) != size):
-        return None
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and isfinite(v) for v in value):
-        return None
-    return [float(v) for v in value]
 
 
 @dataclass(frozen=True)
@@ -173,7 +199,7 @@ class ProcessPlant(ExternalPlantBase):
         outcomes = []
         for b, request in enumerate(requests):
             k = request["trial"]
-            cable.send(request, f"trial {k}")
+            cable.send(request, f"trial {k}", self.timeout)
             self._link.sent = k
             outcomes.append(self._result(cable, k, cable.receive(self.timeout, f"trial {k}"), x0[b]))
         final = np.array([o[0] for o in outcomes])
@@ -194,19 +220,20 @@ class ProcessPlant(ExternalPlantBase):
 
     def _cable(self) -> Cable:
         """The running program, started and greeted on the first trial."""
-        if self._link.cables:
+        if self._link.cables and not self._link.cables[0].closed:
             return self._link.cables[0]
+        self._link.cables.clear()  # stopped at the end of a run (cable.owned): this is another run
         command = [sys.executable if self.command[0] == "python" else self.command[0], *self.command[1:]]
         cable = Cable(command, self.folder)
         cable.name = self.who
         self._link.cables.append(cable)
         hello = {"type": "hello", "protocol": PROTOCOL, "robot": self.chained_map.robot, "dimension": self.dimension}
-        cable.send(hello, "the hello")
+        cable.send(hello, "the hello", self.timeout)
         answer = cable.receive(self.timeout, "the hello")
         greeted = answer.get("type") == "hello" and answer.get("protocol") == PROTOCOL
         if not greeted or not isinstance(answer.get("name"), str):
             wanted = f'{{"type": "hello", "protocol": {PROTOCOL}, "name": "..."}}'
-            raise cable.fail(f"answered the hello with {_brief(answer)}, not {wanted}")
+            raise cable.fail(f"answered the hello with {brief(answer)}, not {wanted}")
         return cable
 
     def request(self, k: int, profile: InputProfile, x0: Array, c: Array, record: bool = False) -> dict[str, Any]:
@@ -244,60 +271,34 @@ class ProcessPlant(ExternalPlantBase):
         if kind == "error":
             message = answer.get("message")
             cable.close()
-            raise cable.fail(f"says trial {k} failed: {message if isinstance(message, str) else _brief(answer)}")
+            raise cable.fail(f"says trial {k} failed: {message if isinstance(message, str) else brief(answer)}")
         if kind != "result":
-            raise cable.fail(f'answered trial {k} with {_brief(answer)}, not a "result" or an "error"')
+            raise cable.fail(f'answered trial {k} with {brief(answer)}, not a "result" or an "error"')
         if answer.get("trial") != k:
             raise cable.fail(
-                f"answered trial {_brief(answer.get('trial'))} to trial {k}'s request (a stale or wrong answer)"
+                f"answered trial {brief(answer.get('trial'))} to trial {k}'s request (a stale or wrong answer)"
             )
         unknown = sorted(set(answer) - RESULT_KEYS)
         if unknown:
             raise cable.fail(f"answered trial {k} with unknown keys {unknown}; a result has {sorted(RESULT_KEYS)}")
         n = self.dimension
-        final = _number_list(answer.get("final"), n)
+        final = number_list(answer.get("final"), n)
         if final is None:
             raise cable.fail(
-                f"answered trial {k} with final = {_brief(answer.get('final'))}: it needs {n} finite numbers "
+                f"answered trial {k} with final = {brief(answer.get('final'))}: it needs {n} finite numbers "
                 f"({', '.join(self.kind.coordinates)}; world frame)"
-            )
-        x_min, x_max, y_min, y_max = self.limits.workspace
-        if not (x_min <= final[0] <= x_max and y_min <= final[1] <= y_max):
-            raise cable.fail(
-                f"reported trial {k}'s final pose at (x, y) = ({final[0]:.6g}, {final[1]:.6g}) m, outside "
-                f"plant.limits.workspace x in [{x_min:g}, {x_max:g}], y in [{y_min:g}, {y_max:g}] m"
             )
         log = answer.get("log", {})
         if not isinstance(log, dict):
-            raise cable.fail(f"answered trial {k} with log = {_brief(log)}: it needs a JSON object")
+            raise cable.fail(f"answered trial {k} with log = {brief(log)}: it needs a JSON object")
         left = answer.get("left_chart", False)
         if not isinstance(left, bool):
-            raise cable.fail(f"answered trial {k} with left_chart = {_brief(left)}: it needs true or false")
-        q, status = self.to_task(np.array(final)), LEFT_CHART if left else OK
-        edge = pi / 2 - CHART_MARGIN
-        if np.any(np.abs(q[2:]) > edge):  # stopped out of the chart of eqs. 4-5: measured at its edge
-            q[2:], status = np.clip(q[2:], -edge, edge), LEFT_CHART
-        return q, status, self._trajectory(cable, k, answer.get("trajectory")), log
-
-    def _trajectory(self, cable: Cable, k: int, value: Any) -> tuple[Array, Array] | None:
-        if value is None:
-            return None
-        bad = f"answered trial {k} with a trajectory that is not {{'t': [...], 'q': [[...], ...]}}"
-        if not isinstance(value, dict) or set(value) != {"t", "q"}:
-            raise cable.fail(bad)
-        t = _number_list(value["t"], None)
-        rows = value["q"] if isinstance(value["q"], list) else None
-        if t is None or rows is None or len(rows) != len(t) or len(t) < 2 or np.any(np.diff(t) <= 0):
-            raise cable.fail(bad + " (t increasing, as many q as t)")
-        q = [_number_list(row, self.dimension) for row in rows]
-        if any(row is None for row in q):
-            raise cable.fail(bad + f" ({self.dimension} finite numbers per q)")
-        return np.array(t), self.to_task(np.array(q))
-
-
-def _brief(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 80 else text[:80] + "..."
+            raise cable.fail(f"answered trial {k} with left_chart = {brief(left)}: it needs true or false")
+        q, out, wrapped = reported_pose(self.limits, self.kind, final, self.frame, f"trial {k}", cable.fail)
+        log = {**kept_log(log), **({WRAPPED: wrapped} if wrapped else {})}  # the wrap stated with the trial
+        status = LEFT_CHART if left or out else OK
+        path = reported_trajectory(answer.get("trajectory"), self.dimension, f"trial {k}", cable.fail)
+        return q, status, None if path is None else (path[0], self.to_task(path[1])), log
 
 
 @dataclass(frozen=True)
@@ -308,7 +309,7 @@ class ProcessPlantConfig:
     limits: ProcessLimits  # checked before a trial is sent: workspace [m], speed [m/s], steering [rad], rate [rad/s]
     timeout: float = 60.0  # [s] the longest wait for the program's answer to one trial (and to the hello)
     control_rate: float = 50.0  # [Hz] the samples of the inputs sent with a trial
-    folder: str | None = None  # the program's working directory; None: the config's folder (absolute once loaded)
+    folder: str | None = None  # the program's working directory, relative to the config's; None: the config's folder
 
     plant_class: ClassVar[type[ProcessPlant]] = ProcessPlant
 
@@ -337,12 +338,11 @@ class ProcessPlantConfig:
                 "limits",
                 f"a {self.robot.model} steers: give limits.steering [rad] and limits.steering_rate [rad/s]",
             )
-        folder = self.folder
-        if folder is None:
-            folders = CONFIG_FOLDERS.get()
-            folder = folders[0] if folders else os.getcwd()
-        object.__setattr__(self, "folder", str(Path(folder).resolve()))
-        self._check_command()
+        folders = CONFIG_FOLDERS.get()  # a relative folder is the config's folder's, as the command is
+        base = Path(folders[0] if folders else os.getcwd())
+        object.__setattr__(self, "folder", os.path.realpath(base / (self.folder or ".")))
+        if _PROGRAM_CHECKED.get():
+            self._check_command()
 
     def _check_command(self) -> None:
         command = self.command
