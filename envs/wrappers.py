@@ -38,7 +38,9 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
 
     On the cyclic env (``ilc_steering/CyclicSteering-v0``) each segment has its own nominal model,
     so ``c0`` and ``s`` are those of the segment the next ``step`` drives: the wrapper follows the
-    segment through ``info["segment"]`` of ``reset`` and ``step``.
+    segment through ``info["segment"]`` of ``reset`` and ``step``. On the segmented env
+    (``ilc_steering/SegmentedSteering-v0``), whose one step drives every segment, ``c0`` and ``s``
+    are the segments' own, end to end (a segment's ``c11`` keeps the sign of its direction).
 
     Actions outside ``[-1, 1]`` are clipped to it; a wrong shape or a non-finite value raises
     ``ValueError``. ``c`` outside the env's own action box is clipped by the env
@@ -48,8 +50,9 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
     Parameters
     ----------
     env
-        A ``ChainedSteering-v0`` or ``CyclicSteering-v0`` env from ``gym.make`` or an instance of
-        their classes, under wrappers that keep its physical action box (``ValueError`` otherwise).
+        A ``ChainedSteering-v0``, ``CyclicSteering-v0`` or ``SegmentedSteering-v0`` env from
+        ``gym.make`` or an instance of their classes, under wrappers that keep its physical action
+        box (``ValueError`` otherwise).
     scale
         Half-width of the box per coefficient, in units of ``NominalModel.action_scale()``: a
         number in ``(0, MAX_SCALE]``. The default, :data:`~ilc_steering.boxes.RESIDUAL_SCALE`, is the
@@ -97,15 +100,22 @@ class ResidualAction(SearchBox, gym.utils.RecordConstructorArgs):
         models = getattr(unwrapped, "nominal_models", None) or [getattr(unwrapped, "nominal_model", None)]
         if models[0] is None:
             raise BadInput(
-                f"ResidualAction needs an ilc_steering env (ChainedSteering-v0 or CyclicSteering-v0), "
-                f"got {type(unwrapped).__name__}, which has no nominal model"
+                "ResidualAction needs an ilc_steering env (ChainedSteering-v0, CyclicSteering-v0 or "
+                f"SegmentedSteering-v0), got {type(unwrapped).__name__}, which has no nominal model"
             )
         if env.action_space != unwrapped.action_space:
             raise BadInput(
                 f"ResidualAction must wrap the env's own action box {unwrapped.action_space}, got "
                 f"{env.action_space}: put it below no other action wrapper"
             )
-        boxes = [residual_box(model, env.action_space) for model in models]
+        views = getattr(unwrapped, "segment_views", None)
+        if callable(views):  # one trial drives every segment: one box, the segments' boxes end to end
+            parts = [residual_box(view.nominal_model, view.action_space) for view in views()]
+            low, high = (np.asarray(bound, dtype=np.float64) for bound in (env.action_space.low, env.action_space.high))
+            centre = np.clip(np.concatenate([centre for centre, _ in parts]), low, high)  # c11's sign kept
+            boxes = [(centre, np.concatenate([half for _, half in parts]))]
+        else:
+            boxes = [residual_box(model, env.action_space) for model in models]
         ratio = float(scale) / RESIDUAL_SCALE  # 1.0 exactly by default: the comparison's box, bit for bit
         self.centres: Array = np.array([centre for centre, _ in boxes])
         self.halves: Array = np.array([half * ratio for _, half in boxes])

@@ -67,6 +67,22 @@ def test_scale_is_in_units_of_the_action_scale():
     assert not env.step(np.ones(4))[4]["clipped"]  # the documented room: up to 9 without clipping
 
 
+def test_on_a_manoeuvre_the_box_is_every_segments_end_to_end():
+    env = ResidualAction(gym.make("ilc_steering/SegmentedSteering-v0", config="segmented_parking"))
+    views = env.unwrapped.segment_views()
+    centre = np.concatenate([view.nominal_model.solve() for view in views])
+    half = np.concatenate([RESIDUAL_SCALE * view.nominal_model.action_scale() for view in views])
+    assert env.action_space.shape == env.unwrapped.action_space.shape == centre.shape
+    np.testing.assert_allclose(env.half, half, rtol=1e-15)
+    env.reset(seed=0)
+    info = env.step(np.zeros(centre.size))[4]
+    box = env.unwrapped.action_space
+    np.testing.assert_array_equal(info["action"], np.clip(centre, np.float64(box.low), np.float64(box.high)))
+    assert not info["clipped"] and info["cartesian_error"] < 0.2  # a = 0: the nominal manoeuvre
+    signs = np.sign(env.action(-np.ones(centre.size))[np.cumsum([0, *env.unwrapped._sizes[:-1]])])
+    assert list(signs) == [1.0, -1.0]  # c11 keeps each segment's direction (forward, then reverse)
+
+
 @pytest.mark.parametrize("scale", [0, -0.3, float("nan"), float("inf"), True, "0.3", None, [0.3]])
 def test_bad_scale_is_refused_by_name(scale):
     with pytest.raises(ValueError, match=r"^scale must be a number in \(0, 100\]") as error:
