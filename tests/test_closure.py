@@ -17,7 +17,7 @@ import pytest
 
 from ilc_steering.compare.cells import cell_roots
 from ilc_steering.config import load_config
-from ilc_steering.engine.closure import closure
+from ilc_steering.engine.closure import BOOKKEEPING, closure
 from ilc_steering.sweep.rows import oracle_roots, row_roots
 
 
@@ -37,7 +37,7 @@ def imported(code: str) -> set[str]:
         [sys.executable, "-c", textwrap.dedent(code) + tail], capture_output=True, text=True, timeout=600
     )
     assert done.returncode == 0, done.stderr
-    return set(json.loads(done.stdout.strip().splitlines()[-1]))
+    return set(json.loads(done.stdout.strip().splitlines()[-1])) - BOOKKEEPING  # records, not results
 
 
 def robot(config: str) -> str:
@@ -58,6 +58,14 @@ def test_the_closure_reads_lazy_tables_relative_imports_and_skips_type_checking(
     assert "benchmarks/highway_parking.py" in beside  # a script's import of the file beside it
     with pytest.raises(ValueError, match="no module of ilc_steering"):
         closure(["ilc_steering.agents.no_such_learner"])
+
+
+def test_the_records_keepers_are_in_no_closure_but_their_own() -> None:
+    noisy = closure(["benchmarks/noisy.py"])  # imports record_made
+    assert "ilc_steering/core/integrate.py" in noisy
+    assert not {key for key in noisy if modules_of({key: ""}) & BOOKKEEPING}  # a change to them stales nothing
+    own = closure(["ilc_steering.engine.provenance"])
+    assert "ilc_steering/engine/provenance.py" in own and "ilc_steering/engine/closure.py" not in own
 
 
 @pytest.mark.slow

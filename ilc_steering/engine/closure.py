@@ -16,6 +16,10 @@ A root is
 - a data file of a package, ``package/relative/path`` (``ilc_steering.configs/rl/ppo.yaml``);
 - a script's path relative to the checkout (``benchmarks/noisy.py``), or an absolute path.
 
+The modules that keep and judge the records (:data:`BOOKKEEPING`) are never followed: they
+decide what a record says about a result, not what the result holds, so a change to them stales
+nothing.
+
 Files are keyed by a path that is the same in a checkout and an installed wheel
 (``ilc_steering/agents/newton_ilc.py``); a user's module outside the package by its file name.
 ``tests/test_closure.py`` checks the closure against what a fresh process running a cell imports.
@@ -32,10 +36,19 @@ from pathlib import Path
 
 from ilc_steering.errors import BadInput
 
-__all__ = ["PACKAGE", "checkout", "closure", "code_of", "root_of_entry"]
+__all__ = ["BOOKKEEPING", "PACKAGE", "checkout", "closure", "code_of", "root_of_entry"]
 
 PACKAGE = "ilc_steering"
 """The package whose imports a closure follows (and a script's files beside it)."""
+BOOKKEEPING = frozenset(
+    {
+        "ilc_steering.current",
+        "ilc_steering.engine.closure",
+        "ilc_steering.engine.provenance",
+        "ilc_steering.engine.staleness",
+    }
+)
+"""The modules that record a result's provenance and judge it current: in no closure, unless a root."""
 
 
 def code_of(files: Mapping[str, str]) -> str:
@@ -213,7 +226,7 @@ def closure(roots: Iterable[str]) -> dict[str, str]:
             modules, beside = _imported(path, package)
         else:
             modules, beside = _imported(path, None)
-        for name in modules:
+        for name in modules - BOOKKEEPING:
             file = _module_file(name)
             assert file is not None
             todo.append((_key(name, file), file, name))

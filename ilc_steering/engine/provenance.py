@@ -367,10 +367,15 @@ def record_made(out: Path, script: str, argv: Iterable[str] = (), roots: Iterabl
 
 
 def _library(name: str, module: Any) -> bool:
-    """A module of the library with a source file (not a namespace, not a built-in)."""
-    return (name == "ilc_steering" or name.startswith("ilc_steering.")) and str(
-        getattr(module, "__file__", "") or ""
-    ).endswith(".py")
+    """A module of the library with a source file (not a namespace, not a built-in), not one that
+    keeps the records (:data:`~ilc_steering.engine.closure.BOOKKEEPING`)."""
+    from ilc_steering.engine.closure import BOOKKEEPING
+
+    return (
+        (name == "ilc_steering" or name.startswith("ilc_steering."))
+        and name not in BOOKKEEPING
+        and str(getattr(module, "__file__", "") or "").endswith(".py")
+    )
 
 
 def record_report(folder: Path, results: Iterable[dict[str, Any]]) -> None:
