@@ -41,14 +41,10 @@ __all__ = ["BOOKKEEPING", "PACKAGE", "checkout", "closure", "code_of", "root_of_
 PACKAGE = "ilc_steering"
 """The package whose imports a closure follows (and a script's files beside it)."""
 BOOKKEEPING = frozenset(
-    {
-        "ilc_steering.current",
-        "ilc_steering.engine.closure",
-        "ilc_steering.engine.provenance",
-        "ilc_steering.engine.staleness",
-    }
+    {"ilc_steering.engine.closure", "ilc_steering.engine.provenance", "ilc_steering.engine.staleness"}
 )
-"""The modules that record a result's provenance and judge it current: in no closure, unless a root."""
+"""The modules that record a result's provenance and judge it current: in no closure, unless a root
+(the `current` command, which reads them, is imported by no computation)."""
 
 
 def code_of(files: Mapping[str, str]) -> str:
