@@ -27,17 +27,14 @@ them by their entry strings only, so that they may import it.
 
 from __future__ import annotations
 
-import re
-import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from typing import Any
 
 from ilc_steering.agents import rl_settings
 from ilc_steering.agents.base import Learner, LearnerContext, LearnerFactory, load_factory
 from ilc_steering.agents.rl_settings import RLAlgorithm
-from ilc_steering.entries import load_entry
+from ilc_steering.entries import load_entry, read_plugins
 from ilc_steering.errors import BadInput
 
 __all__ = [
@@ -61,8 +58,6 @@ FAMILIES = ("model-based", "black-box", "RL", "yours")
 installed package's learner (:data:`GROUP`)."""
 GROUP = "ilc_steering.learners"
 """The entry-point group in which an installed package names its learners: ``name = "module:make"``."""
-_NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
-_ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
 _INSTALLED: dict[str, tuple[str, str]] = {}  # name -> (entry, package), read once per process
 _READ: list[bool] = []
 _RL = "ilc_steering.agents.rl"
@@ -275,32 +270,18 @@ DEFAULT_METHODS = tuple(i for i, spec in REGISTRY.items() if spec.by_default)
 
 def installed() -> dict[str, str]:
     """The learners the installed packages name in :data:`GROUP`: name -> ``module:attr``, read once
-    per process (strings only: nothing is imported). An entry point whose name is an id of the
-    library, is not 1-40 lower-case letters, digits or '_', or whose value is not ``module:attr``,
-    or that names a learner another package names, is skipped with a one-line warning."""
+    per process (:func:`~ilc_steering.entries.read_plugins`: strings only, nothing is imported; an
+    entry point that is malformed, names an id of the library or a learner another package names
+    is skipped with a one-line warning)."""
     if not _READ:
         _READ.append(True)
-        try:
-            points = list(entry_points(group=GROUP))
-        except Exception as error:  # a broken distribution's metadata must not break the library
-            _skip("(installed metadata)", f"cannot be read ({type(error).__name__}: {error})")
-            points = []
-        for point in points:
-            package = getattr(getattr(point, "dist", None), "name", None) or "an unknown package"
-            where = f"{package}: {point.name} = {point.value}"
-            if point.name in REGISTRY:
-                _skip(where, f"{point.name!r} is a learner of the library, which a plugin cannot replace")
-            elif not _NAME.fullmatch(point.name) or not _ENTRY.fullmatch(point.value):
-                _skip(where, "a learner's entry point is name = 'package.module:make', its name 1-40 of a-z, 0-9, _")
-            elif _INSTALLED.get(point.name, (point.value,))[0] != point.value:
-                _skip(where, f"{point.name!r} is named already, by package {_INSTALLED[point.name][1]}")
-            else:
-                _INSTALLED[point.name] = (point.value, package)
+        plugins, _ = read_plugins(
+            GROUP, "learner", {id: spec.entry_point for id, spec in REGISTRY.items()}, "a learner of the library"
+        )
+        _INSTALLED.update(
+            {plugin.name: (plugin.entry, plugin.package) for plugin in plugins if plugin.name not in REGISTRY}
+        )
     return {name: entry for name, (entry, _) in _INSTALLED.items()}
-
-
-def _skip(where: str, reason: str) -> None:
-    print(f"ilc-steering: warning: learner plugin {where}: {reason}; skipped", file=sys.stderr)
 
 
 def is_custom(method: str) -> bool:

@@ -1,6 +1,7 @@
 """Code named by a string ``module:attr``: a robot's config class, a learner's factory, a plugin.
 
-One loader and one search rule for all of them, on the lowest floor so that every floor uses it:
+One loader, one search rule and one plugin reader for all of them, on the lowest floor so that
+every floor uses it:
 
 - ``module`` is an import name (``my_robot``, ``mypkg.mod``), ``attr`` a name in it, dotted for a
   nested one (``module:Class.make``, as in an entry point);
@@ -10,7 +11,11 @@ One loader and one search rule for all of them, on the lowest floor so that ever
 - whatever goes wrong (not of that form, a file's path given, the module does not import or its
   own code raises, no such attribute) is a one-line ``ValueError`` that starts with ``who`` (the
   option or config key that named it) and says what to give instead: the user's code is named,
-  never the library's.
+  never the library's;
+- an installed package names its robots and learners in an entry-point group
+  (:func:`read_plugins`): read as strings (nothing is imported until a name is asked for), each
+  checked for its form and against the names the library owns and other packages' names; one
+  that fails is skipped with a one-line warning on stderr that names the package.
 """
 
 from __future__ import annotations
@@ -18,16 +23,27 @@ from __future__ import annotations
 import os
 import re
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from contextvars import ContextVar
+from dataclasses import dataclass
 from importlib import import_module, invalidate_caches
+from importlib.metadata import entry_points
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 from ilc_steering.errors import INTERRUPTS, BadInput
 
-__all__ = ["CONFIG_FOLDERS", "ENTRY", "load_entry", "search_folders"]
+__all__ = [
+    "CONFIG_FOLDERS",
+    "ENTRY",
+    "PLUGIN_ENTRY",
+    "PLUGIN_NAME",
+    "Plugin",
+    "load_entry",
+    "read_plugins",
+    "search_folders",
+]
 
 CONFIG_FOLDERS: ContextVar[tuple[str, ...]] = ContextVar("CONFIG_FOLDERS", default=())
 """The folder of the config being loaded (empty for a packaged config or a mapping), set while it
@@ -35,6 +51,64 @@ is built: a robot's module beside it is found there, and a program it names runs
 
 ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_][\w.]*")
 """The form of an entry: ``module:attr``, both dotted names."""
+PLUGIN_NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
+"""A plugin's name (an entry point's): 1-40 lower-case letters, digits or '_', starting with a letter."""
+PLUGIN_ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+"""A plugin's value: ``package.module:attr``."""
+
+
+@dataclass(frozen=True)
+class Plugin:
+    """An entry point an installed package names: ``name = entry``, of distribution ``package``."""
+
+    name: str
+    entry: str
+    package: str
+
+    @property
+    def where(self) -> str:
+        """``"package: name = entry"``, as a warning names it."""
+        return f"{self.package}: {self.name} = {self.entry}"
+
+
+def read_plugins(group: str, kind: str, owned: Mapping[str, str], owner: str) -> tuple[list[Plugin], dict[str, str]]:
+    """The entry points the installed packages name in ``group`` (strings only: nothing is
+    imported), and the ones skipped (``"package: name = entry"`` -> why), each skipped one warned
+    on stderr in one line that names the package and ``kind`` (``"robot"``). Skipped: a name not of
+    :data:`PLUGIN_NAME` or a value not of :data:`PLUGIN_ENTRY`; a name of ``owned`` (the library's
+    own names -> their entries; ``owner`` says what they are, ``"a packaged robot"``) with another
+    entry (with the same entry it is the library's own, taken silently as it is); a name an earlier
+    package names with another entry. Unreadable metadata skips the group, with a warning."""
+    skipped: dict[str, str] = {}
+
+    def skip(where: str, reason: str) -> None:
+        skipped[where] = reason
+        print(f"ilc-steering: warning: {kind} plugin {where}: {reason}; skipped", file=sys.stderr)
+
+    try:
+        points = list(entry_points(group=group))
+    except Exception as error:  # a broken distribution's metadata must not break the library
+        skip("(installed metadata)", f"cannot be read ({type(error).__name__}: {error})")
+        return [], skipped
+    found: dict[str, Plugin] = {}
+    for point in points:
+        plugin = Plugin(
+            point.name, point.value, getattr(getattr(point, "dist", None), "name", None) or "an unknown package"
+        )
+        if not PLUGIN_NAME.fullmatch(plugin.name) or not PLUGIN_ENTRY.fullmatch(plugin.entry):
+            skip(
+                plugin.where,
+                f"a {kind}'s entry point is name = 'package.module:attr', its name 1-40 lower-case "
+                "letters, digits or '_', starting with a letter",
+            )
+        elif plugin.name in owned:
+            if owned[plugin.name] != plugin.entry:
+                skip(plugin.where, f"{plugin.name!r} is {owner}, which a plugin cannot replace")
+        elif found.get(plugin.name, plugin).entry != plugin.entry:
+            skip(plugin.where, f"{plugin.name!r} is named already, by package {found[plugin.name].package}")
+        else:
+            found.setdefault(plugin.name, plugin)
+    return list(found.values()), skipped
 
 
 def search_folders(folders: Iterable[str | os.PathLike[str]] = ()) -> None:

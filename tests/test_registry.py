@@ -1,11 +1,13 @@
 """The learner registry: one table of method ids, one way to build a learner, one context."""
 
 import dataclasses
+import os
+from pathlib import Path
 
 import gymnasium as gym
 import pytest
 
-import ilc_steering  # noqa: F401  (registers the envs)
+import ilc_steering
 from ilc_steering import cli, reproduce, runner
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import BaseLearner, Closable, LearnerContext, TimedUpdates, close_learner, update_times
@@ -226,3 +228,14 @@ def test_quick_is_resolved_in_one_place():
     the_plan = compare.plan(compare.Args(quick=True, methods=("ilc", "ppo"), scenarios=("forward_parking",)))
     assert {cell[3] for cell in the_plan.grid} == set(compare.QUICK_SEEDS)
     assert the_plan.budgets["nominal", "ppo", "forward_parking"] == compare.QUICK["rl_trials"]
+
+
+def test_one_plugin_reader_reads_every_entry_point_group():
+    """Robots and learners come from installed packages through one reader (issue 65): no other
+    module of the library reads entry points."""
+    package = Path(ilc_steering.__file__).parent
+    files = [Path(top, name) for top, _, names in os.walk(package, followlinks=True) for name in names]
+    modules = [path for path in files if path.suffix == ".py"]
+    assert any(path.name == "registry.py" for path in modules)  # agents/ is walked (a link in a checkout)
+    readers = [path.relative_to(package).as_posix() for path in modules if "entry_points(" in path.read_text("utf-8")]
+    assert readers == ["entries.py"]

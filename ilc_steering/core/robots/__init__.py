@@ -36,14 +36,12 @@ from its module and loaded on first use (``docs/modelling.md`` writes the maps o
 from __future__ import annotations
 
 import dataclasses
-import re
 import sys
 import typing
 from importlib import import_module
-from importlib.metadata import entry_points
 from typing import Any
 
-from ilc_steering.entries import load_entry
+from ilc_steering.entries import PLUGIN_ENTRY, PLUGIN_NAME, load_entry, read_plugins
 from ilc_steering.errors import BadInput
 
 __all__ = [
@@ -86,8 +84,8 @@ entry points in :data:`GROUP`, like any installed package's, so the core names n
 PACKAGED = frozenset(ROBOTS)
 """The robots that ship with the library: no plugin replaces them."""
 
-_NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
-ENTRY = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+_NAME = PLUGIN_NAME
+ENTRY = PLUGIN_ENTRY
 """A ``"package.module:ConfigClass"`` entry (also accepted as ``plant.model`` itself)."""
 _LOADED: dict[str, Any] = {}
 _PLUGINS: list[bool] = []  # whether the installed packages' entry points were read
@@ -154,32 +152,22 @@ def _skip(where: str, reason: str) -> None:
 
 
 def _read_plugins() -> None:
-    """Register the robots the installed packages name in :data:`GROUP`, once per process: strings
-    only (nothing is imported); a malformed or conflicting entry point is skipped with a warning."""
+    """Register the robots the installed packages name in :data:`GROUP`, once per process
+    (:func:`~ilc_steering.entries.read_plugins`: strings only, nothing is imported); one that a
+    script registered under another entry first is skipped too."""
     if _PLUGINS:
         return
     _PLUGINS.append(True)
-    try:
-        points = list(entry_points(group=GROUP))
-    except Exception as error:  # a broken distribution's metadata must not break the library
-        _skip("(installed metadata)", f"cannot be read ({type(error).__name__}: {error})")
-        return
-    for point in points:
-        package = getattr(getattr(point, "dist", None), "name", None) or "an unknown package"
-        where = f"{package}: {point.name} = {point.value}"
-        if point.name in PACKAGED:
-            if ROBOTS[point.name] != point.value:
-                _skip(where, f"{point.name!r} is a packaged robot, which a plugin cannot replace")
+    plugins, skipped = read_plugins(GROUP, "robot", {name: ROBOTS[name] for name in PACKAGED}, "a packaged robot")
+    _SKIPPED.update(skipped)
+    for plugin in plugins:
+        if plugin.name in PACKAGED:
             continue
-        if point.name in ROBOTS and ROBOTS[point.name] != point.value:
-            _skip(where, f"{point.name!r} is registered already, by {_SOURCES.get(point.name, ROBOTS[point.name])}")
+        if ROBOTS.get(plugin.name, plugin.entry) != plugin.entry:
+            _skip(plugin.where, f"{plugin.name!r} is registered already, by {_source(plugin.name)}")
             continue
-        try:
-            register(point.name, point.value)
-        except ValueError as error:
-            _skip(where, str(error))
-            continue
-        _SOURCES[point.name] = f"package {package}, entry point {point.name} = {point.value}"
+        register(plugin.name, plugin.entry)
+        _SOURCES[plugin.name] = f"package {plugin.package}, entry point {plugin.name} = {plugin.entry}"
 
 
 def _source(name: str) -> str:
