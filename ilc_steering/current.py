@@ -109,8 +109,10 @@ def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
                 )
                 said.append(f"  report {report}: made from other results than the folder holds (run it again)")
                 stale += 1
+            cost = sum(float(r["wall_s"]) for r in results.values() if isinstance(r.get("wall_s"), (int, float)))
             head = f"{stale} of {len(results)} results stale" if stale else f"all {len(results)} results of this code"
-            lines += [f"{folder}: {'STALE' if stale else 'current'}: {head}", *said]
+            made = f"  making them again costs about {cost / 60:.1f} minutes of one core (their wall times)"
+            lines += [f"{folder}: {'STALE' if stale else 'current'}: {head}", *said, *([] if stale else [made])]
             current &= not stale
     return current, lines
 
@@ -125,5 +127,5 @@ def _made(folder: Path) -> tuple[bool, list[str]]:
             again = f"run it again (it took {made.cpu_s / 60:.1f} CPU minutes)"
             lines += [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); {again}"]
         else:
-            lines.append(f"{folder}: current: made by {made.command} ({made.made})")
+            lines.append(f"{folder}: current: made by {made.command} ({made.made}; {made.cpu_s / 60:.1f} CPU minutes)")
     return current, lines

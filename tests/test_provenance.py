@@ -130,7 +130,8 @@ def test_a_sweep_s_rows_and_oracle_record_their_code(tmp_path: Path, changed, ca
     argv = ["sweep", "forward_parking", "--methods", "ilc", "newton_ilc", "--grid", "2", "--trials", "2"]
     argv += ["--workers", "1", "--oracle", "--out", str(tmp_path)]
     assert main(argv) == 0
-    assert check_folders([tmp_path])[0]
+    current, lines = check_folders([tmp_path])
+    assert current and lines[1].startswith("  making them again costs about ")  # what a change would cost
     changed("agents/newton_ilc.py")
     current, lines = check_folders([tmp_path])
     assert not current and lines[1] == "  2 of newton_ilc: 1 file changed: ilc_steering/agents/newton_ilc.py"
@@ -209,7 +210,8 @@ def test_what_a_script_made_is_current_until_its_code_changes(tmp_path: Path, ch
     assert record["command"] == "python benchmarks/newton_ilc.py --quick"
     assert "ilc_steering/agents/newton_ilc.py" in record["files"] and "benchmarks/newton_ilc.py" in record["files"]
     current, lines = check_folders([tmp_path])
-    assert current and lines[0] == f"{tmp_path / 'made'}: current: made by {record['command']} ({record['made']})"
+    said = f"({record['made']}; {record['cpu_s'] / 60:.1f} CPU minutes)"  # when, and what making it again costs
+    assert current and lines[0] == f"{tmp_path / 'made'}: current: made by {record['command']} {said}"
     changed("benchmarks/noisy.py")  # only the second script's code
     current, lines = check_folders([tmp_path])
     assert not current and lines[0].startswith(f"{tmp_path / 'made'}: current: made by python benchmarks/newton_ilc.py")
