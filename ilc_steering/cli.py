@@ -309,12 +309,16 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
+    rows = []
     for name in packaged_configs():
         config = load_config(name)
         unit = "cycles" if config.is_cyclic else "trials"
         figures = PAPER.get(name, (None, ""))[1]
         kind = f"{config.plant.model}, {'cyclic, ' if config.is_cyclic else ''}{config.learning.trials} {unit}"
-        print(f"{name:28s} {kind:28s} {figures}")
+        rows.append((name, kind, figures))
+    widths = [max(len(row[i]) for row in rows) for i in (0, 1)]  # columns as wide as their longest entry
+    for name, kind, figures in rows:
+        print(f"{name:{widths[0]}s}  {kind:{widths[1]}s}  {figures}".rstrip())
     return 0
 
 

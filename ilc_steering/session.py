@@ -1,397 +1,276 @@
-"""``ilc-steering session``: learning with a robot that is driven by a person or a script, through a folder.
+"""A session a script can drive: :func:`new`, :func:`next`, :func:`record`, :func:`status` and
+:func:`withdraw` on a session folder, each returning a dataclass (``ilc-steering session`` prints them).
 
-The paper's section 5 in a folder: ``new`` starts a session (a process-plant config, a learner, a
-seed), ``next`` writes the next trial's commands, the robot runs them, ``record`` stores where it
-stopped, ``status`` shows the trials so far. Nothing but the measurements is kept: every command
-replays the session from them, the learner made afresh from its id and seed, so the session
-resumed a week later on another machine asks the same commands. No pickles; no program is run.
+A session is section 5 of the paper with a person, or a lab's own script, at the robot: ``new``
+starts it from a process-plant config, ``next`` writes the pending trial's commands
+(``trials/NNNN/commands.csv`` and ``request.json``), the robot runs them, ``record`` stores where it
+stopped and learns from it, ``status`` tells where the learning is (its :class:`State`, and the exit
+code ``session status`` gives for it, as ``run``'s), ``withdraw`` takes back the last recorded trial.
+Each call holds the session's lock as the command does and leaves the folder whole; bad input raises
+:class:`~ilc_steering.errors.BadInput` (commands beyond the robot's limits: its subclass
+:class:`~ilc_steering.errors.LimitError`), a learner that fails on the recorded trials
+:class:`~ilc_steering.errors.LearnerError`. The folder itself is :mod:`ilc_steering.session_folder`.
 
-The folder holds ``session.json`` (learner, seed, budget, version, the config's hash),
-``config.yaml`` (the config as read at ``new``) and ``trials/NNNN/``: ``request.json`` (the process
-plant's request), ``commands.csv`` (its samples as columns) and, once recorded, ``result.json``
-(the final pose, world frame, and under ``recorded`` the hashes of that pose and of the request it
-answered). A withdrawn result is moved to ``withdrawn/`` and its trial asked again, uncounted.
+Example: section 5's simulated MARIO (:class:`~ilc_steering.lab_robot.LabRobot`) stands in for the
+robot and for the person measuring where it stopped (the packaged config adds the library's
+simulated measurement noise to each recorded pose, from the session's seed):
 
-Every change is all or none (``new`` builds the folder aside, ``record`` replays with the pose
-before it writes its one file, ``withdraw`` renames back what it moved if a move fails), and a
-folder edited by hand is named for what changed (a result or a request edited, a result deleted
-under a later trial, the config swapped) before a replay is put to the learner or the library.
+>>> import tempfile
+>>> from pathlib import Path
+>>> from ilc_steering import session
+>>> from ilc_steering.config import load_config
+>>> from ilc_steering.lab_robot import LabRobot
+>>> folder = Path(tempfile.mkdtemp()) / "mario"
+>>> started = session.new(folder, "experiment_forward_process", trials=10)
+>>> robot = LabRobot(load_config("experiment_forward"))
+>>> state = session.status(folder)
+>>> while state.state is session.State.PENDING:
+...     trial = session.next(folder)  # writes trial k's commands.csv and request.json
+...     final = robot.trial(trial.request)["final"]  # the robot runs them; where it stopped [m, rad]
+...     state = session.record(folder, final)
+>>> state.state.value, state.converged_at, state.exit_code, len(state.trials)
+('converged', 4, 0, 6)
 """
 
 from __future__ import annotations
 
-import fcntl
-import json
 import os
-import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
-from typing import Annotated, Any, ClassVar
+from typing import Any
 
-from pydantic import Field
+import numpy as np
 
-from ilc_steering import __version__
-from ilc_steering.config import SteeringConfig, load_config
-from ilc_steering.config.loading import MAX_FILE_BYTES, ConfigSource, resolve_config
-from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig, without_program
-from ilc_steering.errors import BadInput, ConfigError, LimitError, PlantError
-from ilc_steering.output import content_hash, make_folder, move_all, open_lock, write_atomic, write_json
-from ilc_steering.pose_files import commands_csv, typed_pose
-from ilc_steering.readers import check_new_folder, describe, holds, is_file, read_json, read_text
-from ilc_steering.runner import RunResult, learner_spec, run_ilc
-from ilc_steering.schema import MethodName, check_record
+from ilc_steering.core.robots.chart import rotate
+from ilc_steering.errors import BadInput, LimitError
+from ilc_steering.pose_files import final_pose
+from ilc_steering.runner import RunResult, TrialRecord
+from ilc_steering.session_folder import Replay, Session
+from ilc_steering.verdict import Verdict
 
-__all__ = ["Replay", "Session", "SessionPending"]
+__all__ = [
+    "EXIT_CODES",
+    "NextTrial",
+    "Session",
+    "Started",
+    "State",
+    "Status",
+    "Withdrawn",
+    "new",
+    "next",
+    "record",
+    "status",
+    "withdraw",
+]
 
-SESSION = "session.json"
-CONFIG = "config.yaml"
-RECORDED = "recorded"
-"""The key of a ``result.json`` under which ``record`` keeps the hashes of the pose and of the request."""
-MAX_RECORD_BYTES = 64 << 20
-"""The largest file of a session read back [bytes] (a request at 1 kHz for minutes fits)."""
-
-
-@dataclass(frozen=True)
-class _Record:
-    """``session.json``, checked by the schema library (a key missing or added, a type, a range)."""
-
-    learner: MethodName
-    seed: Annotated[int, Field(ge=0)]
-    trials: Annotated[int, Field(ge=1)]
-    version: str
-    created: str
-    config: str | None = None  # the hash of config.yaml; None: a session made before issue 64
+Folder = str | os.PathLike[str]
 
 
-class SessionPending(PlantError):
-    """The replay reached a trial the robot has not run (its files ``restored`` or ``intact``: see :class:`Replay`)."""
+class State(str, Enum):
+    """Where a session's learning is, from its recorded trials (:attr:`Status.state`)."""
 
-    def __init__(self, trial: int, folder: Path, request: dict[str, Any], restored: list[str], intact: bool) -> None:
-        super().__init__(f"trial {trial} is pending: its commands are in {folder}")
-        self.trial, self.folder, self.request, self.restored, self.intact = trial, folder, request, restored, intact
-
-
-class _SessionFileError(PlantError):
-    """A session's file that the replay cannot take (raised through the env, bad input to the user)."""
-
-
-class _Replayed(PlantError):
-    """The replay asks trial ``trial`` other coefficients than its ``request.json`` at ``path``, a file
-    as ``next`` wrote it; ``version`` the one that recorded its result, if any."""
-
-    def __init__(self, trial: int, path: Path, version: str | None) -> None:
-        super().__init__(f"{path}: other coefficients")
-        self.trial, self.path, self.version = trial, path, version
+    CONVERGED = "converged"
+    """The last ``hold`` (3) recorded trials are within the tolerance: exit 0, as ``run``'s."""
+    FLOOR = "floor"
+    """Converged to the robot's floor: the tolerance is below the robot's repeatability (estimated from
+    the trials) and the last trials are within that: exit 5, as ``run``'s."""
+    PENDING = "pending"
+    """Not converged yet, and a trial is left to run (:attr:`Status.pending`): exit 1."""
+    SPENT = "spent"
+    """Not converged within the session's budget of trials, and none left: exit 1, as ``run``'s."""
+    REFUSED = "refused"
+    """Not converged, and the pending trial's commands are beyond the robot's ``plant.limits``
+    (:attr:`Status.refusal` says which, and from which recorded pose): exit 2, as ``run``'s."""
 
 
-class _FolderCable:
-    """The process plant's cable, answered from a session's folder: a request whose result is
-    recorded (or is the ``candidate`` a record checks) gets it; the first one without is pending,
-    its files written again where they are not the request's (``write``), and the replay stops."""
-
-    closed = False
-
-    def __init__(self, trials: Path, write: bool, candidate: dict[str, Any] | None) -> None:
-        self.name = f"the session's robot ({trials.parent})"
-        self.trials, self.write, self.candidate = trials, write, candidate
-        self._pending: dict[str, Any] | None = None
-
-    def fail(self, problem: str) -> PlantError:
-        return _SessionFileError(f"{self.name}: {problem}")
-
-    def _read(self, path: Path) -> Any:
-        try:
-            return read_json(path, MAX_RECORD_BYTES)
-        except ValueError as error:
-            raise _SessionFileError(str(error)) from None
-
-    def send(self, message: dict[str, Any], what: str, timeout: float | None = None) -> None:
-        self._pending = message
-
-    def receive(self, timeout: float, what: str) -> dict[str, Any]:
-        request, self._pending = self._pending, None
-        assert request is not None, "receive() before send()"
-        k = int(request["trial"])
-        folder = self.trials / f"{k:04d}"
-        asked, result = folder / "request.json", folder / "result.json"
-        if self.candidate is not None and self.candidate["trial"] == k:
-            return {key: value for key, value in self.candidate.items() if key != RECORDED}
-        if not is_file(result):
-            raise self._pending_trial(k, folder, request)
-        answer = self._read(result)
-        if not isinstance(answer, dict):
-            raise _SessionFileError(f"{result}: holds a {type(answer).__name__}, not a JSON object")
-        hashes = answer.pop(RECORDED, None)
-        hashes = hashes if isinstance(hashes, dict) else {}  # none: recorded before issue 64
-        if hashes and hashes.get("final") != content_hash([k, answer.get("final")]):
-            raise _SessionFileError(
-                f"{result}: edited by hand after `session record` wrote it (its final pose is not the one "
-                "recorded); put the recorded one back, or withdraw the trial and record it again"
-            )
-        on_file = self._read(asked) if is_file(asked) else None
-        c = on_file.get("c") if isinstance(on_file, dict) else None
-        if c != request["c"]:
-            if on_file is None or not isinstance(c, list) or hashes.get("request") == content_hash(request["c"]):
-                raise _SessionFileError(
-                    f"{asked}: deleted or edited by hand (trial {k}'s result was recorded against other coefficients "
-                    "than these: the replay's); put it back as `session next` wrote it"
-                )
-            raise _Replayed(k, asked, hashes.get("version"))
-        return answer
-
-    def _pending_trial(self, k: int, folder: Path, request: dict[str, Any]) -> SessionPending:
-        """The pending trial ``k``: its files checked against ``request``, written (again) if ``write``."""
-        files = {"request.json": json.dumps(request), "commands.csv": commands_csv(request)}
-        asked = folder / "request.json"
-        on_file = self._read(asked) if is_file(asked) else None
-        c = on_file.get("c") if isinstance(on_file, dict) else None
-        if isinstance(c, list) and isinstance(on_file, dict) and on_file.get("trial") == k and c != request["c"]:
-            raise _Replayed(k, asked, None)  # a request as written, of other coefficients: never overwritten
-        wrong = sorted(name for name, text in files.items() if not holds(folder / name, text, MAX_RECORD_BYTES))
-        asked_before = any(is_file(folder / name) for name in files)
-        if wrong and self.write:
-            folder.mkdir(parents=True, exist_ok=True)
-            for name in wrong:  # commands.csv first: request.json marks a trial asked
-                write_atomic(folder / name, files[name])
-        restored = wrong if self.write and asked_before else []
-        return SessionPending(k, folder, request, restored, self.write or not wrong)
-
-    def close(self, kill: bool = False) -> None:
-        pass
-
-
-@dataclass(frozen=True, eq=False)
-class _SessionPlant(ProcessPlant):
-    """A process plant whose program is the session's folder."""
-
-    write: bool = False
-    candidate: dict[str, Any] | None = None
-
-    def _cable(self) -> Any:
-        if not self._link.cables:
-            self._link.cables.append(_FolderCable(Path(self.folder) / "trials", self.write, self.candidate))  # type: ignore[arg-type]
-        return self._link.cables[0]
+EXIT_CODES = {
+    State.CONVERGED: 0,
+    State.FLOOR: 5,
+    State.PENDING: 1,
+    State.SPENT: 1,
+    State.REFUSED: 2,
+}
+"""The exit code ``ilc-steering session status`` gives for each :class:`State` (the codes of ``run``)."""
 
 
 @dataclass(frozen=True)
-class _SessionPlantConfig(ProcessPlantConfig):
-    write: bool = False  # write the pending trial's files (again)
-    candidate: dict[str, Any] | None = field(default=None, compare=False)  # a result a record checks
+class Started:
+    """What :func:`new` made."""
 
-    plant_class: ClassVar[type[ProcessPlant]] = _SessionPlant
-
-    def _check_command(self) -> None:  # no program is started: the folder answers
-        pass
-
-    def plant(self) -> ProcessPlant:
-        return _SessionPlant(
-            self.command, str(self.folder), self.timeout, self.control_rate, self.limits, self.nominal_map(),
-            self.nominal(), self.kind, self.robot.dimension, write=self.write, candidate=self.candidate,
-        )  # fmt: skip
+    folder: Path
+    learner: str
+    seed: int
+    trials: int
+    """The session's budget of trials."""
 
 
-@dataclass
-class Replay:
-    """What the recorded measurements give: the trials so far and the pending one, if any
-    (``refused``: its commands are beyond the robot's limits)."""
+@dataclass(frozen=True)
+class NextTrial:
+    """The pending trial whose commands :func:`next` wrote (or, on a dry run, would write)."""
 
+    trial: int
+    """Its number, from 1."""
+    folder: Path
+    """``trials/NNNN/``: its ``commands.csv`` (the samples as columns) and ``request.json``."""
+    request: dict[str, Any]
+    """The process plant's request (docs/your_robot.md's protocol): ``control`` (the chained inputs
+    ``v1, v2`` sampled every ``dt`` [s]), ``nominal`` (the robot's inputs ``u1, u2`` and its nominal
+    path, world frame), ``start``, ``limits``."""
+    restored: tuple[str, ...] = ()
+    """Its files written again because they were not its request's (cut short, deleted, edited)."""
+    written: bool = True
+    """False on a dry run: nothing was written."""
+
+    @property
+    def commands(self) -> Path:
+        return self.folder / "commands.csv"
+
+
+@dataclass(frozen=True)
+class Status:
+    """A session's recorded trials and what they say (:func:`status`, :func:`record`)."""
+
+    folder: Path
+    learner: str
+    seed: int
+    budget: int
+    """The session's trials in all."""
     result: RunResult
+    """The recorded trials as ``run`` judges them: ``status --json`` writes it, ``plot`` reads it."""
     pending: int | None
-    pending_folder: Path | None
-    refused: LimitError | None = None
-    request: dict[str, Any] | None = None
-    """The pending trial's request (its commands), if any and within the limits."""
-    restored: list[str] = field(default_factory=list)
-    """The pending trial's files that ``next`` wrote again (cut short, deleted, edited)."""
-    intact: bool = True
-    """Whether the pending trial's files on disk are its request's."""
+    """The next trial to run, or None when the budget is spent."""
+    refusal: str | None = None
+    """Why the pending trial cannot be sent (its commands beyond the robot's limits), in one line."""
+
+    @property
+    def trials(self) -> list[TrialRecord]:
+        """The recorded trials, in order (their true errors are the measured ones)."""
+        return self.result.trials
+
+    @property
+    def verdict(self) -> Verdict:
+        return self.result.verdict
+
+    @property
+    def converged_at(self) -> int | None:
+        """The first trial of the stretch within the tolerance the session ends with, if it holds."""
+        return self.result.verdict.converged_at
+
+    @property
+    def state(self) -> State:
+        """Converged (or at the floor) first: a verdict on the trials recorded, whatever is pending."""
+        if self.converged_at is not None:
+            return State.CONVERGED
+        if self.result.verdict.floor:
+            return State.FLOOR
+        if self.refusal is not None:
+            return State.REFUSED
+        return State.SPENT if self.pending is None else State.PENDING
+
+    @property
+    def exit_code(self) -> int:
+        """The exit code of ``ilc-steering session status`` (:data:`EXIT_CODES`)."""
+        return EXIT_CODES[self.state]
 
 
-class Session:
-    """A session folder (see the module docstring)."""
+@dataclass(frozen=True)
+class Withdrawn:
+    """What :func:`withdraw` took back."""
 
-    def __init__(self, folder: Path) -> None:
-        self.folder = Path(folder)
-        path = self.folder / SESSION
-        if not is_file(path):
-            raise BadInput(f"{self.folder}: not a session folder (no {SESSION}; start one with `session new`)")
-        data = check_record(_Record, read_json(path, MAX_RECORD_BYTES), path)  # a FIFO, a loop of links: named
-        try:
-            learner_spec(data.learner)
-        except BadInput as error:
-            raise BadInput(f"{path}: {str(error).replace('--learner: ', 'learner: ', 1)}") from None
-        self.learner, self.seed, self.trials, self.version = data.learner, data.seed, data.trials, data.version
-        text = read_text(self.folder / CONFIG, MAX_FILE_BYTES)
-        if data.config not in (None, content_hash(text)):
-            raise BadInput(
-                f"{self.folder / CONFIG}: not the config this session was started with ({SESSION} holds the hash "
-                "of that one): a session runs on the config it started with; put it back, or start a new session"
-            )
-        with without_program():  # a session runs no program: one missing here is no matter
-            self.recorded = load_config(ConfigSource(text, str(self.folder / CONFIG), None, str(self.folder)))
-        self.config = _session_config(self.recorded, self.folder)
-
-    @contextmanager
-    def locked(self, write: bool = True) -> Iterator[None]:
-        """Hold the session's lock, exclusive to ``write``, shared to read: a command that would write
-        while another command runs, or read while one writes, is refused."""
-        handle = open_lock(self.folder / ".lock", shared=not write)
-        try:
-            if handle >= 0:  # -1: a folder nobody can write (read-only, archived): nothing to hold
-                try:
-                    fcntl.flock(handle, (fcntl.LOCK_EX if write else fcntl.LOCK_SH) | fcntl.LOCK_NB)
-                except BlockingIOError:
-                    raise BadInput(f"{self.folder}: another session command is running on it; wait for it") from None
-            yield
-        finally:
-            if handle >= 0:
-                os.close(handle)
-
-    @classmethod
-    def new(cls, folder: Path, config: str | Path, learner: str, seed: int, trials: int | None) -> Session:
-        """Start a session in ``folder`` (new or empty) from a process-plant ``config`` (a path or a
-        packaged config's name, read once: its text is the session's ``config.yaml``). Everything is
-        checked before the folder is made, and it is made whole or not at all."""
-        folder = check_new_folder(Path(folder), "a session")
-        source = resolve_config(config)
-        with without_program():  # a session runs none
-            steering = load_config(source)
-        _session_config(steering, folder)
-        learner_spec(learner)
-        budget = steering.learning.trials if trials is None else trials
-        for option, value, least in (("--trials", budget, 1), ("--seed", seed, 0)):
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
-                raise BadInput(f"{option} must be a whole number >= {least}, got {value!r}")
-        record = {"learner": learner, "seed": seed, "trials": budget, "version": __version__, "created": _now()}
-        record["config"] = content_hash(source.text)
-        make_folder(folder, {CONFIG: source.text, SESSION: json.dumps(record)}, "the session folder")
-        return cls(folder)
-
-    def replay(self, write: bool = True, candidate: dict[str, Any] | None = None, paths: bool = False) -> Replay:
-        """Every recorded trial fed to a fresh learner, until the first trial without a result (or
-        without ``candidate``, a result being recorded), whose files are written (``write``) unless
-        its commands are beyond the robot's limits; with ``paths``, each trial's path (its start and
-        end: a session records no more) for a run record's figures."""
-        self._trials()
-        plant = self.config.plant
-        assert isinstance(plant, _SessionPlantConfig)
-        config = replace(self.config, plant=replace(plant, write=write, candidate=candidate))
-        try:
-            result = run_ilc(config, trials=self.trials, trajectories=paths, learner=self.learner, seed=self.seed)
-        except SessionPending as p:  # run_ilc keeps the trials before it, judged as run judges
-            return Replay(self._as_recorded(p.partial), p.trial, p.folder, None, p.request, p.restored, p.intact)
-        except _Replayed as replayed:
-            raise BadInput(self._diagnosis(replayed)) from None
-        except _SessionFileError as error:
-            raise BadInput(str(error)) from None
-        except LimitError as refused:
-            k = len(refused.partial.trials) + 1
-            return Replay(self._as_recorded(refused.partial), k, self.folder / "trials" / f"{k:04d}", refused)
-        return Replay(self._as_recorded(result), None, None)
-
-    def _as_recorded(self, result: RunResult) -> RunResult:
-        """``result`` with the session's config as it is on disk: a run record that ``plot`` reads."""
-        return replace(result, config=self.recorded)
-
-    def _diagnosis(self, replayed: _Replayed) -> str:
-        """What made the replay ask other coefficients than a request as written: by now the results
-        before it, its own result's record of it and the config are known to be as recorded."""
-        asks = f"{replayed.path}: the replay asks trial {replayed.trial} other coefficients than these"
-        version = replayed.version or self.version
-        if version != __version__:
-            return f"{asks}: they were recorded by ilc-steering {version}, this is {__version__}; continue with that"
-        return (
-            f"{asks}, from results and a config as recorded: the learner {self.learner}'s code or the library's "
-            f"changed since (version {version} both), {SESSION}'s seed or learner was edited, or this file was"
-        )
-
-    def record(self, final: Sequence[float]) -> Replay:
-        """Store the pending trial's measured final pose (world frame) and learn from it: the replay
-        takes it first, so a pose refused (or a learner that fails on it) leaves the folder as it was."""
-        before = self.replay(write=False)
-        k, folder = before.pending, before.pending_folder
-        if k is None or folder is None:
-            raise BadInput(f"{self.folder}: no pending trial (the session has run its {self.trials} trials)")
-        if before.request is None or not is_file(folder / "request.json"):
-            raise BadInput(f"{self.folder}: trial {k} has no commands yet: run `session next` first")
-        if not before.intact:
-            raise BadInput(
-                f"{folder}: trial {k}'s request.json or commands.csv is not what `session next` wrote (cut short, "
-                "deleted, edited): the robot may have run part of it; run `session next` to write them again, "
-                "run the trial, then record it"
-            )
-        values = typed_pose(final, self.config.plant.kind, before.request["nominal"]["q"][-1], "--final")
-        hashes = {
-            "final": content_hash([k, values]),
-            "request": content_hash(before.request["c"]),
-            "version": __version__,
-        }
-        result = {"type": "result", "trial": k, "final": values, RECORDED: hashes}
-        after = self.replay(write=False, candidate=result)
-        write_json(folder / "result.json", result)
-        return after
-
-    def _trials(self) -> tuple[int, list[int]]:
-        """The trial folders' count and the recorded trials, in order; refused when a trial's folder or
-        result is missing under a later trial's (deleted by hand: the later one would hide behind it)."""
-        root = self.folder / "trials"
-        try:
-            names = sorted(entry.name for entry in os.scandir(root) if entry.name.isdigit())
-        except FileNotFoundError:
-            return 0, []
-        except OSError as error:
-            raise BadInput(f"{root}: cannot read it ({describe(error)})") from None
-        recorded = [int(name) for name in names if is_file(root / name / "result.json")]
-        for i, name in enumerate(names):
-            if name != f"{i + 1:04d}":
-                raise BadInput(f"{root / f'{i + 1:04d}'}: missing, though {root / name} is there: put it back")
-            if i + 1 not in recorded and i + 1 < len(names):
-                raise BadInput(
-                    f"{root / name / 'result.json'}: missing, though trial {names[-1]} is there (a result deleted by "
-                    f"hand); put it back, or move {root / names[i + 1]} and later away as `session withdraw` does"
-                )
-        return len(names), recorded
-
-    def withdraw(self) -> int:
-        """Move the last recorded result to ``withdrawn/``: that trial is asked again, uncounted. The
-        next trial's commands, learned from that result, go with it (``NNNN-<time>/``). All of it or
-        none: a move that fails (``withdrawn`` a file, a folder that cannot be written) undoes the others."""
-        count, recorded = self._trials()
-        if not recorded:
-            raise BadInput(f"{self.folder}: no recorded trial to withdraw")
-        k, stamp, withdrawn = recorded[-1], _now().replace(":", ""), self.folder / "withdrawn"
-        trials = self.folder / "trials"  # the farthest trial first: stopped halfway, the session still replays
-        moves = [(trials / f"{j:04d}", _unused(withdrawn / f"{j:04d}-{stamp}", "")) for j in range(count, k, -1)]
-        moves.append((trials / f"{k:04d}" / "result.json", _unused(withdrawn / f"{k:04d}-{stamp}", ".json")))
-        move_all(moves, withdrawn, f"{self.folder}: withdrawing trial {k}")
-        return k
+    folder: Path
+    trial: int
+    """The trial whose result moved to ``withdrawn/``: it is asked again, uncounted."""
 
 
-def _unused(stem: Path, suffix: str) -> Path:
-    """``stem + suffix``, or with ``-2``, ``-3``, ... before the suffix if taken (two withdrawals in
-    one second keep both)."""
-    path, n = Path(f"{stem}{suffix}"), 1
-    while os.path.lexists(path):
-        n += 1
-        path = Path(f"{stem}-{n}{suffix}")
-    return path
+def new(
+    folder: Folder, config: str | Path, learner: str = "ilc_paper", seed: int = 1, trials: int | None = None
+) -> Started:
+    """Start a session in ``folder`` (new, or an empty folder) from a process-plant ``config`` (a path
+    or a packaged config's name; its text becomes the session's ``config.yaml``), with ``learner`` (an
+    id of the registry or ``module:attr``) and ``seed``; ``trials``: the budget (default: the config's
+    ``learning.trials``). Everything is checked first, and the folder made whole or not at all."""
+    session = Session.new(Path(folder), config, learner, seed, trials)
+    return Started(session.folder, session.learner, session.seed, session.trials)
 
 
-def _session_config(config: SteeringConfig, folder: Path) -> SteeringConfig:
-    """``config`` with its process plant answered from ``folder``; refused unless it is a process
-    plant. (``simulation.measurement_noise`` adds the library's simulated noise to what is recorded,
-    as for any plant: for a simulated robot; a real robot's config leaves it out.)"""
-    plant = config.plant
-    if not isinstance(plant, ProcessPlantConfig):
-        raise ConfigError(
-            f"{config.name}: a session needs plant.model: process (the robot's nominal model, its limits and "
-            f"control rate; docs/your_robot.md), got plant.model: {getattr(plant, 'model', plant)}"
-        )
-    fields = {name: getattr(plant, name) for name in ("model", "command", "robot", "limits", "timeout", "control_rate")}
-    return replace(config, plant=_SessionPlantConfig(**fields, folder=os.path.realpath(folder)))
+def next(folder: Folder, dry_run: bool = False) -> NextTrial | None:
+    """Write the pending trial's ``commands.csv`` and ``request.json`` (again, where they are not its
+    request's) and return it; None when the session has run its trials. ``dry_run``: write nothing.
+    A trial whose commands are beyond the robot's limits raises
+    :class:`~ilc_steering.errors.LimitError` (naming the recorded pose it was learned from)."""
+    session = Session(Path(folder))
+    with session.locked(write=not dry_run):
+        replay = session.replay(write=not dry_run)
+    refused = _refusal(session, replay)
+    if refused is not None:
+        raise refused
+    if replay.pending is None or replay.pending_folder is None or replay.request is None:
+        return None
+    return NextTrial(replay.pending, replay.pending_folder, replay.request, tuple(replay.restored), not dry_run)
 
 
-def _now() -> str:
-    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+def record(
+    folder: Folder,
+    final: Sequence[float] | None = None,
+    *,
+    pose_file: str | Path | None = None,
+    topic: str | None = None,
+) -> Status:
+    """Store where the robot stopped after the pending trial and learn from it: ``final`` (``x, y,
+    theta[, phi]`` [m, rad], world frame; without ``phi``, the commanded steering angle at the end)
+    or the last pose of ``pose_file`` (a CSV, or a ROS bag's ``topic``). Returns the status after
+    it. A pose refused, or a learner that fails on it, leaves the folder as it was."""
+    if (final is None) == (pose_file is None):
+        raise BadInput("record: give the final pose or a pose file, one of them")
+    if topic is not None and pose_file is None:
+        raise BadInput("--topic: names a topic of --pose-file's bag; give --pose-file")
+    session = Session(Path(folder))
+    if pose_file is not None:
+        final = final_pose(Path(pose_file), topic, session.config.plant.kind)
+    assert final is not None
+    with session.locked():
+        return _status(session, session.record(final))
+
+
+def status(folder: Folder, trajectories: bool = False) -> Status:
+    """The session's recorded trials, their verdict and what is pending; writes nothing.
+    ``trajectories``: keep each trial's path (its start and end) for a run record's figures."""
+    session = Session(Path(folder))
+    with session.locked(write=False):
+        return _status(session, session.replay(write=False, paths=trajectories))
+
+
+def withdraw(folder: Folder) -> Withdrawn:
+    """Move the last recorded result to ``withdrawn/`` (the robot slipped, a pose typed wrong): that
+    trial is asked again, uncounted, and the next trial's commands, learned from it, go with it."""
+    session = Session(Path(folder))
+    with session.locked():
+        return Withdrawn(session.folder, session.withdraw())
+
+
+def _status(session: Session, replay: Replay) -> Status:
+    refused = _refusal(session, replay)
+    refusal = None if refused is None else " ".join(str(refused).split())
+    return Status(session.folder, session.learner, session.seed, session.trials, replay.result, replay.pending, refusal)
+
+
+def _refusal(session: Session, replay: Replay) -> LimitError | None:
+    """The pending trial's refusal for the robot's limits, naming the recorded pose it was learned
+    from and the way back (``withdraw``): a pose typed wrong is the likeliest cause of a step too large."""
+    if replay.refused is None or not replay.result.trials:
+        return replay.refused  # none, or trial 1's: the config's task and limits, no pose yet
+    last, kind = replay.result.trials[-1], session.config.plant.kind
+    frame = session.config.frame() if kind.has_pose else 0.0
+    pose = np.asarray(last.final_state, dtype=np.float64)
+    world = (rotate(pose, -frame) if frame else pose)[: 3 if kind.has_pose else None]  # x, y, θ: a pose
+    names = ", ".join(label.split()[0] for label in kind.coordinates[: len(world)])
+    off = "" if last.cartesian_error is None else f", {last.cartesian_error:.3g} m"
+    off += "" if last.orientation_error is None else f" and {last.orientation_error:.3g} rad"
+    return LimitError(
+        f"{replay.refused}; the learner asks this of trial {last.trial}'s recorded pose ({names}) = "
+        f"({', '.join(f'{v:.4g}' for v in world)}) (world frame){off} from the goal: if the robot did not "
+        "stop there (a pose typed or measured wrong, the robot disturbed), take it back with "
+        f"`ilc-steering session withdraw {session.folder}` and record the trial again"
+    )

@@ -1,19 +1,33 @@
 """``ilc-steering session``'s commands: ``new``, ``next``, ``record``, ``withdraw``, ``status`` on a
-session folder (:mod:`ilc_steering.session`; docs/your_robot.md)."""
+session folder, each printing what :mod:`ilc_steering.session`'s verb returns (docs/your_robot.md).
+``status`` exits as ``run`` does (:data:`STATUS_EXIT_CODES`)."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
+from ilc_steering import session
 from ilc_steering.console import check_outputs, print_header, print_row, print_verdict, save
-from ilc_steering.errors import BadInput
+from ilc_steering.core.scatter import HOLD
 from ilc_steering.output import output_file, output_folder
-from ilc_steering.pose_files import final_pose
-from ilc_steering.session import Session
+from ilc_steering.session_folder import Session
 
-__all__ = ["add_session_arguments"]
+__all__ = ["STATUS_EXIT_CODES", "add_session_arguments"]
+
+STATUS_EXIT_CODES = {
+    0: f"converged: the last {HOLD} recorded trials within the tolerance (held)",
+    1: "not converged: yet (a trial pending: run it), or within the session's budget (every trial run)",
+    5: "converged to the robot's floor: the tolerance is below its repeatability, estimated from the trials, "
+    "and the last trials are within that",
+    2: "bad input (a folder that is no session, a file of it edited by hand, an argument), or the pending "
+    "trial's commands refused for the robot's plant.limits (the line names the recorded pose it was learned from)",
+    4: "the learner failed on the recorded trials (a learner of yours: module:attr)",
+    3: "internal error: a bug of ilc-steering",
+}
+"""``session status``'s exit codes, with ``run``'s meanings (:data:`ilc_steering.session.EXIT_CODES` per state)."""
 
 
 def _summary(request: dict[str, Any]) -> str:
@@ -28,75 +42,75 @@ def _summary(request: dict[str, Any]) -> str:
 
 
 def _new(args: argparse.Namespace) -> int:
-    session = Session.new(args.folder, args.config, args.learner, args.seed, args.trials)
-    print(f"started a session of {session.learner} (seed {session.seed}, {session.trials} trials) in {session.folder}")
-    print(f"next: ilc-steering session next {session.folder}")
+    started = session.new(args.folder, args.config, args.learner, args.seed, args.trials)
+    print(f"started a session of {started.learner} (seed {started.seed}, {started.trials} trials) in {started.folder}")
+    print(f"next: ilc-steering session next {started.folder}")
     return 0
 
 
 def _next(args: argparse.Namespace) -> int:
-    session = Session(args.folder)
-    with session.locked(write=not args.dry_run):
-        replay = session.replay(write=not args.dry_run)
-    if replay.refused is not None:
-        raise replay.refused
-    if replay.pending_folder is None or replay.request is None:
-        print(f"{args.folder}: the session has run its {session.trials} trials; see `session status`")
+    trial = session.next(args.folder, dry_run=args.dry_run)
+    if trial is None:
+        print(f"{args.folder}: the session has run its trials; see `session status`")
         return 0
-    print(f"trial {replay.pending}: {_summary(replay.request)}")
-    if args.dry_run:
+    print(f"trial {trial.trial}: {_summary(trial.request)}")
+    if not trial.written:
         print("(a dry run: nothing written)")
         return 0
-    if replay.restored:  # cut short, deleted or edited since `next` wrote them: the robot must not play those
-        print(f"wrote {' and '.join(replay.restored)} again: they were not this trial's (cut short, deleted, edited)")
-    print(f"the commands are in {replay.pending_folder}/commands.csv and request.json")
+    if trial.restored:  # cut short, deleted or edited since `next` wrote them: the robot must not play those
+        print(f"wrote {' and '.join(trial.restored)} again: they were not this trial's (cut short, deleted, edited)")
+    print(f"the commands are in {trial.commands} and request.json")
     print(f"after the run: ilc-steering session record {args.folder} --final X Y THETA [PHI]")
     return 0
 
 
 def _record(args: argparse.Namespace) -> int:
-    session = Session(args.folder)
-    if args.topic is not None and args.pose_file is None:
-        raise BadInput("--topic: names a topic of --pose-file's bag; give --pose-file")
-    kind = session.config.plant.kind
-    final = args.final if args.pose_file is None else final_pose(args.pose_file, args.topic, kind)
-    with session.locked():
-        replay = session.record(final)
-    for record in replay.result.trials:
+    state = session.record(args.folder, args.final, pose_file=args.pose_file, topic=args.topic)
+    for record in state.trials:
         print_row(record)
-    print(f"recorded trial {len(replay.result.trials)}; next: ilc-steering session next {args.folder}")
+    print(f"recorded trial {len(state.trials)}; {_then(state, args.folder)}")
     return 0
 
 
+def _then(state: session.Status, folder: Path) -> str:
+    """What a session's person does next, by its state."""
+    if state.state is session.State.REFUSED:
+        return f"the next trial is refused: {state.refusal}"
+    if state.state in (session.State.CONVERGED, session.State.FLOOR):
+        return f"{state.state.value}: see ilc-steering session status {folder}"
+    if state.pending is None:
+        return f"the session has run its {state.budget} trials without converging; see `session status`"
+    return f"next: ilc-steering session next {folder}"
+
+
 def _withdraw(args: argparse.Namespace) -> int:
-    session = Session(args.folder)
-    with session.locked():
-        k = session.withdraw()
-    print(f"withdrew trial {k}: it is asked again (ilc-steering session next {args.folder}), uncounted")
+    withdrawn = session.withdraw(args.folder)
+    print(f"withdrew trial {withdrawn.trial}: it is asked again (ilc-steering session next {args.folder}), uncounted")
     return 0
 
 
 def _status(args: argparse.Namespace) -> int:
-    session = Session(args.folder)
-    with session.locked(write=False):
-        check_outputs(args.json, args.plots, [session.recorded], [], _inputs(session.folder))
-        replay = session.replay(write=False, paths=args.json is not None or args.plots is not None)
-    print_header(session.config, session.trials)
-    for record in replay.result.trials:
+    folder = Session(args.folder)
+    check_outputs(args.json, args.plots, [folder.recorded], [], _inputs(folder.folder))
+    state = session.status(args.folder, trajectories=args.json is not None or args.plots is not None)
+    print_header(state.result.config, state.budget)
+    for record in state.trials:
         print_row(record)
-    done = len(replay.result.trials)
-    print_verdict(replay.result, "trials", done)
-    scatter = replay.result.verdict.scatter
+    done = len(state.trials)
+    print_verdict(state.result, "trials", done)
+    scatter = state.verdict.scatter
     if scatter is not None:
         sigma = ", ".join(f"{k} {v:.2g}" for k, v in scatter.items() if k != "dof")
         print(
             f"the robot's scatter as the trials tell it, per coordinate ({scatter['dof']:g} degrees of freedom): "
             + sigma
         )
-    pending = f"trial {replay.pending} pending" if replay.pending is not None else "every trial run"
-    print(f"{session.learner}, seed {session.seed}: {done} of {session.trials} trials recorded, {pending}")
-    save(replay.result, args.json, args.plots)
-    return 0
+    pending = f"trial {state.pending} pending" if state.pending is not None else "every trial run"
+    print(f"{state.learner}, seed {state.seed}: {done} of {state.budget} trials recorded, {pending}")
+    save(state.result, args.json, args.plots)
+    if state.refusal is not None:  # run's refusal for the limits, exit 2 (after the report, as run writes its trials)
+        print(f"ilc-steering: error: {state.refusal}", file=sys.stderr, flush=True)
+    return state.exit_code
 
 
 def _inputs(folder: Path) -> list[Path]:
@@ -133,7 +147,11 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     withdraw = sub.add_parser("withdraw", help="withdraw the last recorded trial (the robot botched it)")
     withdraw.add_argument("folder", type=Path, metavar="DIR")
     withdraw.set_defaults(handler=_withdraw)
-    status = sub.add_parser("status", help="the trials so far, their errors, and whether it converged")
+    status = sub.add_parser(
+        "status",
+        help="the trials so far, their errors, and whether it converged (exit 0 converged, 1 not yet, 5 floor)",
+        epilog="Exit codes, as run's: " + "; ".join(f"{code} {text}" for code, text in STATUS_EXIT_CODES.items()) + ".",
+    )
     status.add_argument("folder", type=Path, metavar="DIR")
     status.add_argument("--json", type=output_file, default=None, help="write the run's JSON here")
     status.add_argument("--plots", type=output_folder, default=None, metavar="DIR", help="write the run's figures here")

@@ -209,3 +209,20 @@ def test_the_users_bad_input_is_still_exit_2(tmp_path, capsys):
     assert main(["sweep", "forward_parking", "--grid", "1", "--out", str(tmp_path / "s")]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 3 and all(line.startswith("ilc-steering: ") for line in errors)
+
+
+def test_list_aligns_its_columns_for_long_names(monkeypatch, capsys):
+    import ilc_steering.cli as cli
+
+    long = "a_packaged_config_whose_name_is_longer_than_the_old_column"
+    names = ["forward_parking", long, "experiment_forward"]
+    real = cli.load_config
+    monkeypatch.setattr(cli, "packaged_configs", lambda: names)
+    monkeypatch.setattr(cli, "load_config", lambda name: real("forward_parking" if name == long else name))
+    assert main(["list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines] == names
+    second = {line.index(line.split()[1], len(line.split()[0])) for line in lines}
+    assert second == {len(long) + 2}  # every kind starts in one column, past the longest name
+    figures = {line.index("Fig") for line in lines if "Fig" in line}
+    assert len(figures) == 1 and len([line for line in lines if "Fig" in line]) >= 2  # the third column too

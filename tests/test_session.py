@@ -19,7 +19,7 @@ from ilc_steering.config import load_config
 from ilc_steering.errors import ConfigError
 from ilc_steering.lab_robot import LabRobot
 from ilc_steering.runner import run_ilc
-from ilc_steering.session import Session
+from ilc_steering.session_folder import Session
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -121,7 +121,7 @@ def test_a_trial_recorded_again_after_a_withdrawal_asks_new_commands(
     replay = started.replay()
     assert replay.pending == 2 and replay.pending_folder is not None
     assert json.loads((replay.pending_folder / "request.json").read_text())["c"] != asked
-    monkeypatch.setattr("ilc_steering.session._now", lambda: "2026-12-03T00:00:00Z")
+    monkeypatch.setattr("ilc_steering.session_folder._now", lambda: "2026-12-03T00:00:00Z")
     started.withdraw()
     started.record(final)
     started.withdraw()  # twice within one second: both withdrawn results are kept
@@ -180,7 +180,7 @@ def test_the_command_line_drives_a_session(tmp_path: Path, capsys: pytest.Captur
     request = json.loads((folder / "trials" / "0001" / "request.json").read_text())
     final = LabRobot(load_config("experiment_forward")).trial(request)["final"]
     assert main(["session", "record", str(folder), "--final", *map(repr, final[:3])]) == 0  # phi: the commanded
-    assert main(["session", "status", str(folder), "--json", str(tmp_path / "run.json")]) == 0
+    assert main(["session", "status", str(folder), "--json", str(tmp_path / "run.json")]) == 1  # not yet
     assert "1 of 2 trials recorded, trial 2 pending" in capsys.readouterr().out
     assert len(json.loads((tmp_path / "run.json").read_text())["trials"]) == 1
     assert main(["session", "next", "/nonexistent/folder"]) == 2

@@ -23,11 +23,12 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
+from ilc_steering import session
 from ilc_steering.cli import main
 from ilc_steering.config import load_config
 from ilc_steering.lab_robot import LabRobot
 from ilc_steering.runner import run_ilc
-from ilc_steering.session import Session
+from ilc_steering.session_folder import Session
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 BUDGET = 3
@@ -156,7 +157,10 @@ class HostilePerson(RuleBasedStateMachine):
 
     @rule()
     def status(self) -> None:
-        out = self._accepted(["session", "status", str(self.folder)])
+        self._capsys.readouterr()
+        code = main(["session", "status", str(self.folder)])
+        out, err = self._capsys.readouterr()
+        assert code in (0, 1, 5) and code == session.status(self.folder).exit_code, (code, err)  # run's codes
         assert f"{self.recorded} of {BUDGET} trials recorded" in out
 
     @rule(command=st.sampled_from(["next", "status", "withdraw"]))

@@ -276,6 +276,7 @@ FLOORS = (
             "ilc_steering.compare",
             "ilc_steering.sweep",
             "ilc_steering.reproduce",
+            "ilc_steering.session_folder",
             "ilc_steering.session",
             "ilc_steering.session_cli",
             "ilc_steering.current",
