@@ -53,6 +53,8 @@ class SegmentedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[
     env ``i`` measures what that env would). ``num_envs`` is at most
     :data:`~ilc_steering.envs.steering_vector_env.MAX_ENVS`.
 
+    Examples
+    --------
     >>> import gymnasium as gym
     >>> import ilc_steering
     >>> envs = gym.make_vec("ilc_steering/SegmentedSteering-v0", num_envs=3,
