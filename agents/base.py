@@ -192,6 +192,10 @@ class LearnerContext:
     :meth:`Transferable.transfer`), for ``run`` on a list of goals with ``--carry``; ``None`` for a
     first goal, and always in ``compare`` and ``sweep``, whose every cell starts afresh. A learner
     that reads it checks it, and may ignore it."""
+    tensorboard_log: str | None = None
+    """A folder for the learner's own TensorBoard logs, for learners that keep some (RL: SB3's
+    ``tensorboard_log``), or ``None``: the run's ``--tensorboard`` folder, beside the trial loop's
+    event files. What a learner logs there changes nothing it does."""
 
     @classmethod
     def from_env(
@@ -203,6 +207,7 @@ class LearnerContext:
         nu_b: float | None = None,
         progress_bar: bool = False,
         carried: Mapping[str, Any] | None = None,
+        tensorboard_log: str | None = None,
     ) -> LearnerContext:
         """The context of a learner on ``env`` (a one-trial env, or a vector env whose every env
         gets the same), with its config's gains, ``learning.cost`` and name: the one place a
@@ -228,6 +233,7 @@ class LearnerContext:
             task=owner.config.name,
             progress_bar=progress_bar,
             carried=carried,
+            tensorboard_log=tensorboard_log,
         )
 
     def __post_init__(self) -> None:

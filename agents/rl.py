@@ -185,11 +185,12 @@ def build(
     seed: int,
     trials: int,
     backend: str | None = None,
+    tensorboard_log: str | None = None,
 ) -> Any:
     """The untrained model of ``algorithm`` on ``env`` (actions in ``[-1, 1]``, rewarded with
     :func:`log_reward`) for a budget of ``trials``, on ``backend`` (default: :func:`rl_backend`),
-    its output layer zeroed under ``start_at_centre``. On the SB3 path, call it inside
-    :func:`train`'s thread setting (or accept torch's)."""
+    its output layer zeroed under ``start_at_centre``, logging to TensorBoard in ``tensorboard_log``
+    where one is given. On the SB3 path, call it inside :func:`train`'s thread setting (or accept torch's)."""
     from stable_baselines3.common.noise import NormalActionNoise
 
     backend = backend or rl_backend()
@@ -206,7 +207,7 @@ def build(
     if "n_steps" in kwargs and facts(algorithm).on_policy:
         kwargs["n_steps"] = min(kwargs["n_steps"], trials)
         kwargs["batch_size"] = min(kwargs.get("batch_size", 64), kwargs["n_steps"])
-    model = cls(env=env, seed=seed, device="cpu", verbose=0, **kwargs)
+    model = cls(env=env, seed=seed, device="cpu", verbose=0, tensorboard_log=tensorboard_log, **kwargs)
     if params.get("start_at_centre"):
         start_at_centre(model, algorithm, backend, params.get("initial_std"))
     return model
@@ -220,13 +221,15 @@ def train(
     trials: int,
     progress_bar: bool = False,
     backend: str | None = None,
+    tensorboard_log: str | None = None,
 ) -> Any:
     """Train ``algorithm`` on ``env`` (actions in ``[-1, 1]``) with the log reward for at most
     ``trials`` training trials, with the deterministic trials of ``eval_every`` between them, on
-    ``backend`` (default: :func:`rl_backend`)."""
+    ``backend`` (default: :func:`rl_backend`), with the algorithm's own TensorBoard logs in
+    ``tensorboard_log`` (a folder ``<ALGORITHM>_<n>`` there) where one is given."""
     backend = backend or rl_backend()
     with _torch_threads(backend):
-        model = build(algorithm, env, params, seed, trials, backend)
+        model = build(algorithm, env, params, seed, trials, backend, tensorboard_log)
         every = params.get("eval_every")
         callback = _deterministic_trials(env, every) if every else None
         model.learn(total_timesteps=trials, callback=callback, progress_bar=progress_bar)
@@ -243,7 +246,8 @@ def make_learner(
 ) -> PullLearner:
     """``algorithm`` with hyperparameters ``params`` as a learner for a budget of ``trials``
     trials, in the search box of the context's prior, seeded with ``context.seed``, on ``backend``
-    (default: :func:`rl_backend`, read now); its first trial is the context's start."""
+    (default: :func:`rl_backend`, read now); its first trial is the context's start; it logs to
+    TensorBoard in ``context.tensorboard_log`` where one is given."""
     backend = backend or rl_backend()
     algorithm_class(algorithm, backend)
 
@@ -251,6 +255,6 @@ def make_learner(
         env = SearchBox(port, *context.search_box())
         env.reset()
         env.step(context.start_point(0))
-        train(algorithm, env, params, context.seed, trials, progress_bar, backend)
+        train(algorithm, env, params, context.seed, trials, progress_bar, backend, context.tensorboard_log)
 
     return PullLearner(run, context.action_space, context.observation_space)

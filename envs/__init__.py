@@ -1,4 +1,5 @@
-"""The environments: one trial per episode, N trials per vector step, the cyclic task, and ``ResidualAction``.
+"""The environments: one trial per episode, N trials per vector step, the cyclic task, the manoeuvre, and
+``ResidualAction``.
 
 The env ids are registered by ``import ilc_steering``; the classes here are loaded on first use.
 """
@@ -15,6 +16,8 @@ __all__ = [
     "CyclicSteeringVectorEnv",
     "ResidualAction",
     "Scenario",
+    "SegmentedSteeringEnv",
+    "SegmentedSteeringVectorEnv",
 ]
 
 _LAZY = {
@@ -24,6 +27,8 @@ _LAZY = {
     "CyclicSteeringVectorEnv": "ilc_steering.envs.cyclic_vector_env",
     "ResidualAction": "ilc_steering.envs.wrappers",
     "Scenario": "ilc_steering.envs.scenario",
+    "SegmentedSteeringEnv": "ilc_steering.envs.segmented_env",
+    "SegmentedSteeringVectorEnv": "ilc_steering.envs.segmented_vector_env",
 }
 
 

@@ -31,62 +31,24 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.config import SteeringConfig
-from ilc_steering.core.external import ExternalTrials, is_external
+from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.core.plants import CHART_MARGIN
-from ilc_steering.core.robots.car import rotate
-from ilc_steering.core.score import TRUE_KEYS
 from ilc_steering.core.trajectory import Trajectory
 from ilc_steering.envs.base import Kind, SteeringEnv, check_action
 from ilc_steering.envs.frames import Scene, TrialView
-from ilc_steering.envs.scenario import Scenario
+from ilc_steering.envs.manoeuvre import Manoeuvre, at_edge, summary
 from ilc_steering.envs.segment_views import Carried, SegmentTask, SegmentView
-from ilc_steering.envs.trials import action_names, reward, task_spaces, trial_info
+from ilc_steering.envs.trials import reward, trial_info
 from ilc_steering.errors import BadInput
 
 __all__ = ["Carried", "SegmentTask", "SegmentView", "SegmentedSteeringEnv"]
 
 Array = npt.NDArray[np.float64]
-
-WORST = ("error_norm", "cartesian_error", "orientation_error", *TRUE_KEYS)
-"""The errors of a trial that are the worst over its segments' ends (every waypoint counted)."""
-
-
-def _at_edge(scenario: Scenario, q_task: Array) -> Array:
-    """Configurations in a segment's task frame, a heading past its chart read at the chart's edge
-    (as ``Scenario.measure`` reads a noisy one), where the chained map is defined."""
-    q = np.array(q_task, dtype=np.float64)
-    if scenario.kind.has_pose:
-        q = _wrapped(q)
-        edge = np.pi / 2 - CHART_MARGIN
-        q[..., 2:] = np.clip(q[..., 2:], -edge, edge)
-    return q
-
-
-def _turns_with_frame(scenario: Scenario, angle: float = 0.5) -> bool:
-    """Whether the plant's state turns with the task frame as ``rotate`` turns it (``x, y, theta``
-    first): its configuration and the controller's estimate of a turned state are the turned ones.
-    A lab robot's dead-reckoned estimate, further along its state, does not turn."""
-    q = scenario.to_task(scenario.start)
-    x, plant = scenario.plant.initial_state(q), scenario.plant
-    turned = rotate(x, angle)
-    return bool(
-        np.allclose(plant.configuration(turned), rotate(plant.configuration(x), angle))
-        and np.allclose(plant.estimate(turned), rotate(plant.estimate(x), angle))
-    )
-
-
-def _wrapped(x: Array) -> Array:
-    """A state with a pose (``x, y, theta`` first) with ``theta`` wrapped to ``(-pi, pi]``."""
-    out = np.array(x, dtype=np.float64)
-    out[..., 2] = np.angle(np.exp(1j * out[..., 2]))
-    return out
 
 
 def _joined(trajectories: Sequence[Trajectory]) -> Trajectory:
@@ -188,41 +150,12 @@ class SegmentedSteeringEnv(SteeringEnv):
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
         self.open(config, render_mode, record_trajectory)
-        plant = self.config.plant.plant()  # one car for every segment
-        if is_external(plant) and not isinstance(plant, Carried):
-            raise BadInput(
-                f"{self.config.name}: plant.model {self.config.plant.model} resets for every trial and cannot go "
-                "on from where a segment left it (an external plant needs carry_on() for a manoeuvre)"
-            )
-        self._segments = [
-            Scenario.from_config(c, measurement_noise, plant=plant) for c in self.config.segment_configs()
-        ]
-        for scenario in self._segments:
-            scenario.refuse_disturbances("the segmented env")
-        frames = {s.frame for s in self._segments}
-        if len(frames) > 1 and not _turns_with_frame(self._segments[0]):
-            raise BadInput(
-                f"{self.config.name}: segments in different frames need a plant whose state turns with the frame "
-                "(x, y, theta first); a lab robot's dead-reckoned estimate does not: give every segment one frame"
-            )
-        self._views, self._boxes = [], []
-        legs = self.config.task.segments  # type: ignore[union-attr]
-        for c, scenario, leg in zip(self.config.segment_configs(), self._segments, legs):
-            action_space, observation_space, observation = task_spaces(scenario)
-            low, high = action_space.low.copy(), action_space.high.copy()
-            if leg.direction is not None:  # the learned piece's direction: c11 keeps its sign (eq. 12)
-                (low if leg.direction == "forward" else high)[0] = 0.0
-            self._boxes.append((low, high))
-            task = SegmentTask(c.name, c.learning)
-            self._views.append(SegmentView(task, scenario.nominal, action_space, observation_space, observation))
-        self._sizes = [view.action_space.shape[0] for view in self._views]
-        self._split = np.cumsum(self._sizes)[:-1]
-        low, high = (np.concatenate(bounds) for bounds in zip(*self._boxes))
-        self.action_space = gym.spaces.Box(low, high, dtype=np.float32)
-        self._observation = np.concatenate([view.observation for view in self._views])
-        bound = np.concatenate([view.observation_space.high for view in self._views])
-        self.observation_space = gym.spaces.Box(-bound, bound, dtype=np.float32)
-        self._action_names = " + ".join(action_names(view.nominal_model) for view in self._views)
+        self._manoeuvre = Manoeuvre.build(self.config, measurement_noise)
+        self._segments = self._manoeuvre.segments
+        self._views = self._manoeuvre.views
+        self.action_space = self._manoeuvre.action_space
+        self.observation_space = self._manoeuvre.observation_space
+        self._observation = self._manoeuvre.observation
         waypoints = np.array(self.config.task.waypoints, dtype=np.float64)  # type: ignore[union-attr]
         names = ["start", *(f"via{i}" for i in range(len(waypoints) - 2)), "goal"]
         model = self._segments[0].nominal
@@ -251,44 +184,21 @@ class SegmentedSteeringEnv(SteeringEnv):
             "q_goal": self._segments[-1].goal.copy(),
         }
 
-    def _carry(self, x: Array, k: int) -> Array:
-        """A plant state at the end of segment ``k - 1`` in segment ``k``'s frame, its heading
-        wrapped to ``(-pi, pi]`` (a turn of the frame may carry it past ``pi``, where an external
-        plant reads it wrapped)."""
-        turn = self._segments[k].frame - self._segments[k - 1].frame
-        return _wrapped(rotate(x, turn)) if turn else x
-
-    def _refusal(self, k: int, x0: Array) -> str | None:
-        """Why segment ``k`` cannot start from plant state ``x0`` ``(1, nx)`` (its frame), or ``None``:
-        a start off its chart or past the plant's limits (``check_configuration``) is not run."""
-        plant = self._segments[k].plant
-        try:
-            plant.check_configuration(plant.configuration(x0))
-        except ValueError as error:
-            return f"segment {k} would start off its chart: {error}"
-        return None
-
-    @staticmethod
-    def _measured_start(scenario: Scenario, q_world: Array) -> Array:
-        """Where a segment began, in its own chained coordinates: the last segment's measured end
-        (world frame), in this segment's frame, through the nominal map (at the chart's edge if past it)."""
-        z: Array = scenario.to_chained(_at_edge(scenario, scenario.to_task(q_world)))
-        return z
-
     def step(self, action: Any) -> tuple[npt.NDArray[np.float32], float, bool, bool, dict[str, Any]]:
-        c = check_action(action, (sum(self._sizes),), self._action_names)
+        m = self._manoeuvre
+        c = check_action(action, m.action_space.shape, m.action_names)
         record = self.record_trajectory or self.render_mode is not None
-        pieces = np.split(c, self._split)
+        pieces = m.split(c)
         infos: list[dict[str, Any]] = []
         trajectories = []
         x: Array | None = None
         halted = False
         for k, (scenario, view, requested) in enumerate(zip(self._segments, self._views, pieces)):
-            applied = np.clip(requested, *self._boxes[k])
-            x0 = None if x is None else self._carry(x, k)[None]
+            applied = np.clip(requested, *m.boxes[k])
+            x0 = None if x is None else m.carry(x, k)[None]
             noise = scenario.draw_noise(self.np_random, 1)
-            z_start = view.nominal_model.z_start if not k else self._measured_start(scenario, infos[-1]["q_final"])
-            refused = None if halted or x0 is None else self._refusal(k, x0)
+            z_start = view.nominal_model.z_start if not k else m.measured_start(scenario, infos[-1]["q_final"])
+            refused = None if halted or x0 is None else m.refusal(k, x0)
             trials = None
             if not (halted or refused):
                 if k and isinstance(scenario.external, Carried):  # the same car goes on, no reset
@@ -300,7 +210,7 @@ class SegmentedSteeringEnv(SteeringEnv):
                         raise
                     refused = f"segment {k} refused: {type(error).__name__}: {error}"
             if trials is None:  # not run: measured where the robot halted, off its chart (at the edge if past it)
-                q = _at_edge(scenario, scenario.plant.configuration(x0))  # type: ignore[arg-type]
+                q = at_edge(scenario, scenario.plant.configuration(x0))  # type: ignore[arg-type]
                 measured = scenario.measure_configurations(q, np.ones(1, dtype=np.int64), noise=noise)
                 infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": False})
                 infos[-1].update({"refused": refused} if refused else {})
@@ -308,7 +218,7 @@ class SegmentedSteeringEnv(SteeringEnv):
                 continue
             q = scenario.plant.configuration(trials.final)
             if trials.status[0] != OK:  # halted (its chart, a wall): read at the chart's edge if past it
-                q = _at_edge(scenario, q)
+                q = at_edge(scenario, q)
             measured = scenario.measure_configurations(q, trials.status, noise=noise)
             infos.append({**trial_info(measured, applied, requested), "z_start": z_start, "ran": True})
             if isinstance(trials, ExternalTrials):  # what the external plant logged (its actions, a crash)
@@ -317,7 +227,7 @@ class SegmentedSteeringEnv(SteeringEnv):
             halted = infos[-1]["left_chart"]
             if record:
                 trajectories.append(scenario.trajectory(trials, applied[None]))
-        info = self._summary(infos)
+        info = summary(infos)
         if record:
             for trajectory in trajectories:
                 self._view.add(trajectory, info, keep=len(trajectories))
@@ -325,33 +235,6 @@ class SegmentedSteeringEnv(SteeringEnv):
                 info["trajectories"] = trajectories
                 info["trajectory"] = _joined(trajectories)
         return self._observation.copy(), float(reward(info)), True, False, info
-
-    def _summary(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """The trial's ``info``: the worst waypoint's errors (NaN if any is, and then ``left_chart``: a
-        NaN never hides behind a finite error), the goal's configuration, and each segment's own."""
-        last = infos[-1]
-        worst = {key: np.array([i[key] for i in infos], dtype=np.float64) for key in WORST if key in last}
-        info: dict[str, Any] = {key: float(np.max(values)) for key, values in worst.items()}
-        info.update(
-            q_final=last["q_final"],
-            z_final=last["z_final"],
-            error=np.concatenate([i["error"] for i in infos]),
-            action=np.concatenate([i["action"] for i in infos]),
-            left_chart=any(i["left_chart"] for i in infos) or not all(np.isfinite(v).all() for v in worst.values()),
-            clipped=any(i["clipped"] for i in infos),
-            segments=[{k: v for k, v in i.items() if k not in TRUE_KEYS} for i in infos],
-        )
-        logs = [i["plant"] for i in infos if "plant" in i]
-        if logs:  # one log for the trial, as the one-trial env gives: every segment's actions, back to back
-            info["plant"] = {
-                **logs[-1],
-                "actions": [a for log in logs for a in log["actions"]],
-                "crashed": any(log.get("crashed", False) for log in logs),
-                "left_lot": any(log.get("left_lot", False) for log in logs),
-                "refused": any(log.get("refused", False) for log in logs),
-                "segments_driven": sum(bool(log["actions"]) for log in logs),
-            }
-        return info
 
     def scene(self) -> Scene:
         """What ``render()`` draws, as a :class:`~ilc_steering.envs.frames.Scene`."""

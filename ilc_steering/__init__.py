@@ -4,7 +4,8 @@
 ``vector_entry_point`` runs ``num_envs`` trials per step in one batched call) and
 ``ilc_steering/CyclicSteering-v0`` (a non-resetting cycle of waypoints; its ``vector_entry_point``
 drives ``num_envs`` robots around it in step) and ``ilc_steering/SegmentedSteering-v0`` (a manoeuvre of
-several segments in one trial) with string entry points,
+several segments in one trial; its ``vector_entry_point`` runs ``num_envs`` manoeuvres per step, a
+batched call per segment) with string entry points,
 so nothing heavy is imported before ``gym.make``. ``ILCAgent``, ``SteeringConfig`` and
 ``load_config`` are loaded on first use.
 """
@@ -38,7 +39,11 @@ if "ilc_steering/CyclicSteering-v0" not in registry:
         vector_entry_point="ilc_steering.envs.cyclic_vector_env:CyclicSteeringVectorEnv",
     )
 if "ilc_steering/SegmentedSteering-v0" not in registry:
-    register(id="ilc_steering/SegmentedSteering-v0", entry_point="ilc_steering.envs.segmented_env:SegmentedSteeringEnv")
+    register(
+        id="ilc_steering/SegmentedSteering-v0",
+        entry_point="ilc_steering.envs.segmented_env:SegmentedSteeringEnv",
+        vector_entry_point="ilc_steering.envs.segmented_vector_env:SegmentedSteeringVectorEnv",
+    )
 
 
 def __getattr__(name: str) -> Any:

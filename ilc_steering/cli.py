@@ -51,6 +51,7 @@ from ilc_steering.runner import (
 )
 from ilc_steering.session_cli import add_session_arguments
 from ilc_steering.sweep.command import add_arguments as add_sweep_arguments
+from ilc_steering.trial_board import check_tensorboard
 
 __all__ = ["EXIT_CODES", "main"]
 
@@ -110,11 +111,13 @@ def _run(args: argparse.Namespace) -> int:
     config = load_config(source)
     hold = check_counts(args.trials, args.hold, [config])
     check_outputs(args.json, args.plots, [config], [source])
+    check_tensorboard(args.tensorboard)
     warning = step_warning(config)
     if warning is not None:
         print(f"ilc-steering: {warning}", file=sys.stderr)
     try:
-        result = learn(config, args.trials, args.json is not None or args.plots is not None, args.learner, hold)
+        trajectories = args.json is not None or args.plots is not None
+        result = learn(config, args.trials, trajectories, args.learner, hold, args.tensorboard)
     except ENDS_A_RUN as error:
         partial = getattr(error, "partial", None)
         done = 0
@@ -139,8 +142,9 @@ def _run_goals(args: argparse.Namespace) -> int:
     if args.plots is not None:
         raise BadInput("--plots draws one run: give one config (or plot a goal's run from --json)")
     check_outputs(args.json, None, configs, sources)
+    check_tensorboard(args.tensorboard)
     try:
-        results = learn_goals(configs, args.trials, args.learner, hold, args.carry)
+        results = learn_goals(configs, args.trials, args.learner, hold, args.carry, args.tensorboard)
     except ENDS_A_RUN as error:
         partial = getattr(error, "partial", None)
         done = len(partial) if isinstance(partial, list) else 0
@@ -226,6 +230,14 @@ def _parser() -> argparse.ArgumentParser:
         metavar="N",
         help=f"converged means the last N trials (cycles) are all within the tolerance (default {HOLD}: one "
         "trial within it may be the scatter's luck); at most the trials run",
+    )
+    run.add_argument(
+        "--tensorboard",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="write TensorBoard event files here, in <config>/<learner>_seed<seed>: one point per trial of the "
+        "errors, cost, reward and converged, the same tags as compare's cells (the tensorboard extra)",
     )
     run.set_defaults(handler=_run)
     reproduce = sub.add_parser("reproduce", help="run the paper's simulations and compare with its counts")

@@ -160,8 +160,10 @@ def learn(
     trajectories: bool,
     learner: str = DEFAULT_LEARNER,
     hold: int = HOLD,
+    tensorboard: Path | None = None,
 ) -> RunResult | CyclicRunResult:
-    """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes."""
+    """Run ``learner`` on the config with a table row per trial (or cycle) as it finishes (and its
+    TensorBoard event files under ``tensorboard``, where given)."""
     if config.is_cyclic and learner != DEFAULT_LEARNER:
         raise BadInput(
             f"--learner {learner}: a cyclic config runs the paper's cyclic law of eqs. 39-40 "
@@ -172,10 +174,18 @@ def learn(
     print_header(config, config.learning.trials if count is None else count)
     if config.is_cyclic:
         result: RunResult | CyclicRunResult = run_cyclic_ilc(
-            config, count, on_cycle=print_row, trajectories=trajectories, hold=hold
+            config, count, on_cycle=print_row, trajectories=trajectories, hold=hold, tensorboard=tensorboard
         )
     else:
-        result = run_ilc(config, count, on_trial=print_row, trajectories=trajectories, learner=learner, hold=hold)
+        result = run_ilc(
+            config,
+            count,
+            on_trial=print_row,
+            trajectories=trajectories,
+            learner=learner,
+            hold=hold,
+            tensorboard=tensorboard,
+        )
     unit = "cycles" if config.is_cyclic else "trials"
     done = len(result.cycles) if isinstance(result, CyclicRunResult) else len(result.trials)
     records = result.trials if isinstance(result, RunResult) else [w for c in result.cycles for w in c.waypoints]
@@ -187,7 +197,12 @@ def learn(
 
 
 def learn_goals(
-    configs: list[SteeringConfig], count: int | None, learner: str, hold: int, carry: bool
+    configs: list[SteeringConfig],
+    count: int | None,
+    learner: str,
+    hold: int,
+    carry: bool,
+    tensorboard: Path | None = None,
 ) -> list[RunResult]:
     """Run ``learner`` on each goal in turn (as :func:`learn`, a table each), carrying what it learned
     of the robot from goal to goal with ``carry``; then one line of trials to the tolerance: the
@@ -208,7 +223,9 @@ def learn_goals(
             started(k + 1)
 
     started(0)
-    results = run_goals(configs, count, learner, hold=hold, carry=carry, on_goal=ended, on_trial=print_row)
+    results = run_goals(
+        configs, count, learner, hold=hold, carry=carry, on_goal=ended, on_trial=print_row, tensorboard=tensorboard
+    )
     print(goals_line(results, carry))
     return results
 

@@ -11,12 +11,14 @@ What a learner raises, in ``act``, ``learn`` or ``close`` (``sys.exit()`` and an
 refuses (a NaN, the wrong shape) is a :class:`LearnerError` naming the learner and the trial: the
 learner's fault, not bad input to the library (exit 2) nor a bug of it (exit 3).
 
-A trial is recorded (the rollout, the callbacks) as soon as the env has run it, before the learner
-learns from it: a learner that fails in ``learn`` loses no trial that ran.
+A trial is recorded (the rollout, the callbacks and, where asked, TensorBoard's event files:
+:mod:`~ilc_steering.trial_board`) as soon as the env has run it, before the learner learns from it:
+a learner that fails in ``learn`` loses no trial that ran.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,8 +27,10 @@ import gymnasium as gym
 import numpy as np
 
 from ilc_steering.agents.base import Closable, Learner, transferred
+from ilc_steering.core.scatter import HOLD
 from ilc_steering.core.score import TRUE_KEYS
 from ilc_steering.errors import INTERRUPTS, BadInput, ConfigError, LearnerError, LimitError, described
+from ilc_steering.trial_board import TrialBoard
 
 __all__ = ["Rollout", "TrialCallback", "VectorCallback", "run_trials", "run_vector_trials"]
 
@@ -65,6 +69,8 @@ def run_trials(
     callbacks: Sequence[TrialCallback] = (),
     name: str | None = None,
     transfer: bool = False,
+    tensorboard: str | os.PathLike[str] | None = None,
+    hold: int = HOLD,
 ) -> Rollout:
     """Run ``learner`` on ``env`` for at most ``trials`` trials: act, step, learn, and reset when the
     episode ends (every trial for the one-trial env; at truncation for the cyclic env).
@@ -79,14 +85,21 @@ def run_trials(
     ``name`` names the learner in a :class:`LearnerError` (default: its class). With ``transfer``,
     the rollout keeps what the learner hands to the next goal
     (:func:`~ilc_steering.agents.base.transferred`), asked after the last trial, before ``close()``.
+
+    ``tensorboard``, a folder, gets TensorBoard's event files of the run
+    (:class:`~ilc_steering.trial_board.TrialBoard`, the ``tensorboard`` extra; checked before the
+    first trial): one point per trial of every tag of :data:`~ilc_steering.trial_board.TAGS` the
+    env reports, the trial's number as the step; ``trial/converged`` holds when the last ``hold``
+    trials (a cyclic env: cycles) were within the config's tolerance.
     """
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise BadInput(f"trials must be an integer >= 1, got {trials!r}")
     rollout = Rollout()
     who = name or type(learner).__name__
-    observation, _ = env.reset(seed=seed, options=options)
+    board = None if tensorboard is None else TrialBoard.of_env(tensorboard, env, hold)
     failed = True
     try:
+        observation, _ = env.reset(seed=seed, options=options)
         for k in range(1, trials + 1):
             try:
                 action = learner.act(observation)
@@ -102,6 +115,8 @@ def run_trials(
                 raise _fault(who, "the env refused its action", k, error) from error
             rollout.infos.append(info)  # the trial ran: kept, whatever the learner does next
             rollout.rewards.append(float(reward))
+            if board is not None:
+                board.write(k, info, float(reward))
             stop = any([bool(callback(k, info)) for callback in callbacks])
             try:
                 learner.learn({key: value for key, value in info.items() if key not in TRUE_KEYS})
@@ -123,6 +138,8 @@ def run_trials(
                 raise _fault(who, "transfer() raised", len(rollout), error) from error
         failed = False
     finally:
+        if board is not None:
+            board.close()
         if isinstance(learner, Closable):
             try:
                 learner.close()

@@ -11,6 +11,7 @@ converged, and whether the plant's scatter allowed it to, is its verdict
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -30,6 +31,7 @@ from ilc_steering.errors import ENDS_A_RUN, BadInput, keep_partial
 from ilc_steering.loop import run_trials
 from ilc_steering.preflight import MAX_STEP_MISS, check_task, step_warning
 from ilc_steering.segmented import segmented_learner
+from ilc_steering.trial_board import run_folder
 from ilc_steering.verdict import Verdict, verdict, with_scatter
 
 __all__ = [
@@ -159,6 +161,7 @@ def run_ilc(
     hold: int = scatter_.HOLD,
     carried: Mapping[str, Any] | None = None,
     transfer: bool = False,
+    tensorboard: str | os.PathLike[str] | None = None,
 ) -> RunResult:
     """Run a learner (default: the paper's eqs. 33-34; any id of the registry or ``module:attr``,
     :func:`learner_spec`) for ``trials`` trials (default: the config's), with ``seed`` for the
@@ -169,7 +172,9 @@ def run_ilc(
     every trial's :class:`~ilc_steering.envs.trajectory.Trajectory` in its record (for plots).
     ``carried`` is what a learner of the same id learned of the same robot on an earlier goal
     (:attr:`~ilc_steering.agents.base.LearnerContext.carried`); with ``transfer`` the result keeps
-    what this one hands on (:func:`run_goals` chains them).
+    what this one hands on (:func:`run_goals` chains them). ``tensorboard``, a folder, gets the run's
+    TensorBoard event files in ``<config name>/<learner>_seed<seed>`` under it
+    (:func:`~ilc_steering.trial_board.run_folder`; an RL learner's own logs beside them).
 
     A learner that fails raises :class:`~ilc_steering.errors.LearnerError` naming it (``learner``),
     its ``partial`` the :class:`RunResult` of the trials run before (the trial it failed on
@@ -180,17 +185,23 @@ def run_ilc(
     config = load_config(config)
     spec = learner_spec(learner)
     count = config.learning.trials if trials is None else trials
+    board = None if tensorboard is None else run_folder(tensorboard, config.name, learner, seed)
+    logs = None if board is None else str(board)
     agent: Learner
     if config.is_segmented:  # one learner per segment, each on its segment's one-trial view
         env = gym.make(SEGMENTED_ENV_ID, config=config, record_trajectory=trajectories)
         views = env.unwrapped.segment_views()  # type: ignore[attr-defined]
         for k, view in enumerate(views):
             check_task(view, f"{config.name} task.segments[{k}]")
-        agent = segmented_learner(lambda context: spec.make(replace(context, carried=carried), count), views, seed)
+
+        def make(context: LearnerContext) -> Learner:
+            return spec.make(replace(context, carried=carried, tensorboard_log=logs), count)
+
+        agent = segmented_learner(make, views, seed)
     else:
         env = gym.make(ENV_ID, config=config, record_trajectory=trajectories)
         check_task(env, config.name)
-        agent = spec.make(LearnerContext.from_env(env, seed=seed, carried=carried), count)
+        agent = spec.make(LearnerContext.from_env(env, seed=seed, carried=carried, tensorboard_log=logs), count)
     started_from = None if carried is None else dict(carried)
     model = env.unwrapped.nominal_model  # type: ignore[attr-defined]
 
@@ -210,7 +221,17 @@ def run_ilc(
 
     try:
         with owned():  # a robot program this run starts is stopped when it ends, however it ends
-            rollout = run_trials(env, agent, count, seed=seed, callbacks=[keep], name=learner, transfer=transfer)
+            rollout = run_trials(
+                env,
+                agent,
+                count,
+                seed=seed,
+                callbacks=[keep],
+                name=learner,
+                transfer=transfer,
+                tensorboard=board,
+                hold=hold,
+            )
     except ENDS_A_RUN as error:  # the trials before it are kept
         keep_partial(error, RunResult(config, records, judged(met), started_from=started_from))
         raise
@@ -228,11 +249,13 @@ def run_goals(
     carry: bool = True,
     on_goal: Callable[[int, RunResult], None] | None = None,
     on_trial: Callable[[TrialRecord], None] | None = None,
+    tensorboard: str | os.PathLike[str] | None = None,
 ) -> list[RunResult]:
     """One run of ``learner`` per goal (one-trial configs of one robot, in order), each its own budget
     and trial counter; with ``carry`` each learner starts from what the last one learned of the robot
     (:class:`~ilc_steering.agents.base.Transferable`). ``on_goal(k, result)`` follows goal ``k`` (from
-    0). A failure raises as :func:`run_ilc`'s, its ``partial`` the list so far."""
+    0). A failure raises as :func:`run_ilc`'s, its ``partial`` the list so far. ``tensorboard``: as
+    :func:`run_ilc`'s, each goal under its config's name."""
     goals = [load_config(config) for config in configs]
     other = next((k for k, goal in enumerate(goals) if carry and goal.plant != goals[0].plant), None)
     if not goals or other is not None:
@@ -243,7 +266,16 @@ def run_goals(
     for k, config in enumerate(goals):
         try:
             result = run_ilc(
-                config, trials, on_trial, False, learner, seed, hold, carried if carry else None, transfer=carry
+                config,
+                trials,
+                on_trial,
+                False,
+                learner,
+                seed,
+                hold,
+                carried if carry else None,
+                transfer=carry,
+                tensorboard=tensorboard,
             )
         except ENDS_A_RUN as error:
             last = getattr(error, "partial", None)
@@ -287,6 +319,7 @@ def run_cyclic_ilc(
     start: list[float] | None = None,
     trajectories: bool = False,
     hold: int = scatter_.HOLD,
+    tensorboard: str | os.PathLike[str] | None = None,
 ) -> CyclicRunResult:
     """Run the cyclic ILC agent (eqs. 39-40) for ``cycles`` cycles (default: ``learning.trials``),
     never resetting the robot; ``start`` puts it off home at the beginning. ``trajectories``
@@ -295,6 +328,7 @@ def run_cyclic_ilc(
     A cycle met the tolerance when every waypoint met it in that cycle; the run has converged
     when its last ``hold`` cycles met it (:class:`~ilc_steering.verdict.Verdict`). A run that
     fails or is interrupted raises as :func:`run_ilc`'s, its ``partial`` the cycles completed.
+    ``tensorboard``: as :func:`run_ilc`'s, one point per segment (the loop's trial).
     """
     config = load_config(config)
     env = gym.make(CYCLIC_ENV_ID, config=config, cycles=cycles, record_trajectory=trajectories)
@@ -320,7 +354,9 @@ def run_cyclic_ilc(
 
     steps = (config.learning.trials if cycles is None else cycles) * len(models)
     try:
-        run_trials(env, agent, steps, seed=0, options=None if start is None else {"start": start}, callbacks=[keep])
+        board = None if tensorboard is None else run_folder(tensorboard, config.name, DEFAULT_LEARNER, 0)
+        options = None if start is None else {"start": start}
+        run_trials(env, agent, steps, seed=0, options=options, callbacks=[keep], tensorboard=board, hold=hold)
     except ENDS_A_RUN as error:  # the cycles before it are kept
         keep_partial(error, CyclicRunResult(config, records, verdict(cycles_met, hold)))
         raise

@@ -28,6 +28,7 @@ EXTRAS = {
     "mujoco": ("mujoco",),
     "rosbags": ("rosbags",),
     "zoo": ("rl_zoo3",),
+    "tensorboard": ("tensorboard",),
 }
 """The modules each extra of pyproject.toml installs, as a test imports them."""
 

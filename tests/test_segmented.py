@@ -20,7 +20,7 @@ from ilc_steering.agents.registry import lookup
 from ilc_steering.cli import main
 from ilc_steering.config import load_config
 from ilc_steering.config.loading import packaged_configs
-from ilc_steering.envs import segmented_env
+from ilc_steering.envs import manoeuvre, segmented_env
 from ilc_steering.errors import ConfigError
 from ilc_steering.loop import run_trials
 from ilc_steering.runner import run_ilc
@@ -386,10 +386,10 @@ def test_a_nan_at_a_later_waypoint_is_not_hidden():
     _, _, _, _, info = env.step(c)
     infos = [dict(segment) for segment in info["segments"]]
     for segment in infos:
-        segment.update({key: 1e-6 for key in segmented_env.WORST if key in info})
-    assert not env.unwrapped._summary(infos)["left_chart"]
+        segment.update({key: 1e-6 for key in manoeuvre.WORST if key in info})
+    assert not manoeuvre.summary(infos)["left_chart"]
     infos[1]["cartesian_error"] = float("nan")
-    summary = env.unwrapped._summary(infos)
+    summary = manoeuvre.summary(infos)
     assert np.isnan(summary["cartesian_error"]) and summary["left_chart"]
     assert not within_tolerance(load_config("segmented_parking").learning.tolerance, summary)
 
@@ -456,4 +456,4 @@ def test_a_lab_robot_takes_a_manoeuvre_in_one_frame_only():
         gym.make(ENV_ID, config=load_config(data))
     car = packaged()
     car["task"]["segments"][1]["frame"] = 0.7
-    assert segmented_env._turns_with_frame(gym.make(ENV_ID, config=load_config(car)).unwrapped._segments[0])
+    assert manoeuvre._turns_with_frame(gym.make(ENV_ID, config=load_config(car)).unwrapped._segments[0])

@@ -260,6 +260,7 @@ FLOORS = (
         "trials",
         (
             "ilc_steering.loop",
+            "ilc_steering.trial_board",
             "ilc_steering.segmented",
             "ilc_steering.verdict",
             "ilc_steering.preflight",

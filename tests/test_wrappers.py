@@ -79,7 +79,8 @@ def test_on_a_manoeuvre_the_box_is_every_segments_end_to_end():
     box = env.unwrapped.action_space
     np.testing.assert_array_equal(info["action"], np.clip(centre, np.float64(box.low), np.float64(box.high)))
     assert not info["clipped"] and info["cartesian_error"] < 0.2  # a = 0: the nominal manoeuvre
-    signs = np.sign(env.action(-np.ones(centre.size))[np.cumsum([0, *env.unwrapped._sizes[:-1]])])
+    sizes = [view.action_space.shape[0] for view in views]
+    signs = np.sign(env.action(-np.ones(centre.size))[np.cumsum([0, *sizes[:-1]])])
     assert list(signs) == [1.0, -1.0]  # c11 keeps each segment's direction (forward, then reverse)
 
 

@@ -74,6 +74,10 @@ class Args:
     :data:`~ilc_steering.engine.options.DEFAULT_CELL_TIMEOUT`."""
     dry_run: bool = False
     """Compute and write nothing: say which cells a run would compute, and its cost."""
+    tensorboard: Path | None = None
+    """A folder for TensorBoard's event files of the cells this run computes, one folder per cell
+    (:func:`~ilc_steering.trial_board.run_folder`); not a setting: a run folder is the same with
+    or without it."""
 
 
 def seeds_of(args: Args, prior: str) -> tuple[int, ...]:

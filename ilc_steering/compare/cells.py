@@ -29,6 +29,7 @@ from ilc_steering.loop import run_trials
 from ilc_steering.output import MAX_RESULT_BYTES, injective_name
 from ilc_steering.readers import read_json
 from ilc_steering.schema import MethodName, Name, check_record
+from ilc_steering.trial_board import run_folder
 
 if TYPE_CHECKING:
     from ilc_steering.compare.args import Args
@@ -134,15 +135,21 @@ def make_learner(args: Args, method: str, scenario: str, context: LearnerContext
 
 
 def measure(
-    env: gym.Env[Any, Any], learner: Learner, trials: int, seed: int, name: str | None = None
+    env: gym.Env[Any, Any],
+    learner: Learner,
+    trials: int,
+    seed: int,
+    name: str | None = None,
+    tensorboard: Path | None = None,
 ) -> dict[str, Any]:
     """Run ``learner`` (``name`` for errors) on ``env`` for ``trials`` trials and return what it
     reached: the trials to each tolerance of :data:`LADDER` and which of them are fragile
     (:func:`fragile_levels`), the best true cost, the off-chart fraction, the wall time [s] and
-    the best-so-far curve."""
+    the best-so-far curve. ``tensorboard``, a folder, gets the run's TensorBoard event files
+    (:class:`~ilc_steering.trial_board.TrialBoard`); what it reached is the same without."""
     log = TrialLog()
     start = time.perf_counter()
-    run_trials(env, learner, trials, seed=seed, callbacks=[log], name=name)
+    run_trials(env, learner, trials, seed=seed, callbacks=[log], name=name, tensorboard=tensorboard)
     wall = time.perf_counter() - start
     curve = best_so_far(log)
     # A learner that times its own updates (TimedUpdates: the model-based ones) reports the median.
@@ -165,18 +172,23 @@ def run_cell(
     args: Args, prior: str, method: str, scenario: str, seed: int, trials: int | None = None
 ) -> dict[str, Any]:
     """One (prior, method, scenario, seed) cell: the method's run within its budget (``trials``, or
-    the registry's rule under ``args``), and what it reached."""
+    the registry's rule under ``args``), and what it reached; with ``args.tensorboard``, its
+    TensorBoard event files in its own folder there (:func:`~ilc_steering.trial_board.run_folder`),
+    which its result does not record."""
     spec = registry.lookup(method)
     if spec.family == "RL":
         import torch
 
         torch.set_num_threads(1)  # as in the worker processes: serial and parallel runs agree
     env = gym.make(ENV_ID, config=scenario)
-    context = LearnerContext.from_env(env, seed=seed, prior=prior, progress_bar=args.progress_bar)
+    name = env.unwrapped.config.name  # type: ignore[attr-defined]
+    board = None if args.tensorboard is None else run_folder(args.tensorboard, name, method, seed, prior)
+    logs = None if board is None else str(board)
+    context = LearnerContext.from_env(env, seed=seed, prior=prior, progress_bar=args.progress_bar, tensorboard_log=logs)
     if trials is None:
         trials = spec.budget(budgets(args), context.task, prior)
     learner = spec.make(context, trials)
-    result = measure(env, learner, trials, seed, method)
+    result = measure(env, learner, trials, seed, method, board)
     result["implementation"] = spec.implementation()
     env.close()
     return {"prior": prior, "method": method, "scenario": context.task, "seed": seed, "budget": trials, **result}

@@ -338,6 +338,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"prior=none, the ablation, runs the first K seeds (default: {Args.ablation_seeds})",
     )
     add_cell_options(parser, "cell")
+    parser.add_argument(
+        "--tensorboard",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="write TensorBoard event files of every cell computed, in <scenario>/<method>_seed<seed> (a prior "
+        "other than nominal: _prior-<prior> after it): one point per trial, the same tags for every method, an RL "
+        "method's own SB3 logs beside them (the tensorboard extra); not part of the results",
+    )
     bar = parser.add_mutually_exclusive_group()
     bar.add_argument("--progress-bar", action="store_true", help="SB3's progress bar on RL cells (one worker)")
     bar.add_argument("--no-progress-bar", action="store_true", help="no progress bar (the default)")
@@ -358,6 +367,7 @@ def from_namespace(ns: argparse.Namespace) -> Args:
         backend=ns.backend,
         cell_timeout=getattr(ns, "cell_timeout", None),  # suppressed when not given: the plan applies the default
         dry_run=ns.dry_run,
+        tensorboard=ns.tensorboard,
     )
     return replace(args, **budgets)
 

@@ -24,7 +24,8 @@ from ilc_steering.compare.cells import ENV_ID, budgets, cell_roots
 from ilc_steering.config import SteeringConfig
 from ilc_steering.engine.options import check_cell_options
 from ilc_steering.errors import BadInput
-from ilc_steering.output import content_hash
+from ilc_steering.output import check_output_dir, content_hash
+from ilc_steering.trial_board import require_tensorboard
 
 __all__ = ["MAX_BUDGET", "MAX_SEED", "QUICK", "QUICK_SEEDS", "SCENARIOS", "SEEDS", "Args", "Plan", "plan", "resolve"]
 
@@ -44,9 +45,9 @@ def resolve(args: Args) -> Args:
 def run_settings(args: Args) -> dict[str, Any]:
     """What ``run.json`` records and a resume (or ``--against``) must match: the budgets, the seeds,
     ``quick`` and the package version; not the grid's axes (a resume may add cells), nor how or
-    where cells run."""
+    where cells run, nor where their TensorBoard event files go."""
     skip: tuple[str, ...] = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers")
-    skip += ("backend", "cell_timeout", "dry_run")
+    skip += ("backend", "cell_timeout", "dry_run", "tensorboard")
     settings = {k: v for k, v in asdict(args).items() if k not in skip}
     settings["seeds"] = list(settings["seeds"])
     settings["version"] = __version__
@@ -119,8 +120,13 @@ def check_options(args: Args) -> Args:
     """Every option that needs no config: ``ValueError`` naming it: unknown or repeated priors,
     methods, scenarios or seeds, a user's learner that cannot be imported, a seed outside
     ``[0, 2**32)``, a budget outside ``[1, MAX_BUDGET]``, a worker count outside ``[0,
-    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s. Returns ``args``."""
+    MAX_WORKERS]``, a ``cell_timeout`` that is not a time > 0 s, a ``--tensorboard`` without its
+    extra or that cannot be written. Returns ``args``."""
     check_cell_options(args.backend, args.workers, args.cell_timeout)
+    if args.tensorboard is not None:
+        require_tensorboard("--tensorboard")
+        if not args.dry_run:
+            check_output_dir(args.tensorboard, "--tensorboard")
     options = (("--priors", args.priors), ("--methods", args.methods), ("--scenarios", args.scenarios))
     for option, values in (*options, ("--seeds", args.seeds or ())):
         if not values:
