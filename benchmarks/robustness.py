@@ -46,12 +46,24 @@ MAPS: dict[str, tuple[str, tuple[tuple[str, float, float], ...], int | None]] = 
     ),
     "experiment_forward": ("experiment_forward", (), 9),
     "experiment_parallel": ("experiment_parallel", (), 9),
+    "experiment_parallel_servo": (
+        "experiment_parallel",
+        (("steering_lag", 0.0, 0.25), ("steering_backlash", 0.0, 0.02)),
+        9,
+    ),
+    "experiment_parallel_trim": (
+        "experiment_parallel",
+        (("steering_offset", -0.03, 0.03), ("speed_lag", 0.0, 0.25)),
+        9,
+    ),
 }
 """Map name: config, axes (empty: wheelbase and wheel radius, or the robot's two factors, as
 ratios 0.5-1.5 to the nominal ones; else two plant keys with their ranges) and its own grid (None:
 ``--grid``; the servo car's and the lab robot's maps are coarser, their kernels being the slowest:
 section 5's experiments 1 and 2 are mapped over the lab robot's wheelbase and wheel radius, its
-other imperfections as configured). The lag map starts
+other imperfections as configured, and experiment 2 over its steering servo's lag and play and
+over its steering trim and drive lag, each from 0 or a step of the integrator's 1/32 s up, as the
+plant requires of a lag). The lag map starts
 at a lag of 0 s, the lag-free car: the vector env and the oracle measure every plant of a map as
 that plant does (a lag-free car its commanded wheel angle, a lagging one its wheel's lag state),
 as the single env with that plant would (``tests/test_vector_env.py``)."""
