@@ -44,10 +44,12 @@ from typing import Any
 import numpy as np
 
 from ilc_steering.core.robots.chart import rotate
+from ilc_steering.core.score import trial_cost
 from ilc_steering.errors import BadInput, LimitError
 from ilc_steering.pose_files import final_pose
 from ilc_steering.runner import RunResult, TrialRecord
 from ilc_steering.session_folder import Replay, Session
+from ilc_steering.trial_board import TrialBoard, check_tensorboard, run_folder
 from ilc_steering.verdict import Verdict
 
 __all__ = [
@@ -234,12 +236,49 @@ def record(
         return _status(session, session.record(final))
 
 
-def status(folder: Folder, trajectories: bool = False) -> Status:
-    """The session's recorded trials, their verdict and what is pending; writes nothing.
-    ``trajectories``: keep each trial's path (its start and end) for a run record's figures."""
+def status(folder: Folder, trajectories: bool = False, tensorboard: Folder | None = None) -> Status:
+    """The session's recorded trials, their verdict and what is pending; writes nothing to the
+    session. ``trajectories``: keep each trial's path (its start and end) for a run record's
+    figures. ``tensorboard``: write the recorded trials there as TensorBoard events (:func:`board`)."""
     session = Session(Path(folder))
+    if tensorboard is not None:
+        if Path(tensorboard).resolve().is_relative_to(session.folder.resolve()):
+            raise BadInput(
+                f"--tensorboard {tensorboard}: inside the session {session.folder}; give a folder outside it"
+            )
+        check_tensorboard(Path(tensorboard))
     with session.locked(write=False):
-        return _status(session, session.replay(write=False, paths=trajectories))
+        state = _status(session, session.replay(write=False, paths=trajectories))
+    if tensorboard is not None:
+        board(state, session, tensorboard)
+    return state
+
+
+def board(state: Status, session: Session, root: Folder) -> Path:
+    """Write a session's recorded trials as TensorBoard events under ``root``, in the folder ``run
+    --tensorboard`` gives a run (``<config>/<learner>_seed<seed>``, its earlier events replaced): a
+    point per trial and tag, the tags of every learner's run, the measured errors standing for the
+    true ones (a session knows no other). Returns the folder."""
+    config = session.config
+    writer = TrialBoard(run_folder(root, config.name, state.learner, state.seed), config.learning.tolerance)
+    try:
+        for record in state.trials:
+            errors = {"error_norm": record.error_norm}
+            errors.update(
+                {
+                    k: v
+                    for k, v in (
+                        ("cartesian_error", record.cartesian_error),
+                        ("orientation_error", record.orientation_error),
+                    )
+                    if v is not None
+                }
+            )
+            info = {**errors, **{f"true_{k}": v for k, v in errors.items()}, "left_chart": record.left_chart}
+            writer.write(record.trial, info, -float(trial_cost(info)))
+    finally:
+        writer.close()
+    return writer.folder
 
 
 def withdraw(folder: Folder) -> Withdrawn:

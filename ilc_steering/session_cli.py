@@ -92,7 +92,8 @@ def _withdraw(args: argparse.Namespace) -> int:
 def _status(args: argparse.Namespace) -> int:
     folder = Session(args.folder)
     check_outputs(args.json, args.plots, [folder.recorded], [], _inputs(folder.folder))
-    state = session.status(args.folder, trajectories=args.json is not None or args.plots is not None)
+    trajectories = args.json is not None or args.plots is not None
+    state = session.status(args.folder, trajectories=trajectories, tensorboard=args.tensorboard)
     print_header(state.result.config, state.budget)
     for record in state.trials:
         print_row(record)
@@ -155,4 +156,12 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     status.add_argument("folder", type=Path, metavar="DIR")
     status.add_argument("--json", type=output_file, default=None, help="write the run's JSON here")
     status.add_argument("--plots", type=output_folder, default=None, metavar="DIR", help="write the run's figures here")
+    status.add_argument(
+        "--tensorboard",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="write the recorded trials as TensorBoard events under DIR/<config>/<learner>_seed<seed> (as run "
+        "does; the tensorboard extra)",
+    )
     status.set_defaults(handler=_status)

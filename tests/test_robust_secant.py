@@ -54,9 +54,9 @@ def test_steps_within_the_scatter_teach_only_a_small_correction():
 
 
 @pytest.mark.slow  # 20 runs of the lab robot, about 2 min
-def test_the_lab_robot_parks_in_five_trials_over_reproduces_seeds_and_forward_in_two():
+def test_the_calibrated_lab_robot_parks_in_two_trials_and_goes_forward_in_three():
     parallel = [run_ilc("experiment_parallel", learner="robust_ilc", seed=seed).converged_at for seed in range(10)]
     forward = [run_ilc("experiment_forward", learner="robust_ilc", seed=seed).converged_at for seed in range(10)]
     assert None not in parallel and None not in forward
-    assert statistics.median(parallel) <= 5  # 6 [5, 6] with SECANT_PRIOR 3, SECANT_CURVATURE 1, SHRINK 1
-    assert statistics.median(forward) <= 2
+    assert statistics.median(parallel) <= 2  # 2 [2, 4] on the calibrated MARIO (results/reproduce/reproduce.txt)
+    assert statistics.median(forward) <= 3  # 3 [3, 3]: the rolling radius 7 % small, eqs. 33-34 take 4

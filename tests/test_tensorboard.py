@@ -174,3 +174,25 @@ def test_a_comparison_of_ilc_and_rl_lays_both_on_one_chart(tmp_path, capsys):
     assert main(argv) == 0  # resumed without --tensorboard: every cell taken as it is
     assert "all 2 cells finished" in capsys.readouterr().out
     assert read_json(tmp_path / "run" / "cells" / "nominal__ppo__forward_parking__0.json", 1 << 20) == cell
+
+
+@pytest.mark.extra("tensorboard")
+def test_a_session_writes_its_recorded_trials_with_the_same_tags(tmp_path, capsys):
+    from ilc_steering import session
+    from ilc_steering.config import load_config
+    from ilc_steering.lab_robot import LabRobot
+
+    robot, folder = LabRobot(load_config("experiment_forward")), tmp_path / "s"
+    state = session.new(folder, "experiment_forward_process", trials=10) and session.status(folder)
+    while state.state is session.State.PENDING:  # the module's example: MARIO stands in for the robot
+        state = session.record(folder, robot.trial(session.next(folder).request)["final"])
+    assert main(["session", "status", str(folder), "--tensorboard", str(tmp_path / "tb")]) == 0
+    read = points(tmp_path / "tb" / "experiment_forward_process" / "ilc_paper_seed1")
+    assert set(read) == POSE_TAGS and steps(read) == list(range(1, len(state.trials) + 1))
+    measured = [value for _, value in read["trial/cartesian_error"]]
+    np.testing.assert_allclose(measured, [t.cartesian_error for t in state.trials], rtol=1e-6)  # float32 events
+    assert [value for _, value in read["trial/true_cartesian_error"]] == measured  # a session measures, only
+    assert [value for _, value in read["trial/converged"]][-1] == 1.0 and state.converged_at == 4
+    capsys.readouterr()
+    assert main(["session", "status", str(folder), "--tensorboard", str(folder / "tb")]) == 2
+    assert "inside the session" in capsys.readouterr().err
