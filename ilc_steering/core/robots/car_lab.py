@@ -17,18 +17,12 @@ regula falsi on substeps (:func:`~ilc_steering.core.stepper.locate`); and each e
 servo's response to a polynomial: :func:`_lab_pulse`), so a step with a pulse costs two
 Runge-Kutta steps, not seven (``benchmarks/robots.py``).
 
-What a step costs (``benchmarks/robots.py``, docs/speed.md): between events the field runs in
-``tan(theta)``, with ``cos(theta)`` and ``tan(phi_s)`` carried beside it as states of their own
-(their rates ``-tan(theta) cos(theta) theta'`` and ``(1 + tan^2(phi_s)) phi_s'``; a servo without a
-lag carries ``tan(phi_c)``, read inside the stop, its own tangent at it: :func:`_lab_gate`), so a
-stage evaluates no trigonometric function, no square root and two divisions (the wheel's
-``tan(phi_w + offset)`` by the addition formula); the layout's angles are restored at the end of
-each step. What is fixed between events (eqs. 4-5's gains at the estimate, ``tan(A + offset)``)
-is computed once per substep, what is fixed over a step once per step, and a Runge-Kutta step
-runs on the nine entries that move, its stages combined across the entries and past the
-tableau's zeros (:func:`_lab_rk`). Each change is within 1e-13 of the kernel before it on
-``tests/lab_reference.json``; carrying ``tan(phi_c)`` without a lag (where every stage evaluated
-``tan(phi_s)``: a fifth of the time) is within 2.5e-11 on 512 trials of the packaged experiments.
+What a step costs (``benchmarks/robots.py``, docs/speed.md): the field runs in ``tan(theta)`` with
+``cos(theta)`` and ``tan(phi_s)`` carried as states (without a lag ``tan(phi_c)``: :func:`_lab_gate`),
+so a stage evaluates no trigonometric function, no square root and two divisions; what is fixed
+between events is set once per substep (:func:`_lab_constants`) or step, and a Runge-Kutta step runs
+on the nine entries that move (:func:`_lab_rk`). Each change is within 1e-13 of the kernel before it
+on ``tests/lab_reference.json``, the carried ``tan(phi_c)`` within 2.5e-11 on 512 packaged trials.
 """
 
 from __future__ import annotations
@@ -62,9 +56,8 @@ _U1, _U2_V1, _U2_V2, _TAN_LO, _TAN_HI, _TAN_REST = range(len(LAB_LAYOUT.params),
 _PER_ELL, _PER_STEERING_LAG, _PER_SPEED_LAG, _TAN_LIMIT, _GATE = range(_TAN_REST + 1, _TAN_REST + 6)
 _MAX_EVENTS = 10_000  # events within one step of the lab robot before it gives up locating them
 _LAB_EVENT_TIME = 1e-14  # relative to the step: how closely a lab event is located
-# _lab_step's state, 14 entries: the layout's with tan(theta) in place of theta, psi moved before A and
-# tan(phi_s) and cos(theta) inserted after it: (x, y, tan(theta), phi_c, phi_s, omega, psi, tan(phi_s),
-# cos(theta), A, estimate). The first _MOVING entries move between events; A and the estimate jump.
+# _lab_step's state, 14 entries: (x, y, tan(theta), phi_c, phi_s, omega, psi, tan(phi_s), cos(theta), A,
+# estimate). The first _MOVING entries move between events; A and the estimate jump.
 _PSI, _TAN_SERVO, _COS, _ANCHOR, _HAT = 6, 7, 8, 9, 10
 _MOVING = _ANCHOR
 
@@ -92,20 +85,18 @@ def _lab_wheel(params, anchor, phi_s):  # type: ignore[no-untyped-def]
 @njit(cache=True, inline="always")
 def _lab_step_constants(params):  # type: ignore[no-untyped-def]
     """Into ``params`` past the row: what is fixed over a step (:data:`_EXTRA`)."""
-    offset, half, limit = params[_OFFSET], 0.5 * params[_BACKLASH], params[_LIMIT]
+    offset, half, limit, lag = params[_OFFSET], 0.5 * params[_BACKLASH], params[_LIMIT], params[_STEERING_LAG]
     params[_TAN_LO], params[_TAN_HI] = np.tan(offset - half), np.tan(offset + half)
-    params[_PER_ELL] = 1.0 / params[_TRUE_ELL]
-    params[_PER_STEERING_LAG] = 1.0 / params[_STEERING_LAG] if params[_STEERING_LAG] > 0 else 0.0
+    params[_PER_ELL], params[_PER_STEERING_LAG] = 1.0 / params[_TRUE_ELL], (1.0 / lag if lag > 0 else 0.0)
     params[_PER_SPEED_LAG] = 1.0 / params[_SPEED_LAG] if params[_SPEED_LAG] > 0 else 0.0
-    params[_TAN_LIMIT] = np.tan(limit) if limit < 0.5 * np.pi else np.inf
-    params[_GATE] = 0.5 * (limit + 0.5 * np.pi) if limit < 0.5 * np.pi else np.inf
+    gate = 0.5 * (limit + 0.5 * np.pi)  # halfway from the stop to the chart's edge
+    params[_TAN_LIMIT], params[_GATE] = (np.tan(limit), gate) if limit < 0.5 * np.pi else (np.inf, np.inf)
 
 
 @njit(cache=True, inline="always")
 def _lab_constants(params, x):  # type: ignore[no-untyped-def]
-    """Into ``params`` past the row: what is fixed over a substep from ``x``: eq. 4's gain and eq. 5's
-    at the estimate (at its pulses; with none, the nominal geometry's, the true heading's part left
-    to :func:`_lab_inputs`), ``tan(A + offset)``."""
+    """Into ``params`` past the row, fixed over a substep from ``x``: eq. 4's gain and eq. 5's at the
+    estimate (with no encoder, the nominal geometry's; :func:`_lab_inputs`), ``tan(A + offset)``."""
     ell = params[_ELL]
     if params[_PULSES] > 0:
         s, c = np.sin(x[_HAT + 2]), np.cos(x[_HAT + 2])
@@ -117,17 +108,9 @@ def _lab_constants(params, x):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _lab_tan_stop(params, x):  # type: ignore[no-untyped-def]
-    """``tan(phi_s)`` of a servo without a lag whose command is at or past the stop."""
-    return params[_TAN_LIMIT] if x[3] > 0 else -params[_TAN_LIMIT]
-
-
-@njit(cache=True, inline="always")
 def _lab_gate(params, x):  # type: ignore[no-untyped-def]
-    """The carried ``tan(phi_s)`` at the start of a step. A servo without a lag carries the tangent of
-    its command ``phi_c``, the clipped one's inside the stop, and its rate ``(1 + tan^2) u2`` even
-    past the stop, where a stage of a step that rests at it may look, to the gate halfway to
-    ``pi/2`` (a stage never comes back from there within a step; the tangent goes no further)."""
+    """The carried ``tan(phi_s)`` at a step's start; without a lag ``tan(phi_c)``, moving past the stop
+    (a stage of a step resting there may look inside) up to a gate halfway to ``pi/2``."""
     if params[_STEERING_LAG] > 0:
         return np.tan(x[4])
     return np.tan(min(max(x[3], -params[_GATE]), params[_GATE]))
@@ -137,7 +120,8 @@ def _lab_gate(params, x):  # type: ignore[no-untyped-def]
 def _lab_inputs(params, x, v1, v2):  # type: ignore[no-untyped-def]
     """Eqs. 4-5 with the nominal geometry at the controller's estimate (:func:`_lab_constants`; with
     no encoder, at the true heading, ``x[2] = tan(theta)``): ``(u1, u2, tan(phi_s))``."""
-    t = x[_TAN_SERVO] if params[_STEERING_LAG] > 0 or abs(x[3]) < params[_LIMIT] else _lab_tan_stop(params, x)
+    inside = params[_STEERING_LAG] > 0 or abs(x[3]) < params[_LIMIT]
+    t = x[_TAN_SERVO] if inside else np.copysign(params[_TAN_LIMIT], x[3])  # at the stop: its own tangent
     cos2 = 1.0 / (1.0 + t * t)  # cos(phi_s)^2, and sin(phi_s)^2 = t^2 cos2
     if params[_PULSES] > 0:
         return v1 * params[_U1], cos2 * (params[_U2_V1] * t * t * v1 + params[_U2_V2] * v2), t
@@ -182,9 +166,9 @@ def _lab_field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
     out[4] = (min(max(x[3], -limit), limit) - x[4]) * params[_PER_STEERING_LAG]  # 0 without a lag
     out[5] = (u1 - x[5]) * params[_PER_SPEED_LAG]
     out[_PSI] = omega
-    if params[_STEERING_LAG] > 0:
-        out[_TAN_SERVO] = (1.0 + t * t) * out[4]  # tan(phi_s)'
-    else:  # tan(phi_c), which is tan(phi_s) inside the stop (_lab_gate)
+    if params[_STEERING_LAG] > 0:  # tan(phi_s)'; without a lag tan(phi_c)' (_lab_gate)
+        out[_TAN_SERVO] = (1.0 + t * t) * out[4]
+    else:
         out[_TAN_SERVO] = (1.0 + x[_TAN_SERVO] * x[_TAN_SERVO]) * u2 if abs(x[3]) < params[_GATE] else 0.0
 
 
@@ -226,11 +210,8 @@ def _lab_jump(j, params, x):  # type: ignore[no-untyped-def]
 
 @njit(cache=True, inline="always")
 def _lab_rk(rhs, params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-untyped-def]
-    """:func:`~ilc_steering.core.stepper.rk_step` of the lab robot between events: only the first
-    :data:`_MOVING` entries move (the field reads them and the play's anchor, fixed), so the step
-    runs on those and carries the rest over. The stages are combined term by term across the
-    entries, in rk_step's order (the same sums), skipping the tableau's zeros: nine independent
-    sums where rk_step chains one addition on the next."""
+    """:func:`~ilc_steering.core.stepper.rk_step` on the first :data:`_MOVING` entries (the rest carried
+    over), the stages combined across entries in rk_step's order (the same sums), past the zeros."""
     tmp = work[STAGES]
     tmp[_ANCHOR] = x[_ANCHOR]
     for s in range(STAGES):
@@ -301,10 +282,8 @@ def _lab_turn(params, x, coef, t, s):  # type: ignore[no-untyped-def]
 
 @njit(cache=True, inline="always")
 def _lab_pulse(params, x, coef, t, span):  # type: ignore[no-untyped-def]
-    """The encoder pulse within ``span`` [s] of local time ``t``: ``(3, s)`` forward (``psi`` reaching
-    one pitch) or ``(4, s)`` backward (``psi`` falling below 0) at ``s``, or ``(-1, span)``. The
-    wheel's rotation is known in closed form (:func:`_lab_turn`), so the pulse is found by Newton's
-    method on it, bracketed, to rounding: no Runge-Kutta substep is spent on locating it."""
+    """The encoder pulse within ``span`` [s] of local time ``t``: ``(3, s)`` forward, ``(4, s)`` backward,
+    or ``(-1, span)``; Newton's method, bracketed, on the closed-form rotation (:func:`_lab_turn`)."""
     pitch, psi = 2.0 * np.pi / params[_PULSES], x[_PSI]
     end = psi + _lab_turn(params, x, coef, t, span)[0]
     if psi <= pitch < end:
@@ -336,9 +315,8 @@ def _lab_pulse(params, x, coef, t, span):  # type: ignore[no-untyped-def]
 
 @njit(cache=True, inline="always")
 def _lab_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, _probe):  # type: ignore[no-untyped-def]
-    """One step of the lab robot from local time ``tau``, split at each event (see the module
-    docstring) in the order they happen: the steering events located by regula falsi on Runge-Kutta
-    substeps, the encoder pulses in closed form (:func:`_lab_pulse`)."""
+    """One step from local time ``tau``, split at each event in turn (the module docstring): steering
+    events by regula falsi on substeps, encoder pulses in closed form (:func:`_lab_pulse`)."""
     size, width, m = params.shape[0] + _EXTRA, v1c.shape[0] + 1, x.shape[0] + 2
     scratch = np.empty(size + 3 * m + 3 + 3 * width)  # one allocation a step for all of these:
     p = scratch[:size]  # the row, and what is fixed over a (sub)step
