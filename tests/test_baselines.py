@@ -103,6 +103,7 @@ def test_bad_backend_is_a_one_line_error(monkeypatch: pytest.MonkeyPatch) -> Non
 
 
 @pytest.mark.extra("rl")
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_key_only_one_backend_knows_is_refused() -> None:
     params = {**rl_settings.hyperparameters("sac", "forward_parking"), "qf_learning_rate": 1e-3}  # SBX only
     with pytest.raises(ConfigError, match=r"here\.qf_learning_rate: unknown key for SAC \(stable-baselines3 "):

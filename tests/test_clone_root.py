@@ -43,6 +43,7 @@ def test_the_readmes_python_example_runs_from_the_clones_root():
 
 
 @pytest.mark.skipif(importlib.util.find_spec("highway_env") is None, reason="needs the [highway] extra")
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_module_of_the_envs_runs_with_dash_m_from_the_clones_root():
     result = run_from_root("-m", "ilc_steering.envs.highway", "--seed", "13")
     assert result.returncode == 0, result.stderr[-2000:]

@@ -98,6 +98,7 @@ def test_a_goal_it_cannot_serve_is_refused_by_name(monkeypatch: pytest.MonkeyPat
 
 
 @pytest.mark.parametrize("seed", [12, *(pytest.param(seed, marks=pytest.mark.slow) for seed in (11, 22, 24))])
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_manoeuvre_serves_a_goal_one_chart_cannot(seed: int) -> None:
     """Seed 12 faces away from its spot (180°), seed 11 would steer 70° in one chart, seed 22's
     least-steering frame for its last segment would be ill-posed (start and goal at one z1), seed 24

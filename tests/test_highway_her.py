@@ -36,6 +36,7 @@ def test_a_curve_resumed_in_a_new_process_is_the_curve_run_straight_through(tmp_
 
 
 @pytest.mark.extra("rl", "highway")
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_folder_of_other_settings_is_refused_in_one_line(tmp_path: Path) -> None:
     curve = tmp_path / "highway_her_quick_curve"
     curve.mkdir()

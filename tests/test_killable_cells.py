@@ -74,6 +74,7 @@ BROKEN = {"os_exit": (OS_EXIT, "WorkerDied: its worker process ended (exit code 
 @pytest.mark.timeout(240, method="thread")  # a cell left in this process would hang the suite: end it, saying where
 @pytest.mark.parametrize("cell_timeout", [None, LIMIT])
 @pytest.mark.parametrize("kind", ["os_exit", pytest.param("nogil_loop", marks=pytest.mark.slow)])  # runs out LIMIT
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_learner_that_exits_or_hangs_in_compiled_code_is_its_cells_failure_under_one_worker(
     kind, cell_timeout, tmp_path, monkeypatch, capsys
 ):

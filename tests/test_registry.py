@@ -139,6 +139,7 @@ def make(context):
 '''
 
 
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_learner_from_outside_runs_through_run_compare_and_sweep(tmp_path, monkeypatch, capsys):
     """module:attr from the working directory, no entry point installed: the same lookup everywhere."""
     (tmp_path / "outside_learners.py").write_text(OUTSIDE)

@@ -26,6 +26,7 @@ def learn(name, trials, **keys):
     return int(result["trials_to"][0]), float(result["error"][0]), learner
 
 
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_the_short_car_with_a_trailer_has_a_solution_on_another_branch():
     # The car-trailer at half the nominal wheelbase (the family's bound): from the nominal solution
     # and from the trials, the plant's own Levenberg-Marquardt ends 16 mm off the goal; the
@@ -46,6 +47,7 @@ def test_the_short_car_with_a_trailer_has_a_solution_on_another_branch():
     assert final_errors(scenario, [plant], learner.act()[None])[0] < 1e-5
 
 
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_restarts_run_once_per_estimate_and_only_where_it_explains_the_trials():
     trials, _, learner = learn("trailer_bay", 2, true_hitch_length=0.3, true_wheelbase=0.1)
     identifier = learner.identifier

@@ -149,6 +149,7 @@ def _every_learner():
 
 
 @pytest.mark.parametrize("name", list(_every_learner()))
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_no_learner_sends_a_failed_trial_again(name):
     """On a noisy plant whose tolerance no learner can reach (0.5 µm against 0.2 mm of measurement
     noise), no trial is followed by the same coefficients: each learner changes something."""
@@ -369,6 +370,7 @@ deviation of 0.50 sigma, so no estimate from them could be within a factor 1.5 o
 
 
 @pytest.mark.parametrize("learner", ["newton_ilc", "robust_ilc"])
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_learners_that_know_the_scatter_stop_chasing_it(learner):
     """Forward parking measured with 0.2 mm / 0.2 mrad of noise, 15 trials: the last five hold 4 sigma,
     the run's scatter estimate is within a factor 1.5 of sigma, and averaging brings the true error of

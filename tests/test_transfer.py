@@ -157,6 +157,7 @@ def _car(name: str, wheelbase: float, radius: float):
 
 
 @pytest.mark.parametrize("wheelbase", [0.14, 0.3])
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_robust_ilc_carries_the_identified_car_and_lands_the_next_goals_at_their_first_trial(wheelbase: float) -> None:
     goals = [_car(name, wheelbase, 0.024) for name in ("forward_parking", "parallel_parking", "forward_parking")]
     alone = run_goals(goals, trials=4, learner="robust_ilc", carry=False)
@@ -192,6 +193,7 @@ def test_robust_ilc_refuses_what_it_cannot_have_carried(carried, problem: str) -
         make_robust_ilc(context)
 
 
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_manoeuvre_carries_its_last_segments_learning_to_the_next_goal() -> None:
     """Two goals of a two-segment manoeuvre on the car of wheelbase 0.3 (nominal 0.2): the second
     goal's segment learners start from what the first goal's last segment identified, and its first

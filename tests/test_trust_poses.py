@@ -40,6 +40,7 @@ def test_a_csv_of_many_megabytes_is_read_from_its_ends(tmp_path: Path) -> None:
     assert peak < 4 * MAX_ROW_BYTES  # its two ends, not its 24 MB (a 100 MB one was a MemoryError)
 
 
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_a_csv_whose_last_row_is_beyond_what_is_read_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "poses.csv"
     path.write_bytes(b"x,y,theta\n1,2,3\n" + b"\n" * (MAX_ROW_BYTES + 10))

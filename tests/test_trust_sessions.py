@@ -345,6 +345,7 @@ def test_a_pending_trials_damaged_files_are_written_again_by_next_and_refused_by
 # -- status writes what plot reads; an archived session is read ----------------------------------
 
 
+@pytest.mark.slow  # over 2.5 s: the README's test command stays under 5 min
 def test_status_json_and_plots_are_a_run_record_that_plot_reads(session, tmp_path, capsys):
     record(session, 3)
     assert (
