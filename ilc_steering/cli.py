@@ -1,8 +1,17 @@
 """The ``ilc-steering`` command (also ``python -m ilc_steering``).
 
-``run CONFIG`` learns on one scenario, so it can gate a CI job. ``reproduce`` runs the paper's
-simulations. ``plot RUN.json`` draws the paper's figures of a run. ``compare`` runs (or resumes)
-the benchmark of ILC against RL and black-box learners. ``list`` shows the packaged configs.
+Its commands, in the order ``--help`` lists them:
+
+- ``list``: the packaged configs, one line each;
+- ``run CONFIG``: learn on one scenario (several in turn, each from where the last left off), so it
+  can gate a CI job;
+- ``reproduce``: the paper's simulations, against its counts;
+- ``plot RUN.json``: the paper's figures of a run written by ``run --json``;
+- ``compare``: run (or resume) the benchmark of ILC against RL and black-box learners;
+- ``sweep CONFIG``: a robustness map, a learner's trials over a grid of true plants;
+- ``session``: a trial at a time on a robot nobody scripted (a person at the robot, a lab's script);
+- ``current DIR``: whether every committed result is made by the code in this tree;
+- ``tables``: rewrite the comparison tables of Markdown files from a compare run.
 
 Exit codes (:data:`EXIT_CODES`): 0 converged (or done; ``run``: the last ``--hold`` trials within the
 tolerance), 1 not converged, 5 converged to the plant's floor (``run``: the tolerance is below the
@@ -307,16 +316,20 @@ def _tables(args: argparse.Namespace) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from ilc_steering.compare.command import from_namespace, main_with_failures
+    from ilc_steering.compare import command
 
-    _, failed = main_with_failures(from_namespace(args))
-    return 4 if failed else 0
+    return _cells(command, args)
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from ilc_steering.sweep.command import from_namespace, main_with_failures
+    from ilc_steering.sweep import command
 
-    _, failed = main_with_failures(from_namespace(args))
+    return _cells(command, args)
+
+
+def _cells(command: Any, args: argparse.Namespace) -> int:
+    """A run of cells (``compare``'s, or ``sweep``'s rows) by its ``command`` module: 4 if any failed, else 0."""
+    _, failed = command.main_with_failures(command.from_namespace(args))
     return 4 if failed else 0
 
 
