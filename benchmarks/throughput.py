@@ -56,7 +56,8 @@ from ilc_steering.core.robots.car_fields import ANGLE_KERNEL
 from ilc_steering.engine.provenance import record_made
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
-from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, ChainedSteeringVectorEnv
+from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.envs.vector_base import PARALLEL_FROM
 from ilc_steering.tables import markdown_table, median_seconds, write_results
 
 TARGETS = {

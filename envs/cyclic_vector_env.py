@@ -9,17 +9,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 
 from ilc_steering.boxes import action_box
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.envs.base import check_action, check_flag, check_render_mode, open_config
+from ilc_steering.envs.base import check_action
 from ilc_steering.envs.cyclic_env import check_cycles
 from ilc_steering.envs.scenario import Scenario
-from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, check_num_envs, draw_noise, seed_streams
 from ilc_steering.envs.trials import reward, trial_infos
+from ilc_steering.envs.vector_base import SteeringVectorEnv, draw_noise
 from ilc_steering.errors import BadInput
 
 __all__ = ["CyclicSteeringVectorEnv"]
@@ -27,7 +26,7 @@ __all__ = ["CyclicSteeringVectorEnv"]
 Array = npt.NDArray[np.float64]
 
 
-class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
+class CyclicSteeringVectorEnv(SteeringVectorEnv):
     """``num_envs`` copies of ``CyclicSteering-v0`` (a :class:`~ilc_steering.envs.cyclic_env.CyclicSteeringEnv`
     in ``TimeLimit``), stepped together.
 
@@ -77,25 +76,19 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         parallel: bool | None = None,
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
-        self.num_envs = check_num_envs(num_envs)
-        self._streams: list[np.random.Generator] | None = None
         check_cycles(cycles)
-        self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.config = open_config(config, "cyclic", "the cyclic vector env")
+        self.open(num_envs, config, "cyclic", "the cyclic vector env", render_mode)
         self._scenario = Scenario.from_config(self.config, measurement_noise)
         self._scenario.refuse_disturbances("the cyclic vector env")
         models = self._scenario.nominals
         self.num_segments = len(models)
         self.max_episode_steps = (self.config.learning.trials if cycles is None else int(cycles)) * self.num_segments
-        self.single_action_space = action_box(self._scenario.action_high)
-        high = self._high = self.single_action_space.high
         n = models[0].dimension
-        self.single_observation_space = spaces.Box(-np.inf, np.inf, shape=(n + self.num_segments,), dtype=np.float64)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        observations = spaces.Box(-np.inf, np.inf, shape=(n + self.num_segments,), dtype=np.float64)
+        actions = action_box(self._scenario.action_high)
+        self.batch(actions, observations, parallel)
+        high = self._high = actions.high
         self._action_names = f"(num_envs = {self.num_envs}, (c11, c21..c2{high.size - 1}))"
-        parallel = check_flag(parallel, "parallel", none=True)
-        self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
         self._start = np.tile(self._scenario.waypoints[0], (self.num_envs, 1))
         self._x = np.tile(self._scenario.x_start, (self.num_envs, 1))
         self._segment, self._cycle, self._steps = 0, 1, 0
@@ -108,17 +101,12 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Array, dict[str, Any]]:
-        seed, streams = seed_streams(seed, self.num_envs)
         if options is not None and not isinstance(options, dict):
             raise BadInput(f"options must be a dict such as {{'start': q}} or None, got {type(options).__name__}")
         unknown = sorted(set(options or {}) - {"start"})
         if unknown:
             raise BadInput(f"options: unknown key {unknown[0]!r}; the cyclic vector env takes 'start'")
-        super().reset(seed=seed)
-        if seed is not None:  # an external plant's own scatter follows the env's seed
-            self._scenario.reseed(seed)
-        if streams is not None or seed is not None:
-            self._streams = streams  # a new int seed replaces a list's streams
+        self.seed(seed, self._scenario)
         start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])
         return self._restart(np.broadcast_to(start, self._start.shape))
 
@@ -158,9 +146,7 @@ class CyclicSteeringVectorEnv(VectorEnv[Array, Array, Array]):
         onehot = np.tile(np.eye(self.num_segments)[self._segment], (self.num_envs, 1))
         return np.concatenate([z, onehot], axis=1)
 
-    def step(  # type: ignore[override]  # Gymnasium annotates the flags as the action array type
-        self, actions: Any
-    ) -> tuple[Array, Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
+    def step(self, actions: Any) -> tuple[Array, Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
         c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")
         applied = np.clip(c, -self._high, self._high)
         leg = self._segment

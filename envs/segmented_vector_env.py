@@ -8,18 +8,17 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 
 from ilc_steering.config import SteeringConfig
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.nominal import NominalModel
-from ilc_steering.envs.base import check_action, check_flag, check_render_mode, open_config
+from ilc_steering.envs.base import check_action
 from ilc_steering.envs.manoeuvre import Manoeuvre, at_edge, summary
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.envs.segment_views import SegmentView
-from ilc_steering.envs.steering_vector_env import PARALLEL_FROM, check_num_envs, draw_noise, seed_streams
 from ilc_steering.envs.trials import reward, trial_info
+from ilc_steering.envs.vector_base import SteeringVectorEnv, draw_noise
 from ilc_steering.errors import BadInput
 
 __all__ = ["SegmentedSteeringVectorEnv"]
@@ -27,7 +26,7 @@ __all__ = ["SegmentedSteeringVectorEnv"]
 Array = npt.NDArray[np.float64]
 
 
-class SegmentedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np.float32], Array]):
+class SegmentedSteeringVectorEnv(SteeringVectorEnv):
     """``num_envs`` copies of :class:`~ilc_steering.envs.segmented_env.SegmentedSteeringEnv`, stepped together.
 
     Made by ``gym.make_vec("ilc_steering/SegmentedSteering-v0", num_envs=N,
@@ -79,24 +78,16 @@ class SegmentedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[
         parallel: bool | None = None,
         measurement_noise: float | Sequence[float] | None = None,
     ) -> None:
-        self.num_envs = check_num_envs(num_envs)
-        self._streams: list[np.random.Generator] | None = None
-        self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.config = open_config(config, "segmented", "the segmented vector env")
+        self.open(num_envs, config, "segmented", "the segmented vector env", render_mode)
         self._manoeuvre = Manoeuvre.build(self.config, measurement_noise)
         if self._manoeuvre.segments[0].external is not None:
             raise BadInput(
                 f"{self.config.name}: plant.model {self.config.plant.model} is one external robot, which cannot "
                 "drive num_envs trials at once; use vectorization_mode='sync' for it"
             )
-        self.single_action_space = self._manoeuvre.action_space
-        self.single_observation_space = self._manoeuvre.observation_space
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.batch(self._manoeuvre.action_space, self._manoeuvre.observation_space, parallel)
         self._observations = np.tile(self._manoeuvre.observation, (self.num_envs, 1))
         self._action_names = f"(num_envs = {self.num_envs}, {self._manoeuvre.action_names})"
-        parallel = check_flag(parallel, "parallel", none=True)
-        self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
 
     def segment_views(self) -> list[SegmentView]:
         """Each segment's one-trial view, for the learner of that segment (the nominal models only)."""
@@ -110,15 +101,12 @@ class SegmentedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        seed, streams = seed_streams(seed, self.num_envs)
         if options:
             raise BadInput(f"options: the segmented vector env takes none, got {sorted(map(str, options))}")
-        super().reset(seed=seed)
-        if streams is not None or seed is not None:
-            self._streams = streams  # a new int seed replaces a list's streams
+        self.seed(seed)
         return self._observations.copy(), self._reset_info()
 
-    def step(  # type: ignore[override]  # Gymnasium annotates the flags as the action array type
+    def step(
         self, actions: Any
     ) -> tuple[npt.NDArray[np.float32], Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
         m, count = self._manoeuvre, self.num_envs

@@ -8,61 +8,24 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 
-from ilc_steering.config import SteeringConfig, load_config
+from ilc_steering.config import SteeringConfig
 from ilc_steering.core.external import ExternalTrials
 from ilc_steering.core.nominal import NominalModel
 from ilc_steering.core.plants import Plant
-from ilc_steering.envs.base import check_action, check_flag, check_render_mode
+from ilc_steering.envs.base import check_action
 from ilc_steering.envs.scenario import PlantGroups, Scenario
 from ilc_steering.envs.trials import action_names, reward, task_spaces, trial_infos
+from ilc_steering.envs.vector_base import SteeringVectorEnv, draw_noise
 from ilc_steering.errors import BadInput
 
-__all__ = ["MAX_ENVS", "ChainedSteeringVectorEnv", "check_num_envs", "draw_noise", "seed_streams"]
+__all__ = ["ChainedSteeringVectorEnv"]
 
 Array = npt.NDArray[np.float64]
 
-MAX_ENVS = 100_000
-"""The most envs a vector env holds (checked before anything is allocated)."""
-PARALLEL_FROM = 64
-"""Batches of at least this many trials run on all cores (numba ``prange``); the results are
-bitwise the same either way, since every trial runs the same compiled code."""
 
-
-def check_num_envs(num_envs: Any) -> int:
-    """``num_envs`` as an int in ``[1, MAX_ENVS]``; ``ValueError`` before anything is allocated."""
-    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= MAX_ENVS:
-        raise BadInput(f"num_envs must be an integer in [1, {MAX_ENVS}], got {num_envs!r:.40}")
-    return int(num_envs)
-
-
-def seed_streams(seed: Any, num_envs: int) -> tuple[int | None, list[np.random.Generator] | None]:
-    """A vector env's ``reset(seed=...)``: an int or ``None`` seeds its one stream; a list of
-    ``num_envs`` seeds gives env ``i`` a stream of its own, seeded as a single env's ``reset(seed=s_i)``
-    seeds its ``np_random`` (so env ``i`` draws what that env would). Returns the seed of the vector
-    env's own ``np_random`` (the first of a list) and the streams (``None`` without a list)."""
-    if not isinstance(seed, (list, tuple)):
-        return seed, None
-    if len(seed) != num_envs:
-        raise BadInput(f"seed: a list needs one seed per env ({num_envs}), got {len(seed)}")
-    if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0 for s in seed):
-        raise BadInput(f"seed: every seed of a list must be an integer >= 0, got {list(seed)!r:.80}")
-    return int(seed[0]), [seeding.np_random(int(s))[0] for s in seed]
-
-
-def draw_noise(
-    scenario: Scenario, rng: np.random.Generator, streams: list[np.random.Generator] | None, count: int
-) -> Array | None:
-    """Measurement errors of ``count`` trials: from ``rng`` in one call, or one row from each stream."""
-    if streams is None or scenario.noise is None:
-        return scenario.draw_noise(rng, count)
-    return np.concatenate([scenario.draw_noise(stream, 1) for stream in streams])
-
-
-class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np.float32], Array]):
+class ChainedSteeringVectorEnv(SteeringVectorEnv):
     """``num_envs`` copies of :class:`~ilc_steering.envs.steering_env.ChainedSteeringEnv`, stepped together.
 
     Made by ``gym.make_vec("ilc_steering/ChainedSteering-v0", num_envs=N,
@@ -118,21 +81,14 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
         true_factors: Any = None,
         true_plants: Sequence[Plant] | None = None,
     ) -> None:
-        self.num_envs = check_num_envs(num_envs)
-        self._streams: list[np.random.Generator] | None = None
-        self.render_mode = check_render_mode(render_mode, self.metadata)
-        self.config = load_config(config)
+        self.open(num_envs, config, "one-trial", "the vector env", render_mode)
         self._scenario = Scenario.from_config(self.config, measurement_noise)
         self._scenario.refuse_disturbances("the vector env")
-        single_action_space, self.single_observation_space, observation = task_spaces(self._scenario)
-        self.single_action_space = single_action_space
+        single_action_space, single_observation_space, observation = task_spaces(self._scenario)
+        self.batch(single_action_space, single_observation_space, parallel)
         self._low, self._high = single_action_space.low, single_action_space.high
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._observations = np.tile(observation, (self.num_envs, 1))
         self._action_names = f"(num_envs = {self.num_envs}, {action_names(self._scenario.nominal)})"
-        parallel = check_flag(parallel, "parallel", none=True)
-        self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
         if true_factors is not None and true_plants is not None:
             raise BadInput("true_factors and true_plants: give one of them, not both")
         self._plants: PlantGroups | None = None  # stacked once for every step
@@ -149,17 +105,12 @@ class ChainedSteeringVectorEnv(VectorEnv[npt.NDArray[np.float32], npt.NDArray[np
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        seed, streams = seed_streams(seed, self.num_envs)
         if options:
             raise BadInput(f"options: the vector env takes none, got {sorted(options)}")
-        super().reset(seed=seed)
-        if seed is not None:  # an external plant's own scatter follows the env's seed
-            self._scenario.reseed(seed)
-        if streams is not None or seed is not None:
-            self._streams = streams  # a new int seed replaces a list's streams
+        self.seed(seed, self._scenario)
         return self._observations.copy(), self._reset_info()
 
-    def step(  # type: ignore[override]  # Gymnasium annotates the flags as the action array type
+    def step(
         self, actions: Any
     ) -> tuple[npt.NDArray[np.float32], Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_], dict[str, Any]]:
         c = check_action(actions, (self.num_envs, *self._high.shape), self._action_names, what="actions")

@@ -24,7 +24,8 @@ from ilc_steering.agents.rl_settings import BACKEND_VARIABLE, check_hyperparamet
 from ilc_steering.config import load_config
 from ilc_steering.core.checks import DURATION_RANGE, FACTOR_RANGE, LENGTH_RANGE, MAX_START_ERROR
 from ilc_steering.envs.steering_env import ChainedSteeringEnv
-from ilc_steering.envs.steering_vector_env import MAX_ENVS, ChainedSteeringVectorEnv
+from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
+from ilc_steering.envs.vector_base import MAX_ENVS
 from ilc_steering.envs.wrappers import MAX_SCALE, ResidualAction
 from ilc_steering.errors import ConfigError
 
