@@ -40,6 +40,7 @@ __all__ = [
     "check_angles",
     "check_limit",
     "check_magnitude",
+    "check_steered",
     "check_steering_limit",
     "heading_curvature_cost",
 ]
@@ -304,6 +305,16 @@ def check_limit(phi: Array, limit: float | None) -> None:
         "phi",
         f"{np.asarray(phi).tolist()} rad exceeds the steering limit of {limit} rad",
     )
+
+
+def check_steered(q: Array, chart: Callable[[Array], None], angles: str, limit: float | None) -> None:
+    """A steered robot's configurations ``q`` (its steering angle ``q[..., 3]``): in the robot's
+    ``chart`` (a check), of a plausible magnitude, the ``angles`` named within their range, and the
+    steering angle within the steering ``limit``."""
+    chart(q)
+    check_magnitude(q)
+    check_angles(q, angles)
+    check_limit(np.asarray(q, dtype=np.float64)[..., 3], limit)
 
 
 def check_steering_limit(limit: float | None) -> None:

@@ -29,12 +29,10 @@ from ilc_steering.core.plants import (
     FactorFamily,
     Kernel,
     PlantKind,
-    check_angles,
-    check_limit,
-    check_magnitude,
+    check_steered,
     check_steering_limit,
 )
-from ilc_steering.core.robots.car_model import CarModel, car_velocity, chained_inputs
+from ilc_steering.core.robots.car_model import CarModel, car_velocity, chained_inputs, wheel_ratios
 from ilc_steering.core.robots.chart import check_chart, frame_angle, rotate
 from ilc_steering.core.robots.outline import car_outline
 from ilc_steering.errors import BadInput
@@ -196,15 +194,10 @@ class CarPlant(FactorFamily):
 
     def check_configuration(self, q: Array) -> None:
         """The chart of eq. 4 (``|theta|, |phi| < pi/2`` in the task frame) and the steering limit."""
-        check_chart(q)
-        check_magnitude(q)
-        check_angles(q, "|theta| and |phi|")
-        check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
+        check_steered(q, check_chart, "|theta| and |phi|", self.steering_limit)
 
     def true_factors(self) -> Array:
-        return np.array(
-            [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
-        )
+        return wheel_ratios(self.true, self.nominal)
 
     def actuator_names(self) -> tuple[str, ...]:
         """The steering servo's parameters a model family may leave free beside :meth:`family_names`:

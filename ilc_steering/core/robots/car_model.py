@@ -34,7 +34,7 @@ from ilc_steering.core.checks import require_length
 from ilc_steering.core.robots.chart import check_chart
 from ilc_steering.core.robots.outline import car_outline
 
-__all__ = ["CarModel", "car_velocity", "chained_inputs"]
+__all__ = ["CarModel", "car_velocity", "chained_inputs", "wheel_ratios"]
 
 Array = npt.NDArray[np.float64]
 
@@ -143,3 +143,9 @@ class CarModel:
         ds = np.linalg.norm(np.diff(q[..., :2], axis=1), axis=-1)
         kappa = np.tan(0.5 * (q[:, 1:, 3] + q[:, :-1, 3])) / self.wheelbase
         return np.asarray(np.sum(kappa**2 * ds, axis=1), dtype=np.float64)
+
+
+def wheel_ratios(true: Any, nominal: Any) -> Array:
+    """A car's true factors: its true wheelbase and wheel radius over the nominal ones (of a
+    :class:`CarModel`, or any model of a car that has them, a car with a trailer's)."""
+    return np.array([true.wheelbase / nominal.wheelbase, true.wheel_radius / nominal.wheel_radius])

@@ -72,13 +72,12 @@ from ilc_steering.core.plants import (
     CHART_MARGIN,
     Kernel,
     PlantKind,
-    check_angles,
-    check_limit,
-    check_magnitude,
+    check_steered,
     check_steering_limit,
     heading_curvature_cost,
 )
 from ilc_steering.core.robots.car import CarModel
+from ilc_steering.core.robots.car_model import wheel_ratios
 from ilc_steering.core.robots.car_trailer_fields import KERNEL, LANES_KERNEL, LAYOUT, trailer_inputs, trailer_velocity
 from ilc_steering.core.robots.outline import WHEEL_HALF_LENGTH, box, direction, segment
 from ilc_steering.errors import BadInput
@@ -258,15 +257,10 @@ class TrailerPlant:
 
     def check_configuration(self, q: Array) -> None:
         """The chart (``|theta1|, |phi|, |delta| < pi/2`` in the task frame; no jackknife) and the steering limit."""
-        check_trailer_chart(q)
-        check_magnitude(q)
-        check_angles(q, "|theta1|, |phi| and the hitch angle |delta|")
-        check_limit(np.asarray(q, dtype=np.float64)[..., 3], self.steering_limit)
+        check_steered(q, check_trailer_chart, "|theta1|, |phi| and the hitch angle |delta|", self.steering_limit)
 
     def true_factors(self) -> Array:
-        return np.array(
-            [self.true.wheelbase / self.nominal.wheelbase, self.true.wheel_radius / self.nominal.wheel_radius]
-        )
+        return wheel_ratios(self.true, self.nominal)
 
     def family_names(self) -> tuple[str, ...]:
         """The car's wheelbase and wheel radius, and the hitch: a trailer's length is as uncertain."""
