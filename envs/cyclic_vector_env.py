@@ -106,7 +106,7 @@ class CyclicSteeringVectorEnv(SteeringVectorEnv):
         unknown = sorted(set(options or {}) - {"start"})
         if unknown:
             raise BadInput(f"options: unknown key {unknown[0]!r}; the cyclic vector env takes 'start'")
-        self.seed(seed, self._scenario)
+        self.take_seed(seed, self._scenario)
         start = self._scenario.waypoints[0] if not options else self._check_start(options["start"])
         return self._restart(np.broadcast_to(start, self._start.shape))
 

@@ -103,7 +103,7 @@ class SegmentedSteeringVectorEnv(SteeringVectorEnv):
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
         if options:
             raise BadInput(f"options: the segmented vector env takes none, got {sorted(map(str, options))}")
-        self.seed(seed)
+        self.take_seed(seed)
         return self._observations.copy(), self._reset_info()
 
     def step(

@@ -107,7 +107,7 @@ class ChainedSteeringVectorEnv(SteeringVectorEnv):
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
         if options:
             raise BadInput(f"options: the vector env takes none, got {sorted(options)}")
-        self.seed(seed, self._scenario)
+        self.take_seed(seed, self._scenario)
         return self._observations.copy(), self._reset_info()
 
     def step(

@@ -4,7 +4,7 @@
 ``ChainedSteering-v0``, ``CyclicSteering-v0`` and ``SegmentedSteering-v0``): :meth:`~SteeringVectorEnv.open`
 checks ``num_envs`` and the render mode and loads the config of the env's kind,
 :meth:`~SteeringVectorEnv.batch` sets the batched spaces and whether a step runs on every core, and
-:meth:`~SteeringVectorEnv.seed` takes ``reset``'s seed: an int for the env's one stream, or a list
+:meth:`~SteeringVectorEnv.take_seed` takes ``reset``'s seed: an int for the env's one stream, or a list
 of one seed per env (:func:`seed_streams`), from which :func:`draw_noise` draws each trial's
 measurement error as that env alone would.
 """
@@ -92,7 +92,7 @@ class SteeringVectorEnv(VectorEnv[Any, Any, Any]):
         parallel = check_flag(parallel, "parallel", none=True)
         self.parallel = self.num_envs >= PARALLEL_FROM if parallel is None else parallel
 
-    def seed(self, seed: Any, scenario: Scenario | None = None) -> None:
+    def take_seed(self, seed: Any, scenario: Scenario | None = None) -> None:
         """``reset``'s ``seed``: the env's ``np_random`` and, for a list, a stream per env; an int seed
         replaces a list's streams; ``scenario``'s external plant, if any, reseeded with it."""
         first, streams = seed_streams(seed, self.num_envs)
