@@ -38,6 +38,7 @@ __all__ = [
     "content_hash",
     "differences",
     "injective_name",
+    "json_text",
     "make_folder",
     "move_all",
     "open_lock",
@@ -261,9 +262,14 @@ def write_atomic(path: Path, content: str | bytes) -> None:
         raise
 
 
+def json_text(data: Any) -> str:
+    """``data`` as the library writes a JSON file: one line, and the newline that ends it."""
+    return json.dumps(data) + "\n"
+
+
 def write_json(path: Path, data: Any) -> None:
-    """:func:`write_atomic` of ``data`` as JSON."""
-    write_atomic(path, json.dumps(data))
+    """:func:`write_atomic` of ``data`` as JSON (:func:`json_text`)."""
+    write_atomic(path, json_text(data))
 
 
 def write_figure(path: Path, figure: Any, dpi: float | str = "figure") -> None:

@@ -50,9 +50,9 @@ def _new(args: argparse.Namespace) -> int:
 
 def _next(args: argparse.Namespace) -> int:
     trial = session.next(args.folder, dry_run=args.dry_run)
-    if trial is None:
-        print(f"{args.folder}: the session has run its trials; see `session status`")
-        return 0
+    if trial is None:  # exit 1: a script that runs what `next` wrote must not run the last trial again
+        print(f"{args.folder}: nothing to run: the session has run its trials; see `session status`", file=sys.stderr)
+        return 1
     print(f"trial {trial.trial}: {_summary(trial.request)}")
     if not trial.written:
         print("(a dry run: nothing written)")

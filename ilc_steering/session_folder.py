@@ -29,7 +29,7 @@ from ilc_steering.config import SteeringConfig, load_config
 from ilc_steering.config.loading import MAX_FILE_BYTES, ConfigSource, resolve_config
 from ilc_steering.core.robots.process import ProcessPlant, ProcessPlantConfig, without_program
 from ilc_steering.errors import BadInput, ConfigError, LimitError, PlantError
-from ilc_steering.output import content_hash, make_folder, move_all, open_lock, write_atomic
+from ilc_steering.output import content_hash, json_text, make_folder, move_all, open_lock, write_atomic
 from ilc_steering.pose_files import commands_csv, typed_pose
 from ilc_steering.readers import check_new_folder, describe, holds, is_file, read_json, read_text
 from ilc_steering.runner import RunResult, learner_spec, run_ilc
@@ -135,7 +135,7 @@ class _FolderCable:
 
     def _pending_trial(self, k: int, folder: Path, request: dict[str, Any]) -> SessionPending:
         """The pending trial ``k``: its files checked against ``request``, written (again) if ``write``."""
-        files = {"request.json": _json_text(request), "commands.csv": commands_csv(request)}
+        files = {"request.json": json_text(request), "commands.csv": commands_csv(request)}
         asked = folder / "request.json"
         on_file = self._read(asked) if is_file(asked) else None
         c = on_file.get("c") if isinstance(on_file, dict) else None
@@ -264,7 +264,7 @@ class Session:
         record = {"learner": learner, "seed": seed, "trials": budget, "version": __version__, "created": _now()}
         text = source.text if source.text.endswith("\n") else source.text + "\n"
         record["config"] = content_hash(text)
-        make_folder(folder, {CONFIG: text, SESSION: _json_text(record)}, "the session folder")
+        make_folder(folder, {CONFIG: text, SESSION: json_text(record)}, "the session folder")
         return cls(folder)
 
     def replay(self, write: bool = True, candidate: dict[str, Any] | None = None, paths: bool = False) -> Replay:
@@ -328,7 +328,7 @@ class Session:
         }
         result = {"type": "result", "trial": k, "final": values, RECORDED: hashes}
         after = self.replay(write=False, candidate=result)
-        write_atomic(folder / "result.json", _json_text(result))
+        write_atomic(folder / "result.json", json_text(result))
         return after
 
     def _trials(self) -> tuple[int, list[int]]:
@@ -389,11 +389,6 @@ def _session_config(config: SteeringConfig, folder: Path) -> SteeringConfig:
         )
     fields = {name: getattr(plant, name) for name in ("model", "command", "robot", "limits", "timeout", "control_rate")}
     return replace(config, plant=_SessionPlantConfig(**fields, folder=os.path.realpath(folder)))
-
-
-def _json_text(data: Any) -> str:
-    """``data`` as a session writes JSON: one line, and the newline that ends it."""
-    return json.dumps(data) + "\n"
 
 
 def _now() -> str:

@@ -84,6 +84,9 @@ def test_the_budget_spent_without_converging_is_exit_1(tmp_path: Path, capsys: p
     state = drive(tmp_path / "s")
     assert state.state is session.State.SPENT and state.pending is None and state.converged_at is None
     assert session.next(tmp_path / "s") is None
+    capsys.readouterr()
+    assert main(["session", "next", str(tmp_path / "s")]) == 1  # nothing to run: a loop on `next` stops
+    assert "nothing to run: the session has run its trials" in capsys.readouterr().err
     code, out, _ = status_code(tmp_path / "s", capsys)
     assert code == 1 and "not converged within 3 trials" in out and "every trial run" in out
 
@@ -161,6 +164,7 @@ def test_status_json_keeps_working_whatever_the_exit(tmp_path: Path, capsys: pyt
     ran = json.loads((tmp_path / "all.json").read_text())
     assert len(json.loads((tmp_path / "one.json").read_text())["trials"]) == 1 and len(ran["trials"]) == 6
     assert ran["converged_at"] == 4 and ran["held"] == 3
+    assert (tmp_path / "all.json").read_bytes().endswith(b"}\n")  # a file, as every JSON the library writes
 
 
 def test_every_file_a_session_writes_ends_with_a_newline(tmp_path: Path) -> None:
