@@ -11,7 +11,8 @@ import pytest
 from ilc_steering.config import load_config
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.reference import lab_car_trial
-from ilc_steering.core.robots.car_lab import LAB_KERNEL
+from ilc_steering.core.robots.car_lab import LAB_KERNEL, lab_substeps
+from ilc_steering.core.simulate import steps_per_span
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.errors import ConfigError
 
@@ -65,6 +66,22 @@ def test_without_imperfections_the_lab_kernel_is_the_plain_car():
     lab = scenario_with("forward_parking_saturated", steering_backlash=1e-300)
     got = lab.run(c[None]).final[0]
     np.testing.assert_allclose(got[:4], expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("lag", [0.0, 0.05])
+def test_a_play_under_the_rounding_costs_no_more_runge_kutta_steps_than_a_real_one(lag):
+    # A play of 1e-300 rad rounds to none beside phi_s: its engaging event was fired at every substep
+    # and located in vain (60 Runge-Kutta steps of the locator, about 50 a step, 16 times the cost).
+    counts = {}
+    for play in (1e-300, 1e-3):
+        scenario = scenario_with("forward_parking_saturated", steering_lag=lag, steering_backlash=play)
+        c = scenario.nominal.solve()[None]
+        spans = np.asarray(scenario.profile.spans, dtype=np.float64)
+        steps = steps_per_span(spans, scenario.max_step)
+        v1, v2 = scenario.profile.polynomials(c)
+        params = scenario.plant.kernel()[1]
+        counts[play] = lab_substeps(params, scenario.x_start[None], spans, steps, v1, v2)[0] / steps.sum()
+    assert 1.0 <= counts[1e-300] <= 1.05 * counts[1e-3] + 0.1 and counts[1e-3] < 2.5, counts
 
 
 @pytest.mark.slow
