@@ -37,12 +37,14 @@ from ilc_steering.core.integrate import checked_batch
 from ilc_steering.core.kernels import trial_kernel
 from ilc_steering.core.robots.car_lab_layout import (
     ANCHOR,
+    ANCHOR_AT,
     BACKLASH,
     COS,
     ELL,
     EXTRA,
     GATE,
     HAT,
+    HAT_AT,
     LAB_LAYOUT,
     LIMIT,
     MOVING,
@@ -108,20 +110,26 @@ def _lab_step_constants(params):  # type: ignore[no-untyped-def]
     params[PER_SPEED_LAG] = 1.0 / params[SPEED_LAG] if params[SPEED_LAG] > 0 else 0.0
     gate = 0.5 * (limit + 0.5 * np.pi)  # halfway from the stop to the chart's edge
     params[TAN_LIMIT], params[GATE] = (np.tan(limit), gate) if limit < 0.5 * np.pi else (np.inf, np.inf)
+    params[HAT_AT] = params[ANCHOR_AT] = np.nan  # none yet: _lab_constants sets what depends on them
 
 
 @njit(cache=True, inline="always")
 def _lab_constants(params, x):  # type: ignore[no-untyped-def]
     """Into ``params`` past the row, fixed over a substep from ``x``: eq. 4's gain and eq. 5's at the
-    estimate (with no encoder, the nominal geometry's; :func:`_lab_inputs`), ``tan(A + offset)``."""
-    ell = params[ELL]
-    if params[PULSES] > 0:
-        s, c = np.sin(x[HAT + 2]), np.cos(x[HAT + 2])
-        params[U1], params[U2_V1] = 1.0 / (params[RHO] * c), -3.0 / ell * s / (c * c)
-        params[U2_V2] = ell * c * c * c
-    else:
-        params[U1], params[U2_V1], params[U2_V2] = 1.0 / params[RHO], -3.0 / ell, ell
-    params[TAN_REST] = np.tan(x[ANCHOR] + params[OFFSET])
+    estimate (with no encoder, the nominal geometry's; :func:`_lab_inputs`), ``tan(A + offset)``;
+    each recomputed only when what it depends on moved (the estimate jumps at a pulse only)."""
+    ell, theta_hat, anchor = params[ELL], x[HAT + 2], x[ANCHOR]
+    if theta_hat != params[HAT_AT]:
+        params[HAT_AT] = theta_hat
+        if params[PULSES] > 0:
+            s, c = np.sin(theta_hat), np.cos(theta_hat)
+            params[U1], params[U2_V1] = 1.0 / (params[RHO] * c), -3.0 / ell * s / (c * c)
+            params[U2_V2] = ell * c * c * c
+        else:
+            params[U1], params[U2_V1], params[U2_V2] = 1.0 / params[RHO], -3.0 / ell, ell
+    if anchor != params[ANCHOR_AT]:
+        params[ANCHOR_AT] = anchor
+        params[TAN_REST] = np.tan(anchor + params[OFFSET])
 
 
 @njit(cache=True, inline="always")

@@ -26,10 +26,11 @@ OFFSET, STEERING_LAG, SPEED_LAG = (LAB_LAYOUT.index(n) for n in ("steering_offse
 BACKLASH, PULSES = LAB_LAYOUT.index("steering_backlash"), LAB_LAYOUT.index("encoder_pulses")
 # Past the row, fixed for a step or a substep: eq. 4's gain and eq. 5's two at the estimate,
 # tan(offset -+ b/2), tan(A + offset), the reciprocals of true_wheelbase and the lags,
-# tan(steering_limit), and the |phi_c| past which a servo without a lag carries no tan(phi_c).
-EXTRA = 11
+# tan(steering_limit), the |phi_c| past which a servo without a lag carries no tan(phi_c), and the
+# estimated heading and the anchor the gains and tan(A + offset) were computed at.
+EXTRA = 13
 U1, U2_V1, U2_V2, TAN_LO, TAN_HI, TAN_REST = range(len(LAB_LAYOUT.params), len(LAB_LAYOUT.params) + 6)
-PER_ELL, PER_STEERING_LAG, PER_SPEED_LAG, TAN_LIMIT, GATE = range(TAN_REST + 1, TAN_REST + 6)
+PER_ELL, PER_STEERING_LAG, PER_SPEED_LAG, TAN_LIMIT, GATE, HAT_AT, ANCHOR_AT = range(TAN_REST + 1, TAN_REST + 8)
 # The step's state (the module docstring): the entries after the six of the layout's.
 PSI, TAN_SERVO, COS, ANCHOR, HAT = 6, 7, 8, 9, 10
 MOVING = ANCHOR
