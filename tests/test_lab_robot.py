@@ -11,7 +11,8 @@ import pytest
 from ilc_steering.config import load_config
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.reference import lab_car_trial
-from ilc_steering.core.robots.car_lab import LAB_KERNEL, lab_substeps
+from ilc_steering.core.robots.car_lab_lanes import LAB_KERNEL
+from ilc_steering.core.robots.car_lab_step import lab_substeps
 from ilc_steering.core.simulate import steps_per_span
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.errors import ConfigError
@@ -167,3 +168,22 @@ def test_a_trial_that_rests_at_the_stop_is_integrated_to_its_end():
     assert trial.status[0] == OK
     reference = lab_car_trial(scenario.plant, scenario.profile, scenario.x_start, c)
     np.testing.assert_allclose(comparable(scenario, trial.final[0]), reference, atol=1e-9)
+
+
+def test_the_lanes_kernel_is_the_one_by_one_kernel_recorded_and_off_the_chart():
+    # 70 trials: a block of 64 lanes and 6 run one by one; perturbed by 30 %, some leave the chart
+    from ilc_steering.core.integrate import integrate
+    from ilc_steering.core.robots.car_lab_step import LAB_TRIAL_KERNEL
+
+    scenario = Scenario.from_config(load_config("experiment_parallel"))
+    c0 = scenario.nominal.solve()
+    c = c0 * (1 + 0.3 * np.random.default_rng(1).standard_normal((70, c0.size)))
+    spans = np.asarray(scenario.profile.spans, dtype=np.float64)
+    steps = steps_per_span(spans, scenario.max_step)
+    v1, v2 = scenario.profile.polynomials(c)
+    params, x0 = scenario.plant.kernel()[1], np.repeat(scenario.x_start[None], len(c), 0)
+    lanes = integrate(LAB_KERNEL, params, x0, spans, steps, v1, v2, record=True)
+    one = integrate(LAB_TRIAL_KERNEL, params, x0, spans, steps, v1, v2, record=True)
+    assert 0 < (lanes[1] != OK).sum() < 35 and lanes[1].tolist() == one[1].tolist()
+    np.testing.assert_allclose(lanes[0], one[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lanes[2], one[2], rtol=0, atol=1e-12)
