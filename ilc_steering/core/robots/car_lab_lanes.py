@@ -10,7 +10,10 @@ the last bit). Between rounds each lane's events stay scalar, the one-by-one ker
 the substep's start (:func:`~ilc_steering.core.robots.car_lab_step.lab_begin`, the next pulse in
 closed form) and end (:func:`~ilc_steering.core.robots.car_lab_step.lab_after`, a steering event
 located by regula falsi on that lane alone). A lane that ends its step checks the chart, records and
-starts its next; what is fixed for a trial is set once, its scratch allocated once per block.
+starts its next; a lane that ends its trial leaves the stages, the lanes still running packed into
+their first columns (a block's lanes end a quarter of the rounds apart: ``benchmarks/robots.py``'s
+trials take 1.24 times their block's mean of substeps). What is fixed for a trial is set once, the
+scratch allocated once per block.
 """
 
 from __future__ import annotations
@@ -149,8 +152,9 @@ def _lanes_rk(n, p, x, tau, h, c1, c2, out, kst, tmp, v1, v2):  # type: ignore[n
 
 
 @njit(cache=True, inline="always")
-def _start_step(j, b, rows, last, cur, sides, c1, c2, clock, count, durations, steps, v1c, v2c):  # type: ignore[no-untyped-def]
-    """Lane ``j`` (trial ``b``) at the start of its step ``count[j, _K]`` of its piece, from ``last[j]``."""
+def _start_step(j, slot, b, rows, last, cur, sides, c1, c2, clock, count, durations, steps, v1c, v2c):  # type: ignore[no-untyped-def]
+    """Lane ``j`` (trial ``b``, the stages' column ``slot``) at the start of its step ``count[j, _K]`` of
+    its piece, from ``last[j]``."""
     q = count[j, _PIECE]
     h = durations[q] / steps[q]
     clock[j, _T], clock[j, _REMAINING], clock[j, _H] = count[j, _K] * h, h, h
@@ -158,18 +162,45 @@ def _start_step(j, b, rows, last, cur, sides, c1, c2, clock, count, durations, s
     sides[j, 0] = sides[j, 1] = sides[j, 3] = 0.0
     lab_load(rows[j], last[j], cur[j])
     for d in range(c1.shape[1]):
-        c1[j, d] = v1c[b, q, d]
+        c1[slot, d] = v1c[b, q, d]
     for d in range(c2.shape[1]):
-        c2[j, d] = v2c[b, q, d]
+        c2[slot, d] = v2c[b, q, d]
+
+
+@njit(cache=True, inline="always")
+def _end_step(j, b, rows, cur, last, stored, out, status, traj, count, steps, durations, record):  # type: ignore[no-untyped-def]
+    """Lane ``j``'s (trial ``b``'s) step ended: its state checked against the chart and recorded, and
+    whether the trial goes on (else its final state in ``out`` and its status, ``LEFT_CHART`` off the chart)."""
+    lab_store(rows[j], cur[j], stored)
+    if not (finite(stored) and lab_chart(rows[j], stored)):
+        status[b] = LEFT_CHART
+        out[b] = last[j]
+        if record:
+            for r in range(count[j, _ROW], traj.shape[1]):
+                traj[b, r] = last[j]
+        return False
+    last[j] = stored
+    if record:
+        traj[b, count[j, _ROW]] = stored
+        count[j, _ROW] += 1
+    count[j, _K] += 1
+    if count[j, _K] == steps[count[j, _PIECE]]:
+        count[j, _PIECE] += 1
+        count[j, _K] = 0
+    if count[j, _PIECE] == durations.shape[0]:
+        out[b] = stored
+        return False
+    return True
 
 
 @njit(cache=True, inline="always")
 def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, start, stop):  # type: ignore[no-untyped-def]
-    """Trials ``start:stop`` (at most ``n``) of a batch, a lane each (lanes past ``stop`` repeat its last
-    trial and rest): the arguments of :func:`ilc_steering.core.integrate.integrate`'s kernels."""
+    """Trials ``start:stop`` (at most ``n``) of a batch, a lane each: the arguments of
+    :func:`ilc_steering.core.integrate.integrate`'s kernels. The stages run on the first ``m`` columns,
+    the lanes still running (``order``: column -> lane), packed as lanes end."""
     size, used, record = params.shape[1] + EXTRA, stop - start, traj.shape[1] > 0
     rows = np.empty((n, size))  # each lane's row and what is fixed past it, for its scalar pieces
-    p = np.empty((size, n))  # the same, lane by lane, for the stages
+    p = np.empty((size, n))  # the same, column by column, for the stages
     cur = np.empty((n, _STEP))  # each lane's step state, its substep's end, its state at the step's start
     nxt = np.empty((n, _STEP))
     last = np.empty((n, x0.shape[1]))
@@ -184,48 +215,39 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
     v1, v2, tau, h = np.empty(n), np.empty(n), np.empty(n), np.zeros(n)
     clock = np.empty((n, 3))  # each lane's local time, what is left of its step, its step's length
     count = np.zeros((n, 5), dtype=np.int64)  # its last event, piece, step, recorded rows, substeps
-    active = np.empty(n, dtype=np.bool_)
+    order = np.arange(n)
     stored, probe, work = np.empty(x0.shape[1]), np.empty(_STEP), np.empty((STAGES + 1, _STEP))
-    for j in range(n):
-        b = start + min(j, used - 1)
+    for j in range(used):
+        b = start + j
         rows[j, : params.shape[1]] = params[b]
         lab_trial_constants(rows[j])
         p[:, j] = rows[j]
         last[j] = x0[b]
-        active[j] = j < used
-        if j < used:
-            status[b] = OK
-            if record:
-                traj[b, 0] = x0[b]
-            count[j, _ROW] = 1
-        _start_step(j, b, rows, last, cur, sides, c1, c2, clock, count, durations, steps, v1c, v2c)
-        for i in range(MOVING + 1):  # a resting lane's (lanes past stop: finite, never moved)
-            x[i, j] = cur[j, i]
-    while True:
-        busy = False
-        for j in range(n):  # each lane's substep: its start, its length
-            h[j] = 0.0
-            if not active[j]:
-                continue
-            busy = True
-            b, q, t = start + min(j, used - 1), count[j, _PIECE], clock[j, _T]
-            count[j, _WHICH], h[j] = lab_begin(
+        status[b] = OK
+        if record:
+            traj[b, 0] = x0[b]
+        count[j, _ROW] = 1
+        _start_step(j, j, b, rows, last, cur, sides, c1, c2, clock, count, durations, steps, v1c, v2c)
+    m = used
+    while m > 0:
+        for s in range(m):  # each lane's substep: its start, its length
+            j = order[s]
+            b, q, t = start + j, count[j, _PIECE], clock[j, _T]
+            count[j, _WHICH], h[s] = lab_begin(
                 rows[j], cur[j], sides[j], coef[j], t, clock[j, _REMAINING], count[j, _WHICH], v1c[b, q], v2c[b, q]
             )
-            tau[j] = t
+            tau[s] = t
             for i in range(MOVING + 1):
-                x[i, j] = cur[j, i]
+                x[i, s] = cur[j, i]
             for i in (U1, U2_V1, U2_V2, TAN_REST):  # what lab_begin may have moved
-                p[i, j] = rows[j, i]
-        if not busy:
-            break
-        _lanes_rk(n, p, x, tau, h, c1, c2, end, kst, tmp, v1, v2)
-        for j in range(n):  # each lane's substep's end: its events, and its step's end
-            if not active[j]:
-                continue
-            b, q = start + min(j, used - 1), count[j, _PIECE]
+                p[i, s] = rows[j, i]
+        _lanes_rk(m, p, x, tau, h, c1, c2, end, kst, tmp, v1, v2)
+        kept = 0
+        for s in range(m):  # each lane's substep's end: its events, and its step's end
+            j = order[s]
+            b, q = start + j, count[j, _PIECE]
             for i in range(MOVING):
-                nxt[j, i] = end[i, j]
+                nxt[j, i] = end[i, s]
             for i in range(MOVING, _STEP):
                 nxt[j, i] = cur[j, i]
             which, advance = lab_after(
@@ -236,8 +258,8 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
                 probe,
                 work,
                 sides[j],
-                tau[j],
-                h[j],
+                tau[s],
+                h[s],
                 count[j, _WHICH],
                 clock[j, _H],
                 v1c[b, q],
@@ -247,30 +269,19 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
             clock[j, _T] += advance
             clock[j, _REMAINING] -= advance
             count[j, _EVENTS] += 1
-            if which >= 0 and clock[j, _REMAINING] > 0.0 and count[j, _EVENTS] < MAX_EVENTS:
-                continue
-            lab_store(rows[j], cur[j], stored)  # the step's end
-            if not (finite(stored) and lab_chart(rows[j], stored)):
-                status[b] = LEFT_CHART
-                active[j] = False
-                out[b] = last[j]
-                if record:
-                    for r in range(count[j, _ROW], traj.shape[1]):
-                        traj[b, r] = last[j]
-                continue
-            last[j] = stored
-            if record:
-                traj[b, count[j, _ROW]] = stored
-                count[j, _ROW] += 1
-            count[j, _K] += 1
-            if count[j, _K] == steps[q]:
-                count[j, _PIECE] += 1
-                count[j, _K] = 0
-            if count[j, _PIECE] == durations.shape[0]:
-                active[j] = False
-                out[b] = stored
-                continue
-            _start_step(j, b, rows, last, cur, sides, c1, c2, clock, count, durations, steps, v1c, v2c)
+            running = True
+            if which < 0 or clock[j, _REMAINING] <= 0.0 or count[j, _EVENTS] >= MAX_EVENTS:
+                running = _end_step(j, b, rows, cur, last, stored, out, status, traj, count, steps, durations, record)
+                if running:
+                    _start_step(j, s, b, rows, last, cur, sides, c1, c2, clock, count, durations, steps, v1c, v2c)
+            if running:  # packed into the first columns, in order
+                if kept != s:
+                    order[kept] = j
+                    p[:, kept] = p[:, s]
+                    c1[kept] = c1[s]
+                    c2[kept] = c2[s]
+                kept += 1
+        m = kept
 
 
 LAB_KERNEL = block_kernel("car-lab", LAB_LAYOUT, __name__, _lab_block, "numpy")
