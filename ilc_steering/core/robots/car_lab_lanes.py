@@ -59,6 +59,11 @@ _A = np.ascontiguousarray(dop853.A)
 _B = np.ascontiguousarray(dop853.B)
 _C = np.ascontiguousarray(dop853.C)
 _STEP = MOVING + 5  # the step state's length (car_lab_layout): the moving entries, the anchor, the estimate
+_TERMS = (_A != 0.0).sum(axis=1)  # a stage's nonzero coefficients, and which
+_TERM = np.zeros((STAGES, STAGES), dtype=np.int64)
+for _s in range(STAGES):
+    _TERM[_s, : _TERMS[_s]] = np.flatnonzero(_A[_s])
+_READ = (2, 3, 4, 5, TAN_SERVO, COS)  # the moving entries _lanes_field reads
 _T, _REMAINING, _H = range(3)  # a lane's clock: its local time [s], what is left of its step, the step
 _WHICH, _PIECE, _K, _ROW, _EVENTS = range(5)  # its counts: last event, piece, step, recorded rows, substeps
 
@@ -109,31 +114,29 @@ def _lanes_field(n, p, x, tmp, v1, v2, k):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _lanes_rk(n, p, x, tau, h, c1, c2, out, kst, tmp, v1, v2):  # type: ignore[no-untyped-def]
+def _lanes_rk(n, p, x, tau, h, c1, c2, out, kst, tmp, v1, v2, times):  # type: ignore[no-untyped-def]
     """A Runge-Kutta substep of every lane, lane ``j``'s of length ``h[j]`` from local time ``tau[j]``
     (0: it rests), the moving entries of ``x`` ``(MOVING + 1, n)`` into ``out`` ``(MOVING, n)``;
-    ``c1`` and ``c2`` ``(n, D)`` the lanes' inputs; ``kst``, ``tmp``, ``v1``, ``v2`` scratch."""
+    ``c1`` and ``c2`` ``(D, n)`` the lanes' inputs; ``kst``, ``tmp``, ``v1``, ``v2``, ``times`` scratch."""
     for s in range(STAGES):
-        for j in range(n):
-            t = tau[j] + _C[s] * h[j]
-            acc = 0.0
-            for d in range(c1.shape[1] - 1, -1, -1):
-                acc = acc * t + c1[j, d]
-            v1[j] = acc
-            acc = 0.0
-            for d in range(c2.shape[1] - 1, -1, -1):
-                acc = acc * t + c2[j, d]
-            v2[j] = acc
-        for i in range(MOVING):
+        for j in range(n):  # the inputs at the stage's time, by Horner's rule (poly's sums), lane by lane
+            times[j] = tau[j] + _C[s] * h[j]
+            v1[j] = 0.0
+            v2[j] = 0.0
+        for d in range(c1.shape[0] - 1, -1, -1):
+            for j in range(n):
+                v1[j] = v1[j] * times[j] + c1[d, j]
+        for d in range(c2.shape[0] - 1, -1, -1):
+            for j in range(n):
+                v2[j] = v2[j] * times[j] + c2[d, j]
+        for i in _READ:  # a stage's state: the entries the field reads (x, y and psi it does not)
             for j in range(n):
                 tmp[i, j] = 0.0
-        for m in range(s):
-            a = _A[s, m]
-            if a != 0.0:
-                for i in range(MOVING):
+            for m in range(s):
+                a = _A[s, m]
+                if a != 0.0:
                     for j in range(n):
                         tmp[i, j] += a * kst[m, i, j]
-        for i in range(MOVING):
             for j in range(n):
                 tmp[i, j] = x[i, j] + h[j] * tmp[i, j]
         _lanes_field(n, p, x, tmp, v1, v2, kst[s])
@@ -161,10 +164,10 @@ def _start_step(j, slot, b, rows, last, cur, sides, c1, c2, clock, count, durati
     count[j, _WHICH], count[j, _EVENTS] = -1, 0
     sides[j, 0] = sides[j, 1] = sides[j, 3] = 0.0
     lab_load(rows[j], last[j], cur[j])
-    for d in range(c1.shape[1]):
-        c1[slot, d] = v1c[b, q, d]
-    for d in range(c2.shape[1]):
-        c2[slot, d] = v2c[b, q, d]
+    for d in range(c1.shape[0]):
+        c1[d, slot] = v1c[b, q, d]
+    for d in range(c2.shape[0]):
+        c2[d, slot] = v2c[b, q, d]
 
 
 @njit(cache=True, inline="always")
@@ -210,9 +213,9 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
     tmp = np.empty((MOVING, n))
     sides = np.zeros((n, 4))
     coef = np.empty((n, 3, v1c.shape[2] + 1))
-    c1 = np.empty((n, v1c.shape[2]))
-    c2 = np.empty((n, v2c.shape[2]))
-    v1, v2, tau, h = np.empty(n), np.empty(n), np.empty(n), np.zeros(n)
+    c1 = np.empty((v1c.shape[2], n))  # the lanes' inputs, coefficient by coefficient
+    c2 = np.empty((v2c.shape[2], n))
+    v1, v2, tau, h, times = np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.empty(n)
     clock = np.empty((n, 3))  # each lane's local time, what is left of its step, its step's length
     count = np.zeros((n, 5), dtype=np.int64)  # its last event, piece, step, recorded rows, substeps
     order = np.arange(n)
@@ -241,7 +244,7 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
                 x[i, s] = cur[j, i]
             for i in (U1, U2_V1, U2_V2, TAN_REST):  # what lab_begin may have moved
                 p[i, s] = rows[j, i]
-        _lanes_rk(m, p, x, tau, h, c1, c2, end, kst, tmp, v1, v2)
+        _lanes_rk(m, p, x, tau, h, c1, c2, end, kst, tmp, v1, v2, times)
         kept = 0
         for s in range(m):  # each lane's substep's end: its events, and its step's end
             j = order[s]
@@ -278,8 +281,8 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
                 if kept != s:
                     order[kept] = j
                     p[:, kept] = p[:, s]
-                    c1[kept] = c1[s]
-                    c2[kept] = c2[s]
+                    c1[:, kept] = c1[:, s]
+                    c2[:, kept] = c2[:, s]
                 kept += 1
         m = kept
 
