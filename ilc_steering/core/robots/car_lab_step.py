@@ -120,17 +120,23 @@ def lab_after(rhs, p, cur, nxt, probe, work, sides, t, span, which, h, v1c, v2c)
     ``cur`` moved to the first event or pulse, its jump made, or to ``nxt``. Returns ``(which,
     advance)``: the event there (-1: none, the step's end) and the time advanced [s]."""
     first = span
-    for j in range(3):
-        g_hi = lab_event(j, p, nxt, t + span, v1c, v2c, sides)
-        if not g_hi > 0.0:  # (most substeps: then the start's value is not needed)
-            continue
-        g_lo = lab_event(j, p, cur, t, v1c, v2c, sides)
-        if not g_lo <= 0.0:
-            continue
-        state = (p, cur, t, v1c, v2c, probe, work, j, sides)
-        hi = locate(_lab_event_after, rhs, state, g_lo, g_hi, span, _LAB_EVENT_TIME * h, False, True)
-        if hi < first:
-            first, which = hi, j
+    # Each event's value at the end, written out (a loop over them costs twice as much: its branches
+    # are not folded); most substeps fire none, and then the start's values are not needed.
+    end0 = lab_event(0, p, nxt, t + span, v1c, v2c, sides)
+    end1 = lab_event(1, p, nxt, t + span, v1c, v2c, sides)
+    end2 = lab_event(2, p, nxt, t + span, v1c, v2c, sides)
+    if end0 > 0.0 or end1 > 0.0 or end2 > 0.0:
+        for j in range(3):
+            g_hi = end0 if j == 0 else (end1 if j == 1 else end2)
+            if not g_hi > 0.0:
+                continue
+            g_lo = lab_event(j, p, cur, t, v1c, v2c, sides)
+            if not g_lo <= 0.0:
+                continue
+            state = (p, cur, t, v1c, v2c, probe, work, j, sides)
+            hi = locate(_lab_event_after, rhs, state, g_lo, g_hi, span, _LAB_EVENT_TIME * h, False, True)
+            if hi < first:
+                first, which = hi, j
     if which >= 0 and first < span:
         sides[3] += 1.0
         lab_rk(rhs, p, cur, t, first, v1c, v2c, probe, work)
