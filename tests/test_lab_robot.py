@@ -70,6 +70,7 @@ def test_without_imperfections_the_lab_kernel_is_the_plain_car():
 
 
 @pytest.mark.parametrize("lag", [0.0, 0.05])
+@pytest.mark.slow  # compiles the one-by-one step (half a minute cold)
 def test_a_play_under_the_rounding_costs_no_more_runge_kutta_steps_than_a_real_one(lag):
     # A play of 1e-300 rad rounds to none beside phi_s: its engaging event was fired at every substep
     # and located in vain (60 Runge-Kutta steps of the locator, about 50 a step, 16 times the cost).
@@ -170,8 +171,9 @@ def test_a_trial_that_rests_at_the_stop_is_integrated_to_its_end():
     np.testing.assert_allclose(comparable(scenario, trial.final[0]), reference, atol=1e-9)
 
 
+@pytest.mark.slow  # compiles the one-by-one kernel (half a minute cold)
 def test_the_lanes_kernel_is_the_one_by_one_kernel_recorded_and_off_the_chart():
-    # 70 trials: a block of 64 lanes and 6 run one by one; perturbed by 30 %, some leave the chart
+    # 70 trials: a block of 64 lanes and a partial block of 6; perturbed by 30 %, some leave the chart
     from ilc_steering.core.integrate import integrate
     from ilc_steering.core.robots.car_lab_step import LAB_TRIAL_KERNEL
 

@@ -287,5 +287,5 @@ def _lab_block(n, params, x0, durations, steps, v1c, v2c, out, status, traj, sta
         m = kept
 
 
-LAB_KERNEL = block_kernel("car-lab", LAB_LAYOUT, __name__, _lab_block, "numpy")
+LAB_KERNEL = block_kernel("car-lab", LAB_LAYOUT, __name__, _lab_block, "numpy", packs=True)
 """The lab robot's kernel (a servo car's too, its play and encoders off)."""

@@ -126,24 +126,37 @@ def lab_after(rhs, p, cur, nxt, probe, work, sides, t, span, which, h, v1c, v2c)
     end1 = lab_event(1, p, nxt, t + span, v1c, v2c, sides)
     end2 = lab_event(2, p, nxt, t + span, v1c, v2c, sides)
     if end0 > 0.0 or end1 > 0.0 or end2 > 0.0:
-        for j in range(3):
-            g_hi = end0 if j == 0 else (end1 if j == 1 else end2)
-            if not g_hi > 0.0:
-                continue
-            g_lo = lab_event(j, p, cur, t, v1c, v2c, sides)
-            if not g_lo <= 0.0:
-                continue
-            state = (p, cur, t, v1c, v2c, probe, work, j, sides)
-            hi = locate(_lab_event_after, rhs, state, g_lo, g_hi, span, _LAB_EVENT_TIME * h, False, True)
-            if hi < first:
-                first, which = hi, j
-    if which >= 0 and first < span:
-        sides[3] += 1.0
-        lab_rk(rhs, p, cur, t, first, v1c, v2c, probe, work)
-        cur[:] = probe
+        ends = (end0, end1, end2)
+        which, first = _lab_steering_event(p, cur, nxt, probe, work, sides, t, span, which, h, v1c, v2c, ends)
     else:
         cur[:] = nxt
     lab_jump(which, p, cur)
+    return which, first
+
+
+@njit(cache=True)
+def _lab_steering_event(p, cur, nxt, probe, work, sides, t, span, which, h, v1c, v2c, ends):  # type: ignore[no-untyped-def]
+    """:func:`lab_after`'s rare branch, a steering event at the substep's end (``ends``, each event's
+    value there): the first located and ``cur`` moved to it, or to ``nxt``. Returns ``(which, first)``.
+    Compiled once, not inlined: every variant of both kernels calls it (half of their compile time)."""
+    first = span
+    for j in range(3):
+        g_hi = ends[j]
+        if not g_hi > 0.0:
+            continue
+        g_lo = lab_event(j, p, cur, t, v1c, v2c, sides)
+        if not g_lo <= 0.0:
+            continue
+        state = (p, cur, t, v1c, v2c, probe, work, j, sides)
+        hi = locate(_lab_event_after, lab_field, state, g_lo, g_hi, span, _LAB_EVENT_TIME * h, False, True)
+        if hi < first:
+            first, which = hi, j
+    if which >= 0 and first < span:
+        sides[3] += 1.0
+        lab_rk(lab_field, p, cur, t, first, v1c, v2c, probe, work)
+        cur[:] = probe
+    else:
+        cur[:] = nxt
     return which, first
 
 
@@ -177,7 +190,19 @@ def _lab_step(rhs, n, params, x, tau, h, v1c, v2c, out, work, _probe):  # type: 
     return int(sides[3])
 
 
-LAB_TRIAL_KERNEL = trial_kernel("car-lab-trials", LAB_LAYOUT, __name__, lab_field, lab_chart, _lab_step)
+@njit(cache=True)
+def _lab_step_once(params, x, tau, h, v1c, v2c, out, work):  # type: ignore[no-untyped-def]
+    """:func:`_lab_step` of the lab robot's field, compiled once for the one-by-one kernel and
+    :func:`lab_substeps` (each would otherwise compile the whole step again)."""
+    return _lab_step(lab_field, x.shape[0], params, x, tau, h, v1c, v2c, out, work, out)
+
+
+@njit(cache=True, inline="always")
+def _lab_step_called(rhs, n, params, x, tau, h, v1c, v2c, out, work, _probe):  # type: ignore[no-untyped-def]
+    return _lab_step_once(params, x, tau, h, v1c, v2c, out, work)
+
+
+LAB_TRIAL_KERNEL = trial_kernel("car-lab-trials", LAB_LAYOUT, __name__, lab_field, lab_chart, _lab_step_called)
 """The lab robot's kernel that runs a batch's trials one by one (the lanes' is ``car_lab_lanes.LAB_KERNEL``)."""
 
 
@@ -185,7 +210,7 @@ LAB_TRIAL_KERNEL = trial_kernel("car-lab-trials", LAB_LAYOUT, __name__, lab_fiel
 def _substeps(params, x0, durations, steps, v1c, v2c, counts):  # type: ignore[no-untyped-def]
     """:func:`lab_substeps`'s compiled loop: each trial as the kernel runs it, its Runge-Kutta steps counted."""
     n = x0.shape[1]
-    x, nxt, probe = np.empty(n), np.empty(n), np.empty(n)
+    x, nxt = np.empty(n), np.empty(n)
     work = np.empty((STAGES + 1, n))
     for b in range(x0.shape[0]):
         x[:] = x0[b]
@@ -193,7 +218,7 @@ def _substeps(params, x0, durations, steps, v1c, v2c, counts):  # type: ignore[n
         for i in range(durations.shape[0]):
             h = durations[i] / steps[i]
             for k in range(steps[i]):
-                counts[b] += _lab_step(lab_field, n, params[b], x, k * h, h, v1c[b, i], v2c[b, i], nxt, work, probe)
+                counts[b] += _lab_step_once(params[b], x, k * h, h, v1c[b, i], v2c[b, i], nxt, work)
                 if not (np.all(np.isfinite(nxt)) and lab_chart(params[b], nxt)):
                     break
                 x[:] = nxt
