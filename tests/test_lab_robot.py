@@ -11,7 +11,9 @@ import pytest
 from ilc_steering.config import load_config
 from ilc_steering.core.integrate import OK
 from ilc_steering.core.reference import lab_car_trial
-from ilc_steering.core.robots.car_lab import LAB_KERNEL
+from ilc_steering.core.robots.car_lab_lanes import LAB_KERNEL
+from ilc_steering.core.robots.car_lab_step import lab_substeps
+from ilc_steering.core.simulate import steps_per_span
 from ilc_steering.envs.scenario import Scenario
 from ilc_steering.errors import ConfigError
 
@@ -65,6 +67,23 @@ def test_without_imperfections_the_lab_kernel_is_the_plain_car():
     lab = scenario_with("forward_parking_saturated", steering_backlash=1e-300)
     got = lab.run(c[None]).final[0]
     np.testing.assert_allclose(got[:4], expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("lag", [0.0, 0.05])
+@pytest.mark.slow  # compiles the one-by-one step (half a minute cold)
+def test_a_play_under_the_rounding_costs_no_more_runge_kutta_steps_than_a_real_one(lag):
+    # A play of 1e-300 rad rounds to none beside phi_s: its engaging event was fired at every substep
+    # and located in vain (60 Runge-Kutta steps of the locator, about 50 a step, 16 times the cost).
+    counts = {}
+    for play in (1e-300, 1e-3):
+        scenario = scenario_with("forward_parking_saturated", steering_lag=lag, steering_backlash=play)
+        c = scenario.nominal.solve()[None]
+        spans = np.asarray(scenario.profile.spans, dtype=np.float64)
+        steps = steps_per_span(spans, scenario.max_step)
+        v1, v2 = scenario.profile.polynomials(c)
+        params = scenario.plant.kernel()[1]
+        counts[play] = lab_substeps(params, scenario.x_start[None], spans, steps, v1, v2)[0] / steps.sum()
+    assert 1.0 <= counts[1e-300] <= 1.05 * counts[1e-3] + 0.1 and counts[1e-3] < 2.5, counts
 
 
 @pytest.mark.slow
@@ -150,3 +169,23 @@ def test_a_trial_that_rests_at_the_stop_is_integrated_to_its_end():
     assert trial.status[0] == OK
     reference = lab_car_trial(scenario.plant, scenario.profile, scenario.x_start, c)
     np.testing.assert_allclose(comparable(scenario, trial.final[0]), reference, atol=1e-9)
+
+
+@pytest.mark.slow  # compiles the one-by-one kernel (half a minute cold)
+def test_the_lanes_kernel_is_the_one_by_one_kernel_recorded_and_off_the_chart():
+    # 70 trials: a block of 64 lanes and a partial block of 6; perturbed by 30 %, some leave the chart
+    from ilc_steering.core.integrate import integrate
+    from ilc_steering.core.robots.car_lab_step import LAB_TRIAL_KERNEL
+
+    scenario = Scenario.from_config(load_config("experiment_parallel"))
+    c0 = scenario.nominal.solve()
+    c = c0 * (1 + 0.3 * np.random.default_rng(1).standard_normal((70, c0.size)))
+    spans = np.asarray(scenario.profile.spans, dtype=np.float64)
+    steps = steps_per_span(spans, scenario.max_step)
+    v1, v2 = scenario.profile.polynomials(c)
+    params, x0 = scenario.plant.kernel()[1], np.repeat(scenario.x_start[None], len(c), 0)
+    lanes = integrate(LAB_KERNEL, params, x0, spans, steps, v1, v2, record=True)
+    one = integrate(LAB_TRIAL_KERNEL, params, x0, spans, steps, v1, v2, record=True)
+    assert 0 < (lanes[1] != OK).sum() < 35 and lanes[1].tolist() == one[1].tolist()
+    np.testing.assert_allclose(lanes[0], one[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lanes[2], one[2], rtol=0, atol=1e-12)

@@ -24,7 +24,7 @@ from ilc_steering.core.plants import Kernel
 from ilc_steering.core.stepper import LEFT_CHART, OK, announce_compile
 from ilc_steering.errors import BadInput
 
-__all__ = ["LEFT_CHART", "OK", "integrate"]
+__all__ = ["LEFT_CHART", "OK", "checked_batch", "integrate"]
 
 Array = npt.NDArray[np.float64]
 Int = npt.NDArray[np.int64]
@@ -49,13 +49,7 @@ def integrate(
     input profile. Returns the final states ``(B, nx)``, the status of each trial (``OK`` or
     ``LEFT_CHART``) and, with ``record``, the states at every step ``(B, 1 + sum(steps), nx)``.
     """
-    if not isinstance(kernel, Kernel):
-        raise BadInput(f"kernel must be a plant's Kernel (plant.kernel()[0]), got {type(kernel).__name__}")
-    # One layout for every caller (C order, float64, writeable): a read-only or strided view would
-    # compile a second specialization of the kernel, which costs as long as the first.
-    x0, params, durations, v1, v2 = (_layout(a, np.float64, name) for a, name in _named(x0, params, durations, v1, v2))
-    steps = _layout(steps, np.int64, "steps")
-    params = _check_arrays(kernel, params, x0, durations, steps, v1, v2)
+    params, x0, durations, steps, v1, v2 = checked_batch(kernel, params, x0, durations, steps, v1, v2)
     batch, n = x0.shape
     out = np.empty((batch, n))
     status = np.empty(batch, dtype=np.int64)
@@ -65,6 +59,21 @@ def integrate(
     announce_compile(runner, kernel.name)
     runner(params, x0, durations, steps, v1, v2, out, status, traj)
     return out, status, traj if record else None
+
+
+def checked_batch(
+    kernel: Kernel, params: Array, x0: Array, durations: Array, steps: Int, v1: Array, v2: Array
+) -> tuple[Array, Array, Array, Int, Array, Array]:
+    """:func:`integrate`'s arguments as its compiled runners read them (C order, float64 or int64,
+    writeable; ``params`` ``(B, P)``), checked against ``kernel``'s layout: ``BadInput`` otherwise."""
+    if not isinstance(kernel, Kernel):
+        raise BadInput(f"kernel must be a plant's Kernel (plant.kernel()[0]), got {type(kernel).__name__}")
+    # One layout for every caller (C order, float64, writeable): a read-only or strided view would
+    # compile a second specialization of the kernel, which costs as long as the first.
+    x0, params, durations, v1, v2 = (_layout(a, np.float64, name) for a, name in _named(x0, params, durations, v1, v2))
+    steps = _layout(steps, np.int64, "steps")
+    params = _check_arrays(kernel, params, x0, durations, steps, v1, v2)
+    return params, x0, durations, steps, v1, v2
 
 
 def _named(*arrays: Any) -> list[tuple[Any, str]]:

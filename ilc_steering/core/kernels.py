@@ -242,14 +242,18 @@ def trial_kernel(
     return Kernel(name, layout, serial, parallel)
 
 
-def block_kernel(name: str, layout: KernelLayout, module: str, block: Any, error_model: str = "python") -> Kernel:
+def block_kernel(
+    name: str, layout: KernelLayout, module: str, block: Any, error_model: str = "python", packs: bool = False
+) -> Kernel:
     """The kernel of a robot whose trials run in blocks of :data:`LANES` lanes: ``block(n, params, x0,
     durations, steps, v1c, v2c, out, status, traj, start, stop)``, ``@njit(inline="always")``, runs
     trials ``start:stop`` in ``n`` lanes (:func:`lane_block`'s arguments after ``n``). ``name``,
     ``layout`` and ``module`` as for :func:`trial_kernel`; ``error_model`` numba's (``"numpy"``: a
-    division by zero is ``inf`` or ``NaN``, where ``"python"`` raises)."""
+    division by zero is ``inf`` or ``NaN``, where ``"python"`` raises). A block that ``packs`` its
+    lanes (a partial block costs only its trials) compiles no one-lane variant: a partial block runs
+    the few trials past the last full one (each variant compiles the whole block once more)."""
     options = {"cache": True, "error_model": error_model}
-    one = _compile(_block_one, name, module, {"BLOCK": block}, **options)
+    one = None if packs else _compile(_block_one, name, module, {"BLOCK": block}, **options)
     full = _compile(_block_full, name, module, {"BLOCK": block, "LANES": LANES}, **options)
     shared = _compile(_block_shared, name, module, {"FULL": full, "LANES": LANES}, parallel=True, **options)
     blocks = (one, full, shared)
@@ -280,13 +284,13 @@ def lane_kernel(
     return block_kernel(name, layout, module, block, error_model)
 
 
-def _run_lanes(blocks: tuple[Any, Any, Any], args: tuple[Any, ...], parallel: bool, name: str) -> None:
+def _run_lanes(blocks: tuple[Any | None, Any, Any], args: tuple[Any, ...], parallel: bool, name: str) -> None:
     """A batch of trials on a lane kernel's compiled ``(one, block, shared)``: blocks of :data:`LANES`
     trials (shared among numba's threads with ``parallel``), a last partial block of more than a
-    few trials padded, fewer run one by one with ``one``."""
+    few trials padded, fewer run one by one with ``one`` (without it, in a block of their own)."""
     one, block, shared = blocks
     batch = args[1].shape[0]
-    full = batch - batch % LANES if batch % LANES <= _SINGLE_LANES else batch
+    full = batch - batch % LANES if one is not None and batch % LANES <= _SINGLE_LANES else batch
     if parallel and full > LANES:
         announce_compile(shared, name)
         shared(*args, full)

@@ -29,7 +29,8 @@ from numba import njit
 from ilc_steering.core import tangent
 from ilc_steering.core.kernels import trial_kernel
 from ilc_steering.core.plants import Kernel
-from ilc_steering.core.robots.car_lab import LAB_KERNEL, LAB_LAYOUT
+from ilc_steering.core.robots.car_lab_lanes import LAB_KERNEL
+from ilc_steering.core.robots.car_lab_layout import LAB_LAYOUT
 from ilc_steering.core.stepper import CHART_LIMIT, step_with_stop
 from ilc_steering.core.tangent import CAR_LAYOUT
 
