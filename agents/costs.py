@@ -90,7 +90,12 @@ class NullSpaceCost:
         self._family = ModelFamily(dataclasses.replace(model, steering_limit=None))
         self._plant = self._family.plant(np.zeros(self._family.size))
         self._box = COST_BOX * model.action_scale()[1:]
-        self._per_trial: Callable[[Array, Array], Array] = getattr(self, f"_{name}")
+        per_trial: dict[str, Callable[[Array, Array], Array]] = {
+            "path_length": self._path_length,
+            "curvature": self._curvature,
+            "steering_margin": self._steering_margin,
+        }
+        self._per_trial = per_trial[name]
 
     def values(self, c: Array) -> Array:
         """``J`` of a batch of coefficient vectors ``(B, 1 + q)`` on the nominal plant."""

@@ -7,6 +7,7 @@ import re
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -103,8 +104,9 @@ class SteeringConfig:
     def segment_configs(self) -> list[SteeringConfig]:
         """A manoeuvre's segments, each the one-trial task from its waypoint to the next (checked as
         one when the config loaded); ``[self]`` for a one-trial task. Not for a cycle."""
-        segments: list[SteeringConfig] = self.__dict__.get("_segments", [self])
-        return segments
+        if isinstance(self.task, SegmentedTaskConfig):
+            return list(self._segments)
+        return [self]
 
     def legs(self) -> list[tuple[str, TaskConfig | SegmentConfig]]:
         """One (key, segment) per trial of a cycle, or per segment of a manoeuvre: the task itself for a
@@ -120,9 +122,22 @@ class SteeringConfig:
 
     def frame(self) -> float:
         """The rotation [rad] of the task frame (:func:`~ilc_steering.core.robots.car.frame_angle`, computed once,
-        on loading); 0 without a pose."""
-        frame: float = self.__dict__["_frame"]
-        return frame
+        on loading; a manoeuvre's first segment's); 0 without a pose."""
+        if isinstance(self.task, SegmentedTaskConfig):
+            return self._segments[0].frame()
+        return self._frame
+
+    @cached_property
+    def _frame(self) -> float:
+        """The task frame of a one-trial task or a cycle: ``task.frame``, else ``frame_angle`` of the
+        points' headings (a cached property: derived, not a field, so ``asdict`` and ``==`` ignore it)."""
+        if not self.plant.kind.has_pose:
+            return 0.0
+        if isinstance(self.task, TaskConfig) and self.task.frame is not None:
+            return self.task.frame
+        points = self.points()
+        with domain(points[-1][0]):
+            return frame_angle(*(point[2] for _, point in points))
 
     def __post_init__(self) -> None:
         check_name(self.name)
@@ -152,23 +167,18 @@ class SteeringConfig:
                 "a chained plant needs {error: ...} alone (it has no Cartesian or orientation error)",
             )
         if isinstance(self.task, SegmentedTaskConfig):
-            self._check_segments(self.task)
+            self._segments  # noqa: B018 (each segment checked as the one-trial task it is)
             return
-        frame = 0.0
-        if self.plant.kind.has_pose:
-            with domain(points[-1][0]):
-                frame = frame_angle(*(point[2] for _, point in points))
-            if isinstance(self.task, TaskConfig) and self.task.frame is not None:
-                frame = self.task.frame  # the points' chart is checked in it below; a heading off it is the frame's
-                for key, point in points:
-                    turned = point[2] - frame
-                    require(
-                        abs(turned) < np.pi / 2,
-                        "task.frame",
-                        f"{frame} rad puts {key} at a heading of {turned:.6g} rad in the task frame ({point[2]:.6g} "
-                        "rad in the world's), outside the chart's (-pi/2, pi/2); leave it out for frame_angle's",
-                    )
-        object.__setattr__(self, "_frame", frame)  # derived, not a field: asdict and == ignore it
+        frame = self._frame
+        if self.plant.kind.has_pose and isinstance(self.task, TaskConfig) and self.task.frame is not None:
+            for key, point in points:  # the points' chart is checked in it below; a heading off it is the frame's
+                turned = point[2] - frame
+                require(
+                    abs(turned) < np.pi / 2,
+                    "task.frame",
+                    f"{frame} rad puts {key} at a heading of {turned:.6g} rad in the task frame ({point[2]:.6g} "
+                    "rad in the world's), outside the chart's (-pi/2, pi/2); leave it out for frame_angle's",
+                )
         model = self.plant.model
         with robots_code(self.plant, "plant()", model, values=True):
             plant = self.plant.plant()
@@ -225,10 +235,14 @@ class SteeringConfig:
                 "fixed v1, as in the paper's parallel parking",
             )
 
-    def _check_segments(self, task: SegmentedTaskConfig) -> None:
-        """Each segment checked as the one-trial task it is (a waypoint's fault named by its own key,
-        ``task.start``, ``task.via[i]`` or ``task.goal``; the segment's by ``task.segments[k]``), and
-        its direction against the nominal solution's: the sign of ``c11`` (eq. 12)."""
+    @cached_property
+    def _segments(self) -> tuple[SteeringConfig, ...]:
+        """A manoeuvre's segments, each checked as the one-trial task it is (a waypoint's fault named by
+        its own key, ``task.start``, ``task.via[i]`` or ``task.goal``; the segment's by
+        ``task.segments[k]``), and its direction against the nominal solution's: the sign of ``c11``
+        (eq. 12). A cached property: derived, not a field, so ``asdict`` and ``==`` ignore it."""
+        task = self.task
+        assert isinstance(task, SegmentedTaskConfig)
         points, segments = self.points(), []
         for k, leg in enumerate(task.segments):
             key = f"task.segments[{k}]"
@@ -267,8 +281,7 @@ class SteeringConfig:
                     f"{learned:+.3g} along z1 on the learned piece, x in frame {segment.frame():.4g} rad)",
                 )
             segments.append(segment)
-        object.__setattr__(self, "_segments", segments)  # derived, not a field: asdict and == ignore it
-        object.__setattr__(self, "_frame", segments[0].frame())
+        return tuple(segments)
 
 
 def check_name(name: str) -> None:
