@@ -2,8 +2,11 @@
 
 A folder is a compare run (``cells/``, or ``compare.json`` in a clone that did not keep them), a
 sweep (``rows/`` and ``oracle.json``; a robustness map is one), a folder a script made (its
-``made.json``: a benchmark's artifacts, one code for all of them) or a folder that holds such
-folders at any depth (``results/``). Each result records its code, the hash of its import closure
+``made.json``: a benchmark's artifacts, one code for all of them), a folder of records kept as
+they were measured (its ``kept.json``: a measurement of the code before a fix, a CI machine's
+times, a tuning that chose settings; each file named with what it is, the commit that recorded it
+and when; reported, never stale: no code of this tree made it, and none should remake it) or a folder
+that holds such folders at any depth (``results/``). Each result records its code, the hash of its import closure
 (:mod:`~ilc_steering.engine.provenance`); a result is stale when that closure hashes otherwise
 today or its packaged config changed, and a report (``compare.json``, ``sweep.json``) when it was
 not made from the results the folder holds. The lines say which results, grouped by learner, and
@@ -24,18 +27,20 @@ from ilc_steering.readers import is_file, read_json
 __all__ = ["check_folders", "run_folders"]
 
 
-RECORDS = ("run.json", MADE)
-"""The records that make a folder one of results: a command's run, or what a script made."""
+KEPT = "kept.json"
+"""A folder's records of past measurements, kept as measured: file name -> what, commit, when."""
+RECORDS = ("run.json", MADE, KEPT)
+"""The records that make a folder one of results: a command's run, what a script made, or what is kept."""
 
 
 def run_folders(folder: Path) -> list[Path]:
-    """``folder`` and every folder below it that holds a ``run.json`` or a ``made.json``, sorted;
-    ``ValueError`` when there is none."""
+    """``folder`` and every folder below it that holds a ``run.json``, a ``made.json`` or a
+    ``kept.json``, sorted; ``BadInput`` when there is none."""
     if not folder.is_dir():
         raise BadInput(f"{folder}: not a folder")
     found = sorted({path.parent for name in RECORDS for path in folder.rglob(name) if is_file(path)})
     if not found:
-        raise BadInput(f"{folder}: holds no results (no run.json or made.json in it or below it)")
+        raise BadInput(f"{folder}: holds no results (no run.json, made.json or kept.json in it or below it)")
     return found
 
 
@@ -68,15 +73,20 @@ def _results(folder: Path, stored: dict[str, Any]) -> tuple[dict[str, dict[str, 
 
 def unrecorded(folder: Path) -> list[Path]:
     """The folders at or below ``folder`` that hold files but no record of what made them, at or
-    above them (up to ``folder``): results nobody can say are current."""
+    above them (up to ``folder``): results nobody can say are current. A ``kept.json`` records the
+    files it names, in its own folder only."""
+    made = tuple(name for name in RECORDS if name != KEPT)
     found = []
     for path in sorted([folder, *(p for p in folder.rglob("*") if p.is_dir())]):
-        if not any(child.is_file() and not child.name.startswith(".") for child in path.iterdir()):
+        files = {child.name for child in path.iterdir() if child.is_file() and not child.name.startswith(".")}
+        if not files:
             continue
-        chain = [path, *path.relative_to(folder).parents]
-        if not any(is_file(folder / part / name) for part in chain for name in RECORDS if part != path) and not any(
-            is_file(path / name) for name in RECORDS
-        ):
+        chain = [path, *(folder / part for part in path.relative_to(folder).parents)]
+        if any(is_file(part / name) for part in chain for name in made):
+            continue
+        kept = path / KEPT
+        named = set(read_json(kept, MAX_RESULT_BYTES)) | {KEPT} if is_file(kept) else set()
+        if files - named:
             found.append(path)
     return found
 
@@ -88,8 +98,14 @@ def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
     for top in folders:
         for folder in unrecorded(top) if top.is_dir() else ():
             current = False
-            lines.append(f"{folder}: STALE: holds results with no record of what made them (no run.json or made.json)")
+            lines.append(
+                f"{folder}: STALE: holds results with no record of what made them (no run.json, made.json or kept.json)"
+            )
         for folder in run_folders(top):
+            if is_file(folder / KEPT):
+                lines += [f"{folder}: kept: {line}" for line in kept_lines(folder)]
+                if "run.json" in read_json(folder / KEPT, MAX_RESULT_BYTES):
+                    continue  # a run kept as it was (a tuning's): its cells are not this code's to judge
             if is_file(folder / MADE):
                 ok, said = _made(folder)
                 current &= ok
@@ -115,6 +131,25 @@ def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
             lines += [f"{folder}: {'STALE' if stale else 'current'}: {head}", *said, *([] if stale else [made])]
             current &= not stale
     return current, lines
+
+
+def kept_lines(folder: Path) -> list[str]:
+    """One line per record ``folder/kept.json`` names: its file, what it is, the commit that recorded
+    it and when. ``BadInput`` names a ``kept.json`` that is not ``{file: {what, commit, when}}`` or a
+    file the folder does not hold."""
+    path = folder / KEPT
+    kept = read_json(path, MAX_RESULT_BYTES)
+    keys = {"what", "commit", "when"}
+    if not isinstance(kept, dict) or not kept:
+        raise BadInput(f"{path}: must map each kept file to its what, commit and when")
+    lines = []
+    for name, entry in sorted(kept.items()):
+        if not (isinstance(entry, dict) and set(entry) == keys and all(isinstance(v, str) for v in entry.values())):
+            raise BadInput(f"{path}: {name!r} must be {{what, commit, when}} (strings), got {entry!r:.100}")
+        if "/" in name or not is_file(folder / name):
+            raise BadInput(f"{path}: names {name!r}, which is no file of {folder}")
+        lines.append(f"{name}: {entry['what']} (recorded {entry['when']} in {entry['commit']}; kept as measured)")
+    return lines
 
 
 def _made(folder: Path) -> tuple[bool, list[str]]:

@@ -20,6 +20,7 @@ from ilc_steering.compare.command import run_cells
 from ilc_steering.current import check_folders
 from ilc_steering.engine import closure as closure_module
 from ilc_steering.engine import provenance as prov
+from ilc_steering.errors import BadInput
 
 ROOT = Path(__file__).resolve().parent.parent
 CAR = "ilc_steering.core.robots.car"
@@ -231,8 +232,29 @@ def test_results_with_no_record_of_what_made_them_are_never_called_current(tmp_p
     (tmp_path / "loose" / "table.md").write_text("| a |\n")
     current, lines = check_folders([tmp_path])
     assert not current
-    assert (
-        lines[0]
-        == f"{tmp_path / 'loose'}: STALE: holds results with no record of what made them (no run.json or made.json)"
-    )
+    no_record = "holds results with no record of what made them (no run.json, made.json or kept.json)"
+    assert lines[0] == f"{tmp_path / 'loose'}: STALE: {no_record}"
     assert len(lines) == 2 and lines[1].startswith(f"{tmp_path / 'made'}: current")
+
+
+def test_a_kept_record_is_reported_as_measured_and_never_stale_but_must_name_its_files(tmp_path: Path) -> None:
+    """A measurement of the code before a fix, a CI machine's times: kept as measured (kept.json), named
+    with its commit and when, never remade; a kept.json that names no file of its folder is refused."""
+    (tmp_path / "before").mkdir()
+    (tmp_path / "before" / "timing.txt").write_text("91.5 s\n")
+    entry = {"what": "reproduce's CPU time before the fix", "commit": "eca4e05", "when": "2026-11-30"}
+    (tmp_path / "before" / "kept.json").write_text(json.dumps({"timing.txt": entry}))
+    current, lines = check_folders([tmp_path])
+    assert current and lines == [
+        f"{tmp_path / 'before'}: kept: timing.txt: reproduce's CPU time before the fix (recorded 2026-11-30 in "
+        "eca4e05; kept as measured)"
+    ]
+    (tmp_path / "before" / "table.md").write_text("| a |\n")  # a file no record names: stale
+    current, lines = check_folders([tmp_path])
+    assert not current and lines[0].startswith(f"{tmp_path / 'before'}: STALE: holds results with no record")
+    (tmp_path / "before" / "table.md").unlink()
+    for bad in ({"gone.txt": entry}, {"timing.txt": {"what": "x"}}, {"../x": entry}, []):
+        (tmp_path / "before" / "kept.json").write_text(json.dumps(bad))
+        with pytest.raises(BadInput, match="kept.json"):
+            check_folders([tmp_path])
+        assert main(["current", str(tmp_path)]) == 2
