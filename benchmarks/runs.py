@@ -1,6 +1,6 @@
 """The single runs the pages quote: ``ilc-steering run`` on a task, its output kept as an artifact.
 
-    python benchmarks/runs.py [--only NAME ...] [--list] [--out results]
+    python benchmarks/runs.py [--only NAME ...] [--folder FOLDER ...] [--list] [--out results]
 
 Each run of :data:`RUNS` is a packaged config, or one with a few keys changed (written beside the
 output, ``<folder>/configs/<name>.yaml``, so the run can be repeated as it was), and the options
@@ -229,6 +229,9 @@ def make(name: str, run: Run, out: Path) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = Parser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--only", nargs="+", default=None, metavar="NAME", help="these runs only (see --list)")
+    parser.add_argument(
+        "--folder", nargs="+", default=None, metavar="FOLDER", help="the runs of these folders (reproduce, ...)"
+    )
     parser.add_argument("--list", action="store_true", help="print the runs' names and what each is")
     parser.add_argument("--out", type=Path, default=Path("results"), help="the folder of the results")
     args = parser.parse_args(argv)
@@ -239,7 +242,12 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(args.only or ()) - set(RUNS))
     if unknown:
         parser.error(f"--only: no run named {unknown[0]!r}; --list names them")
-    chosen = {name: RUNS[name] for name in args.only or RUNS}
+    folders_of = {str(Path(name).parent) for name in RUNS}
+    unknown = sorted(set(args.folder or ()) - folders_of)
+    if unknown:
+        parser.error(f"--folder: no run is in {unknown[0]!r} (the folders: {', '.join(sorted(folders_of))})")
+    named = [*(args.only or ()), *(n for n in RUNS if str(Path(n).parent) in (args.folder or ()))]
+    chosen = {name: RUNS[name] for name in named or RUNS}
     folders = dict.fromkeys(args.out / Path(name).parent for name in chosen)
     for name, run in chosen.items():
         make(name, run, args.out)

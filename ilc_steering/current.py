@@ -15,6 +15,7 @@ which files changed; the exit code is 0 only when nothing is stale.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ from ilc_steering.errors import BadInput
 from ilc_steering.output import MAX_RESULT_BYTES
 from ilc_steering.readers import is_file, read_json
 
-__all__ = ["check_folders", "run_folders"]
+__all__ = ["Verdict", "check_folders", "judge", "run_folders"]
 
 
 KEPT = "kept.json"
@@ -91,46 +92,70 @@ def unrecorded(folder: Path) -> list[Path]:
     return found
 
 
+@dataclass(frozen=True)
+class Verdict:
+    """What :func:`judge` found."""
+
+    current: bool
+    """Whether every result is of the code in this tree."""
+    lines: list[str]
+    """What it says, folder by folder."""
+    cost_s: float | None
+    """Seconds of one core that making the stale results again took the last time (None: some have
+    no record of what made them, so no one can say)."""
+
+
 def check_folders(folders: list[Path]) -> tuple[bool, list[str]]:
     """Whether every result below each of ``folders`` is current, and the lines that say so."""
+    verdict = judge(folders)
+    return verdict.current, verdict.lines
+
+
+def judge(folders: list[Path]) -> Verdict:
+    """Every result below each of ``folders`` judged against the code in this tree."""
     lines: list[str] = []
-    current = True
+    current, cost = True, 0.0
+    unknown = False
     for top in folders:
-        for folder in unrecorded(top) if top.is_dir() else ():
-            current = False
+        loose = unrecorded(top) if top.is_dir() else []
+        for folder in loose:
+            current, unknown = False, True
             lines.append(
                 f"{folder}: STALE: holds results with no record of what made them (no run.json, made.json or kept.json)"
             )
-        for folder in run_folders(top):
+        recorded = any(any(top.rglob(name)) for name in RECORDS) if top.is_dir() else True
+        for folder in run_folders(top) if recorded or not loose else []:
             if is_file(folder / KEPT):
                 lines += [f"{folder}: kept: {line}" for line in kept_lines(folder)]
                 if "run.json" in read_json(folder / KEPT, MAX_RESULT_BYTES):
                     continue  # a run kept as it was (a tuning's): its cells are not this code's to judge
             if is_file(folder / MADE):
-                ok, said = _made(folder)
+                ok, said, seconds = _made(folder)
                 current &= ok
+                cost += seconds
                 lines += said
             if not is_file(folder / "run.json"):
                 continue
             stored, record = read_run(folder)
             results, reported = _results(folder, stored)
             if not results:
-                current = False
+                current, unknown = False, True
                 lines.append(f"{folder}: STALE: holds no results")
                 continue
-            stale, said = freshness(folder, results, "method")
+            stale, said, seconds = freshness(folder, results, "method")
+            cost += seconds
             if reported is not None and record.report is not None and record.report != results_hash(reported):
                 report = (
                     "sweep.json" if stored.get("command") == "sweep" or (folder / "rows").is_dir() else "compare.json"
                 )
                 said.append(f"  report {report}: made from other results than the folder holds (run it again)")
                 stale += 1
-            cost = sum(float(r["wall_s"]) for r in results.values() if isinstance(r.get("wall_s"), (int, float)))
+            total = sum(float(r["wall_s"]) for r in results.values() if isinstance(r.get("wall_s"), (int, float)))
             head = f"{stale} of {len(results)} results stale" if stale else f"all {len(results)} results of this code"
-            made = f"  making them again costs about {cost / 60:.1f} minutes of one core (their wall times)"
+            made = f"  making them again costs about {total / 60:.1f} minutes of one core (their wall times)"
             lines += [f"{folder}: {'STALE' if stale else 'current'}: {head}", *said, *([] if stale else [made])]
             current &= not stale
-    return current, lines
+    return Verdict(current, lines, None if unknown else cost)
 
 
 def kept_lines(folder: Path) -> list[str]:
@@ -152,15 +177,17 @@ def kept_lines(folder: Path) -> list[str]:
     return lines
 
 
-def _made(folder: Path) -> tuple[bool, list[str]]:
-    """Whether what scripts made in ``folder`` is of the code in this tree, and the lines that say so."""
-    current, lines = True, []
+def _made(folder: Path) -> tuple[bool, list[str], float]:
+    """Whether what scripts made in ``folder`` is of the code in this tree, the lines that say so,
+    and the CPU seconds the stale ones took."""
+    current, lines, cost = True, [], 0.0
     for made in read_made(folder).values():
         why = staleness({"code": made.code}, {made.code: CodeRecord(made.roots, made.files)}, {})
         if why:
             current = False
+            cost += made.cpu_s
             again = f"run it again (it took {made.cpu_s / 60:.1f} CPU minutes)"
             lines += [f"{folder}: STALE: {why.text()}", f"  made by {made.command} ({made.made}); {again}"]
         else:
             lines.append(f"{folder}: current: made by {made.command} ({made.made}; {made.cpu_s / 60:.1f} CPU minutes)")
-    return current, lines
+    return current, lines, cost

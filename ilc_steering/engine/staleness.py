@@ -73,10 +73,11 @@ def configs_today(names: Iterable[str]) -> dict[str, str]:
     return {name: content_hash(asdict(load_config(name))) for name in set(names) if name in packaged}
 
 
-def freshness(folder: Path, results: Mapping[str, dict[str, Any]], label: str) -> tuple[int, list[str]]:
-    """How many results of the run in ``folder`` are stale for the code in this tree, and the lines
-    that say why, grouped by the value of ``label`` (``method``) and reason. ``results``: where each
-    result was read -> the result, with its config's name under ``"config"``."""
+def freshness(folder: Path, results: Mapping[str, dict[str, Any]], label: str) -> tuple[int, list[str], float]:
+    """How many results of the run in ``folder`` are stale for the code in this tree, the lines
+    that say why, grouped by the value of ``label`` (``method``) and reason, and the seconds of one
+    core the stale ones took (their wall times). ``results``: where each result was read -> the
+    result, with its config's name under ``"config"``."""
     _, run = read_run(folder)
     today = configs_today(r["config"] for r in results.values() if isinstance(r.get("config"), str))
     groups: Counter[tuple[str, str]] = Counter()
@@ -94,7 +95,8 @@ def freshness(folder: Path, results: Mapping[str, dict[str, Any]], label: str) -
     made = run.provenance
     if made is not None and made.version != __version__:
         lines.append(f"  version: made by ilc-steering {made.version}, the tree is {__version__}")
-        stale += len(results)
+        stale = len(results)
+        cost = sum(float(r["wall_s"]) for r in results.values() if isinstance(r.get("wall_s"), (int, float)))
     last = run.sessions[-1].packages if run.sessions else None
     before = last or (made.packages if made else {})
     after = provenance()["packages"]
@@ -105,4 +107,4 @@ def freshness(folder: Path, results: Mapping[str, dict[str, Any]], label: str) -
     ]
     if moved:
         lines.append("  packages (results may differ; not stale for it): " + ", ".join(moved))
-    return stale, lines
+    return stale, lines, cost
