@@ -60,13 +60,10 @@ def closed_loop_velocity(theta, phi, v1, v2, wheelbase, wheel_radius, true_wheel
 
 @njit(cache=True, inline="always")
 def _car_field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
-    phi = min(max(x[3], -params[_LIMIT]), params[_LIMIT])
     p = params
-    dx, dy, dtheta, dphi = closed_loop_velocity(x[2], phi, v1, v2, p[_ELL], p[_RHO], p[_TRUE_ELL], p[_TRUE_RHO])
-    out[0] = dx
-    out[1] = dy
-    out[2] = dtheta
-    out[3] = dphi
+    phi = min(max(x[3], -p[_LIMIT]), p[_LIMIT])
+    ell, rho, true_ell, true_rho = p[_ELL], p[_RHO], p[_TRUE_ELL], p[_TRUE_RHO]
+    out[0], out[1], out[2], out[3] = closed_loop_velocity(x[2], phi, v1, v2, ell, rho, true_ell, true_rho)
 
 
 @njit(cache=True, inline="always")

@@ -114,12 +114,7 @@ def _field(params, x, v1, v2, out):  # type: ignore[no-untyped-def]
     p = params
     phi = min(max(x[3], -p[_LIMIT]), p[_LIMIT])
     u1, u2 = _inputs(x[2], phi, x[4], v1, v2, p[_ELL], p[_RHO], p[_D])
-    dx, dy, dtheta, dphi, ddelta = _velocity(x[2], phi, x[4], u1, u2, p[_TRUE_ELL], p[_TRUE_RHO], p[_TRUE_D])
-    out[0] = dx
-    out[1] = dy
-    out[2] = dtheta
-    out[3] = dphi
-    out[4] = ddelta
+    out[0], out[1], out[2], out[3], out[4] = _velocity(x[2], phi, x[4], u1, u2, p[_TRUE_ELL], p[_TRUE_RHO], p[_TRUE_D])
 
 
 @njit(cache=True, inline="always")
