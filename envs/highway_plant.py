@@ -47,7 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require
-from ilc_steering.core.external import ExternalPlantBase
+from ilc_steering.core.external import ExternalPlantBase, chart_status
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
@@ -225,8 +225,7 @@ class HighwayParkingPlant(ExternalPlantBase):
         status, halted, left_lot = OK, q, False
         command = float(q[3])  # the steering command the adapter integrates from u2 (the servo's state)
         for k in range(steps):
-            if status == OK and abs(q[2]) >= pi / 2 - CHART_MARGIN:
-                status, halted = LEFT_CHART, states[-2] if len(states) > 1 else q
+            status, halted = chart_status(q, states, status, halted)
             if status == OK:
                 acted_on = np.array([q[0], q[1], q[2], command])
                 phi_mid, command, speed_end = self._follow(profile, c, acted_on, k * ACTION_STEP)[:3]

@@ -50,9 +50,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require, require_length
-from ilc_steering.core.external import ExternalPlantBase, ExternalTrials, plant_generator
-from ilc_steering.core.integrate import LEFT_CHART, OK
-from ilc_steering.core.plants import CHART_MARGIN, PlantKind, check_angles, check_limit, check_magnitude
+from ilc_steering.core.external import ExternalPlantBase, ExternalTrials, chart_status, plant_generator
+from ilc_steering.core.integrate import OK
+from ilc_steering.core.plants import PlantKind, check_angles, check_limit, check_magnitude
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import CAR, CarModel, car_velocity, chained_inputs, check_chart, rotate
 from ilc_steering.envs.mujoco_model import (
@@ -206,8 +206,7 @@ class MujocoCarPlant(ExternalPlantBase):
         status, halted = OK, q
         command = float(x0[3])  # the steering command the adapter integrates from u2 (the servo's state)
         for k in range(periods):
-            if status == OK and abs(q[2]) >= pi / 2 - CHART_MARGIN:
-                status, halted = LEFT_CHART, states[-2] if len(states) > 1 else q
+            status, halted = chart_status(q, states, status, halted)
             if status == OK:
                 acted_on = np.array([q[0], q[1], q[2], command])
                 command, u1, phi_mid = self._follow(v1s, v2s, 2 * SUBSTEPS * k, acted_on)

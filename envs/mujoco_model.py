@@ -73,23 +73,7 @@ _MJCF = """<mujoco model="ilc_steering car">
         <joint name="rear_right" axis="0 1 0" armature="{drive_armature}"/>
         <geom name="rear_right" class="wheel"/>
       </body>
-      <body name="steer_left" pos="{ell} {half_track} 0">
-        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
-        <joint name="steer_left" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
-        <body name="front_left">
-          <joint name="front_left" axis="0 1 0"/>
-          <geom name="front_left" class="wheel"/>
-        </body>
-      </body>
-      <body name="steer_right" pos="{ell} -{half_track} 0">
-        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
-        <joint name="steer_right" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
-        <body name="front_right">
-          <joint name="front_right" axis="0 1 0"/>
-          <geom name="front_right" class="wheel"/>
-        </body>
-      </body>
-    </body>
+{steer_left}{steer_right}    </body>
   </worldbody>
   <actuator>
     <position name="steer_left" joint="steer_left" kp="{steer_kp}" dampratio="1"/>
@@ -99,6 +83,16 @@ _MJCF = """<mujoco model="ilc_steering car">
   </actuator>
 </mujoco>
 """
+_STEERED = """      <body name="steer_{side}" pos="{ell} {y} 0">
+        <inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>
+        <joint name="steer_{side}" axis="0 0 1" range="-{steer_range} {steer_range}" armature="{steer_armature}"/>
+        <body name="front_{side}">
+          <joint name="front_{side}" axis="0 1 0"/>
+          <geom name="front_{side}" class="wheel"/>
+        </body>
+      </body>
+"""
+"""A front wheel on its kingpin, ``side`` left or right at ``y`` [m] (the MJCF's ``steer_left`` and ``steer_right``)."""
 WHEELS = ("rear_left", "rear_right", "front_left", "front_right")
 """The wheels' geom names, in the order of a trial's logged friction coefficients."""
 # The robot's build, beside its config keys: a 1 kg chassis on 30 g wheels, motors through gearboxes.
@@ -120,7 +114,15 @@ def mjcf(config: Any) -> str:
     """The car's MJCF (MuJoCo's XML) for ``config`` (a :class:`~ilc_steering.envs.mujoco_car.MujocoCarConfig`,
     which imports this module): its geometry, contact and build (see the module)."""
     ell, rho = config.wheelbase, config.wheel_radius
+    half_track = 0.5 * config.track
+    steered = {
+        f"steer_{side}": _STEERED.format(
+            side=side, ell=ell, y=y, steer_range=STEER_JOINT_RANGE, steer_armature=STEER_ARMATURE
+        )
+        for side, y in (("left", f"{half_track}"), ("right", f"-{half_track}"))
+    }
     return _MJCF.format(
+        **steered,
         timestep=config.timestep,
         rho=rho,
         half_width=WHEEL_HALF_WIDTH * rho,
@@ -132,7 +134,7 @@ def mjcf(config: Any) -> str:
         body_half=0.65 * ell,
         body_width=0.5 * config.track - 0.6 * rho,
         mass=config.mass,
-        half_track=0.5 * config.track,
+        half_track=half_track,
         ell=ell,
         steer_range=STEER_JOINT_RANGE,
         drive_armature=DRIVE_ARMATURE,

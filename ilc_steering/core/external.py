@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ilc_steering.core.checks import require
-from ilc_steering.core.plants import Kernel, PlantKind
+from ilc_steering.core.plants import CHART_MARGIN, Kernel, PlantKind
 from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.simulate import Trials
 from ilc_steering.core.stepper import LEFT_CHART, OK
@@ -47,6 +47,7 @@ __all__ = [
     "ExternalPlant",
     "ExternalPlantBase",
     "ExternalTrials",
+    "chart_status",
     "is_external",
     "plain_log",
     "plant_generator",
@@ -132,6 +133,15 @@ def plant_generator(seed: int, plant_seed: int = 0) -> np.random.Generator:
 def is_external(plant: object) -> bool:
     """Whether ``plant`` runs its own trials (an :class:`ExternalPlant`) rather than a compiled field."""
     return isinstance(plant, ExternalPlant)
+
+
+def chart_status(q: Array, states: list[Array], status: int, halted: Array) -> tuple[int, Array]:
+    """A trial's status and where it halts after its configuration ``q`` (``states`` so far, ``q``
+    last): ``LEFT_CHART`` at the configuration before, once ``|theta|`` comes within
+    ``CHART_MARGIN`` of pi/2; as they were otherwise (a plant's trial loop, step by step)."""
+    if status == OK and abs(q[2]) >= math.pi / 2 - CHART_MARGIN:
+        return LEFT_CHART, states[-2] if len(states) > 1 else q
+    return status, halted
 
 
 class ExternalPlantBase:
