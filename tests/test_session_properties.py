@@ -115,12 +115,16 @@ class HostilePerson(RuleBasedStateMachine):
 
     @rule()
     def ask(self) -> None:
-        out = self._accepted(["session", "next", str(self.folder)])
+        argv = ["session", "next", str(self.folder)]
         if self.recorded < BUDGET:
-            assert f"trial {self.recorded + 1}:" in out
+            assert f"trial {self.recorded + 1}:" in self._accepted(argv)
             self.asked = True
-        else:
-            assert "has run its" in out
+        else:  # nothing to run: exit 1, one line, nothing written
+            before = _files(self.folder)
+            self._capsys.readouterr()
+            assert main(argv) == 1
+            (line,) = self._capsys.readouterr().err.splitlines()
+            assert "nothing to run: the session has run its trials" in line and _files(self.folder) == before
 
     @rule()
     def record_the_robots_end(self) -> None:

@@ -112,8 +112,15 @@ class HostilePerson(RuleBasedStateMachine):
 
     @rule()
     def ask(self) -> None:
-        self._accepted(["session", "next", str(self.folder)])
-        self.asked = len(self.typed) < BUDGET
+        argv = ["session", "next", str(self.folder)]
+        if len(self.typed) < BUDGET:
+            self._accepted(argv)
+            self.asked = True
+        else:  # the budget spent: nothing to run, exit 1 in one line, nothing written
+            before = _files(self.folder)
+            assert self._run(argv) == 1 and len(self.err.splitlines()) == 1, (argv, self.err)
+            assert _files(self.folder) == before
+            self.asked = False
 
     @rule(show=st.sampled_from(sorted(FORMATS)), turns=st.sampled_from([0, 0, 1, -1]))
     def record_as_a_program_prints_it(self, show: str, turns: int) -> None:
@@ -166,8 +173,12 @@ class HostilePerson(RuleBasedStateMachine):
         try:
             if command in refusing or (command == "record" and not self.asked):
                 self._refused(argv)
-            elif command in ("next", "status"):
-                self._accepted(argv)  # a withdrawal or a record that may: not made here, the edit taken back
+            elif command == "status":  # run's exit codes, by the session's state
+                code = self._run(argv)
+                assert code in (0, 1, 5) and "Traceback" not in self.err, (argv, code, self.err)
+            elif command == "next":  # exit 1 once the budget is spent: nothing to run
+                assert self._run(argv) == (0 if len(self.typed) < BUDGET else 1), (argv, self.err)
+            # a withdrawal or a record that may: not made here, the edit taken back
         finally:
             for file in [p for p in self.folder.rglob("*") if p.is_file() and p not in kept]:
                 file.unlink()
