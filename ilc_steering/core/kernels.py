@@ -299,6 +299,7 @@ def _run_lanes(blocks: tuple[Any | None, Any, Any], args: tuple[Any, ...], paral
         for start in range(0, full, LANES):
             block(*args, start, min(full, start + LANES))
     if full < batch:
+        assert one is not None  # without it every trial ran in a block
         announce_compile(one, name)
         for start in range(full, batch):
             one(*args, start, start + 1)
