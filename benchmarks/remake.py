@@ -25,6 +25,7 @@ from pathlib import Path
 from ilc_steering.arguments import Parser
 from ilc_steering.current import judge
 from ilc_steering.engine.closure import checkout
+from ilc_steering.errors import BadInput
 
 SWEEP = "ilc-steering sweep forward_parking"
 FOLDERS: dict[str, tuple[str, ...]] = {
@@ -95,7 +96,10 @@ def verdict(root: Path, folder: str) -> tuple[bool, str]:
     path = root / folder
     if not path.is_dir():
         return False, f"{folder}: missing"
-    found = judge([path])
+    try:
+        found = judge([path])
+    except BadInput as error:  # a record that is not one (a kept.json edited by hand, ...)
+        return False, f"{folder}: STALE (its records cannot be read: {error})"
     if found.current:
         return True, f"{folder}: current"
     if found.cost_s is None:

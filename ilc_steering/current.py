@@ -37,12 +37,34 @@ RECORDS = ("run.json", MADE, KEPT)
 def run_folders(folder: Path) -> list[Path]:
     """``folder`` and every folder below it that holds a ``run.json``, a ``made.json`` or a
     ``kept.json``, sorted; ``BadInput`` when there is none."""
-    if not folder.is_dir():
-        raise BadInput(f"{folder}: not a folder")
-    found = sorted({path.parent for name in RECORDS for path in folder.rglob(name) if is_file(path)})
+    found = _recorded(folder)
     if not found:
         raise BadInput(f"{folder}: holds no results (no run.json, made.json or kept.json in it or below it)")
     return found
+
+
+def _recorded(folder: Path) -> list[Path]:
+    """:func:`run_folders`, none where there is none."""
+    if not folder.is_dir():
+        raise BadInput(f"{folder}: not a folder")
+    return sorted({path.parent for name in RECORDS for path in folder.rglob(name) if is_file(path)})
+
+
+def read_kept(folder: Path) -> dict[str, dict[str, str]]:
+    """``folder/kept.json``: each kept file's name -> its what, commit and when (strings). ``BadInput``
+    names a ``kept.json`` of another shape, or one that names a file the folder does not hold."""
+    path = folder / KEPT
+    kept = read_json(path, MAX_RESULT_BYTES)
+    if not isinstance(kept, dict) or not kept:
+        raise BadInput(f"{path}: must map each kept file to its what, commit and when")
+    for name, entry in kept.items():
+        if not (isinstance(entry, dict) and set(entry) == {"what", "commit", "when"}):
+            raise BadInput(f"{path}: {name!r} must be {{what, commit, when}} (strings), got {entry!r:.100}")
+        if not all(isinstance(v, str) for v in entry.values()):
+            raise BadInput(f"{path}: {name!r} must be {{what, commit, when}} (strings), got {entry!r:.100}")
+        if "/" in name or not is_file(folder / name):
+            raise BadInput(f"{path}: names {name!r}, which is no file of {folder}")
+    return kept
 
 
 def _results(folder: Path, stored: dict[str, Any]) -> tuple[dict[str, dict[str, Any]], list[dict[str, Any]] | None]:
@@ -85,8 +107,7 @@ def unrecorded(folder: Path) -> list[Path]:
         chain = [path, *(folder / part for part in path.relative_to(folder).parents)]
         if any(is_file(part / name) for part in chain for name in made):
             continue
-        kept = path / KEPT
-        named = set(read_json(kept, MAX_RESULT_BYTES)) | {KEPT} if is_file(kept) else set()
+        named = {*read_kept(path), KEPT} if is_file(path / KEPT) else set()
         if files - named:
             found.append(path)
     return found
@@ -123,11 +144,11 @@ def judge(folders: list[Path]) -> Verdict:
             lines.append(
                 f"{folder}: STALE: holds results with no record of what made them (no run.json, made.json or kept.json)"
             )
-        recorded = any(any(top.rglob(name)) for name in RECORDS) if top.is_dir() else True
-        for folder in run_folders(top) if recorded or not loose else []:
+        for folder in _recorded(top) if loose else run_folders(top):
             if is_file(folder / KEPT):
-                lines += [f"{folder}: kept: {line}" for line in kept_lines(folder)]
-                if "run.json" in read_json(folder / KEPT, MAX_RESULT_BYTES):
+                kept = read_kept(folder)
+                lines += [f"{folder}: kept: {kept_line(name, entry)}" for name, entry in sorted(kept.items())]
+                if "run.json" in kept:
                     continue  # a run kept as it was (a tuning's): its cells are not this code's to judge
             if is_file(folder / MADE):
                 ok, said, seconds = _made(folder)
@@ -158,23 +179,9 @@ def judge(folders: list[Path]) -> Verdict:
     return Verdict(current, lines, None if unknown else cost)
 
 
-def kept_lines(folder: Path) -> list[str]:
-    """One line per record ``folder/kept.json`` names: its file, what it is, the commit that recorded
-    it and when. ``BadInput`` names a ``kept.json`` that is not ``{file: {what, commit, when}}`` or a
-    file the folder does not hold."""
-    path = folder / KEPT
-    kept = read_json(path, MAX_RESULT_BYTES)
-    keys = {"what", "commit", "when"}
-    if not isinstance(kept, dict) or not kept:
-        raise BadInput(f"{path}: must map each kept file to its what, commit and when")
-    lines = []
-    for name, entry in sorted(kept.items()):
-        if not (isinstance(entry, dict) and set(entry) == keys and all(isinstance(v, str) for v in entry.values())):
-            raise BadInput(f"{path}: {name!r} must be {{what, commit, when}} (strings), got {entry!r:.100}")
-        if "/" in name or not is_file(folder / name):
-            raise BadInput(f"{path}: names {name!r}, which is no file of {folder}")
-        lines.append(f"{name}: {entry['what']} (recorded {entry['when']} in {entry['commit']}; kept as measured)")
-    return lines
+def kept_line(name: str, entry: dict[str, str]) -> str:
+    """What a kept file is, the commit that recorded it and when."""
+    return f"{name}: {entry['what']} (recorded {entry['when']} in {entry['commit']}; kept as measured)"
 
 
 def _made(folder: Path) -> tuple[bool, list[str], float]:

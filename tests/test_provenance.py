@@ -253,7 +253,7 @@ def test_a_kept_record_is_reported_as_measured_and_never_stale_but_must_name_its
     current, lines = check_folders([tmp_path])
     assert not current and lines[0].startswith(f"{tmp_path / 'before'}: STALE: holds results with no record")
     (tmp_path / "before" / "table.md").unlink()
-    for bad in ({"gone.txt": entry}, {"timing.txt": {"what": "x"}}, {"../x": entry}, []):
+    for bad in ({"gone.txt": entry}, {"timing.txt": {"what": "x"}}, {"../x": entry}, [], 5, {"timing.txt": 5}):
         (tmp_path / "before" / "kept.json").write_text(json.dumps(bad))
         with pytest.raises(BadInput, match="kept.json"):
             check_folders([tmp_path])
