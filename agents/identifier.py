@@ -2,16 +2,16 @@
 
 :class:`Identifier` is ``robust_ilc``'s: the geometry's family (a
 :class:`~ilc_steering.core.family.ModelFamily`: a car's wheelbase and wheel radius, ...), then for a
-car with a steering servo the geometry with the wheel's offset, then with the servo's lag, fitted
-to the trials by Levenberg-Marquardt from the last estimate, from the best points of a grid over
-the whole family when that does not explain the trials, and in the servo's families when the
-geometry does not either; a new estimate replaces the last only if it explains the trials clearly
-better (:meth:`Identifier.refit`). It proposes other starts for an identified model's last search
-(:meth:`Identifier.restarts`), and carries what it identified to another goal of the same robot
-(:meth:`Identifier.transfer`, :func:`carried_family`). :func:`local_fit` is ``newton_ilc``'s: the
-geometry's family fitted from the last estimate alone. The derivation, and where it cannot identify,
-is in ``docs/learners.md`` (``robust_ilc``'s step 1). Both see the nominal model and the measured
-trials only.
+car the actuators' families (:mod:`~ilc_steering.agents.actuator_families`: the wheel's offset, the
+servo's lag, the linkage's play, the drive's lag), fitted to the trials by Levenberg-Marquardt from
+the last estimate, from the best points of a grid over the whole family when that does not explain
+the trials, and in the actuators' families when the geometry does not either; a new estimate
+replaces the last only if it explains the trials clearly better (:meth:`Identifier.refit`). It
+proposes other starts for an identified model's last search (:meth:`Identifier.restarts`), and
+carries what it identified to another goal of the same robot (:meth:`Identifier.transfer`,
+:func:`carried_family`). :func:`local_fit` is ``newton_ilc``'s: the geometry's family fitted from
+the last estimate alone. The derivation, and where it cannot identify, is in ``docs/learners.md``
+(``robust_ilc``'s step 1). Both see the nominal model and the measured trials only.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ilc_steering.agents.actuator_families import EXPLAINED, ActuatorFamilies, spread
 from ilc_steering.agents.levenberg_marquardt import levenberg_marquardt, levenberg_marquardt_many
 from ilc_steering.agents.trial import Trial
 from ilc_steering.core.checks import require
@@ -62,22 +63,9 @@ FIT_TRIALS = 8
 """The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
 ESCALATE = 1e-6
 """[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the servo's families."""
-EXPLAINED = 1e-5
-"""[m or rad] a servo family is kept only if it explains every trial this well."""
 ESCALATIONS = 2
-"""Failed escalations to the servo's families after which they are not tried again (one counts only
-when at least two trials stayed in the chart: one trial's final configuration, four numbers, has
-several exact fits among the servo's four parameters and none the fit may find from a wild trial)."""
-ACTUATOR_FAMILIES = (("steering_offset",), ("steering_offset", "steering_lag"))
-"""The richer families, tried in turn when the geometry alone does not explain the trials."""
-ACTUATOR_GRID = {
-    "steering_offset": np.linspace(-0.06, 0.06, 7),
-    "steering_lag": np.array([1 / 128, 0.02, 0.04, 0.07, 0.1, 0.15]),
-}
-"""[rad, s] the grids of the servo's parameters in the global identification."""
-ACTUATOR_STARTS = 8
-"""Grid points of each richer family the Levenberg-Marquardt refinement starts from (3 found no fit of
-one trial of the servo car at half the nominal wheel radius and a 0.0225 rad offset; 8 did)."""
+"""Failed escalations to the actuators' families after which they are not tried again (one counts only
+when at least two trials stayed in the chart)."""
 HALVINGS = 8
 """Step halvings of a Levenberg-Marquardt or Newton step before it is given up."""
 REFIT_GAIN = 0.5
@@ -118,12 +106,11 @@ class Identifier:
 
     def __init__(self, model: NominalModel) -> None:
         self.model = model
-        self.families = [ModelFamily(model)]
-        """The geometry's family, then (a car) with the steering offset, then with the offset and the lag."""
-        try:
-            self.families += [ModelFamily(model, actuators=names) for names in ACTUATOR_FAMILIES]
-        except ValueError:  # a robot without a steering servo
-            pass
+        self.actuators = ActuatorFamilies(model)
+        """The geometry's family and (a car) the actuators' families, their search and choice."""
+        self.families = self.actuators.families
+        """The geometry's family, then (a car) the actuators' families of
+        :data:`~ilc_steering.agents.actuator_families.ACTUATOR_FAMILIES`."""
         self.family = self.families[0]
         """The family of the current estimate."""
         self.goal_q = self.family.to_configuration(model.z_goal)
@@ -216,61 +203,44 @@ class Identifier:
 
     def _identify(self, trials: list[Trial], best_trial: Trial | None, thorough: bool) -> tuple[ModelFamily, Array]:
         """LM from the last estimate; when that does not explain the trials to :data:`FIT_TOLERANCE`,
-        also from the best points of the grid over the whole family; when that does not either,
-        the families with the steering servo's parameters (the best fit of all is kept).
+        also from the best points of the grid over the whole family; when that does not either, the
+        actuators' families in turn until one explains the trials to :data:`EXPLAINED` in root mean
+        square (an estimate of theirs that does: the other families from it alone), and the simplest
+        family that explains them about as well as any (:meth:`ActuatorFamilies.simplest`) is taken.
 
         Where the last thorough update went on to the grid (the trials are outside the geometry's
         family), the grid's starts run in lockstep with the last estimate's from the outset: the
         same fits, bit for bit, in fewer and fuller calls of the kernel."""
         trials = self.fit_trials(trials, best_trial)
         family = self.family
+        geometry = self.families[0]
         r = self.residuals(self.theta[None], trials)[0]
         if self.misfit(r) < FIT_TOLERANCE:  # the last estimate explains the new trial too
             return family, self.theta
-        ahead = family is self.families[0] and thorough and self._outside
+        ahead = family is geometry and thorough and self._outside
         starts = self._grid_starts(trials) if ahead else np.empty((0, family.size))
         fits = self.fits(family, np.vstack([self.theta, starts]), trials)
         _, theta, r = fits[0]
         if self.misfit(r) < FIT_TOLERANCE or not thorough:
             self._outside = self._outside and not thorough
             return family, theta
-        if family is self.families[0]:
+        if family is geometry:
             self._outside = True
             if not ahead:
                 fits += self.fits(family, self._grid_starts(trials), trials)
             best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
             if self.misfit(best[2]) < ESCALATE or len(self.families) == 1 or self._escalations >= ESCALATIONS:
                 return best[0], best[1]
-            geometry = [best[1], *self._grid_starts(trials)]
+            shapes = [best[1], *self._grid_starts(trials)]
+            fits += self.actuators.escalate(shapes, family, theta, trials, self.residuals, self.fits)
+        elif spread(fits[0]) < EXPLAINED:  # explained to the noise: the other families from the estimate alone
+            fits += self.actuators.nearby(theta, family, trials, self.fits)
         else:
-            geometry = [theta[: self.families[0].size]]
-        for richer in self.families[1:]:
-            # The servo's parameters on their own grid, the geometry at its best fit, at the grid's
-            # best points (the geometry's fit to a trial the servo shaped may be far from the true
-            # geometry) and at the nominal.
-            n = richer.size - geometry[0].size
-            axes = [ACTUATOR_GRID[name] for name in richer.names[-n:]]
-            grid = np.array(
-                [
-                    np.concatenate([g, a])
-                    for g in [*geometry, np.zeros_like(geometry[0])]
-                    for a in itertools.product(*axes)
-                ]
-            )
-            values = self.residuals(grid, trials, richer)
-            cost = np.einsum("ij,ij->i", values, values)
-            starts = grid[np.argsort(cost, kind="stable")[:ACTUATOR_STARTS]]
-            if richer is family:
-                starts = np.vstack([theta, starts])
-            fits += self.fits(richer, starts, trials)
-        best = min(fits, key=lambda fit: float(fit[2] @ fit[2]))
-        if best[0] is not self.families[0] and float(np.max(np.abs(best[2][: -best[0].size]))) > EXPLAINED:
-            # The servo does not explain the trials either (backlash, noise, another lag): its
-            # parameters would only caricature what it lacks; the geometry's fit is kept.
-            geometric = [fit for fit in fits if fit[0] is self.families[0]]
-            best = min(geometric, key=lambda fit: float(fit[2] @ fit[2])) if geometric else best
+            fits += self.actuators.escalate([theta[: geometry.size]], family, theta, trials, self.residuals, self.fits)
+        chosen = self.actuators.simplest(fits, sum(t.ok for t in trials) * self.goal_q.size, FIT_TOLERANCE)
+        if chosen[0] is geometry:  # no actuator explains the trials better than the geometry does
             self._escalations += int(sum(t.ok for t in trials) >= 2)
-        return best[0], best[1]
+        return chosen[0], chosen[1]
 
     def restarts(self, target: Array, trials: list[Trial], best: Trial | None, thorough: bool) -> Array:
         """Starts ``(S, 1 + q)`` of a last search for coefficients that bring the refit model to

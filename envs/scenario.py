@@ -130,8 +130,9 @@ class Scenario:
         self.z_waypoints = chained_map.to_chained(task_points)
         m, n = self.z_waypoints.shape
         limit = plant.steering_limit  # a specification of the robot, known to the controller
+        pulses = int(getattr(plant, "encoder_pulses", 0))  # the controller's own odometry, known to it
         self.nominals = [
-            NominalModel(n, profile, self.z_waypoints[leg], self.z_waypoints[(leg + 1) % m], chained_map, limit)
+            NominalModel(n, profile, self.z_waypoints[leg], self.z_waypoints[(leg + 1) % m], chained_map, limit, pulses)
             for leg, profile in enumerate(profiles)
         ]
         if action_bound is None:

@@ -13,12 +13,19 @@ trial spent) to fit :math:`\theta` to the trials it has measured and to invert t
 - any other robot: the true parameters its plant's ``with_family`` scales (a unicycle's wheel
   radius and axle width; a car-trailer's wheelbase, wheel radius and hitch length).
 
-With ``actuators`` (names from the plant's ``actuator_names``: the car's ``steering_offset``
-and ``steering_lag``) the family also leaves free the steering servo's own parameters, as
-absolute values after the ratios: the wheel's offset [rad] in ``+-`` :data:`MAX_ACTUATOR_OFFSET`
-and the servo's first-order lag [s] in ``[max_step / 4,`` :data:`MAX_ACTUATOR_LAG` ``]`` (a lag
-much below the integrator's step is not resolved by it, so a lag-free servo is another family:
-the offset alone, the lag held at 0). Every hypothesis then runs on the servo kernel.
+With ``actuators`` (names from the plant's ``actuator_names``: the car's ``steering_offset``,
+``steering_lag``, ``steering_backlash`` and ``speed_lag``) the family also leaves free the
+actuators' own parameters, as absolute values after the ratios: the wheel's offset [rad] in ``+-``
+:data:`MAX_ACTUATOR_OFFSET`, the play in the steering linkage [rad] in ``[0,``
+:data:`MAX_ACTUATOR_BACKLASH` ``]`` and the servos' first-order lags [s] in ``[max_step / 4,``
+:data:`MAX_ACTUATOR_LAG` ``]`` (a lag much below the integrator's step is not resolved by it, so a
+lag-free servo is another family: the lag held at 0). Every hypothesis then runs on the servo's
+(the lab's) kernel.
+
+A controller that dead-reckons its heading from encoder pulses (the nominal model's
+``encoder_pulses``, part of the controller) is part of every hypothesis: the family's plants count
+the same pulses, so a wrong wheel radius is seen, as on the robot, through the heading the
+controller estimates from it.
 
 At :math:`\theta = 0` the family is the nominal model itself, its final states those of eq. 23
 (to the integrator's 1e-9), except that it keeps the steering stop, which eq. 23 ignores.
@@ -39,7 +46,7 @@ from ilc_steering.core.robots import nominal_plant
 from ilc_steering.core.simulate import simulate
 from ilc_steering.errors import BadInput
 
-__all__ = ["MAX_ACTUATOR_LAG", "MAX_ACTUATOR_OFFSET", "MAX_LOG_RATIO", "ModelFamily"]
+__all__ = ["MAX_ACTUATOR_BACKLASH", "MAX_ACTUATOR_LAG", "MAX_ACTUATOR_OFFSET", "MAX_LOG_RATIO", "ModelFamily"]
 
 Array = npt.NDArray[np.float64]
 
@@ -48,8 +55,10 @@ MAX_LOG_RATIO = float(np.log(2.0))
 
 MAX_ACTUATOR_OFFSET = 0.15
 """[rad] the largest steering offset of the family with actuators."""
-MAX_ACTUATOR_LAG = 0.2
-"""[s] the largest steering lag of the family with actuators."""
+MAX_ACTUATOR_LAG = 0.4
+"""[s] the largest steering or drive lag of the family with actuators (a hobby servo's is well below)."""
+MAX_ACTUATOR_BACKLASH = 0.05
+"""[rad] the largest play in the steering linkage of the family with actuators (about 3 degrees)."""
 
 _MAX_CACHED = 4096
 _MAX_FINALS = 16384  # trials' outcomes kept per family (a few updates' worth of an identification)
@@ -74,6 +83,8 @@ class ModelFamily:
         self.model = model
         self.max_step = max_step
         nominal: Any = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
+        if model.encoder_pulses:  # the controller's odometry: every hypothesis dead-reckons as it does
+            nominal = nominal.with_odometry(model.encoder_pulses)
         self.names: tuple[str, ...] = nominal.family_names()
         self._ratios = len(self.names)
         self.low = np.full(self._ratios, -MAX_LOG_RATIO)
@@ -91,6 +102,8 @@ class ModelFamily:
             bounds = {
                 "steering_offset": (-MAX_ACTUATOR_OFFSET, MAX_ACTUATOR_OFFSET),
                 "steering_lag": (max_step / 4, MAX_ACTUATOR_LAG),
+                "steering_backlash": (0.0, MAX_ACTUATOR_BACKLASH),
+                "speed_lag": (max_step / 4, MAX_ACTUATOR_LAG),
             }
             self._actuator_index = [known.index(name) for name in actuators]
             self._actuator_zero = np.zeros(len(known))

@@ -71,7 +71,7 @@ class NominalModel:
     nominal map, in the task frame). ``chained_map`` is the nominal map of the robot (given as
     ``None``: the system is itself in chained form, and the map is
     :class:`~ilc_steering.core.chained_form.ChainedForm`); ``steering_limit`` is the car's steering
-    stop. No true plant parameter is reachable from here.
+    stop and ``encoder_pulses`` the controller's odometry. No true plant parameter is reachable from here.
     """
 
     dimension: int
@@ -81,6 +81,10 @@ class NominalModel:
     chained_map: ChainedMap = None  # type: ignore[assignment]  # None stands for ChainedForm(dimension)
     steering_limit: float | None = None
     """The robot's bound on ``|phi|`` [rad], a specification the controller knows (``None``: none)."""
+    encoder_pulses: int = 0
+    """The controller's own odometry: pulses per wheel turn from which it dead-reckons the heading it
+    feeds eqs. 4-5 during a trial (0: it measures the heading). Part of the controller, as the steering
+    limit is a specification: known to it, and to every learner."""
 
     def __post_init__(self) -> None:
         if self.chained_map is None:  # None stands for ChainedForm(dimension), the default

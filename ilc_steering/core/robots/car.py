@@ -200,14 +200,28 @@ class CarPlant(FactorFamily):
         return wheel_ratios(self.true, self.nominal)
 
     def actuator_names(self) -> tuple[str, ...]:
-        """The steering servo's parameters a model family may leave free beside :meth:`family_names`:
-        the wheel's offset [rad] and the servo's first-order time constant [s]."""
-        return ("steering_offset", "steering_lag")
+        """The actuators' parameters a model family may leave free beside :meth:`family_names`: the
+        wheel's offset [rad], the steering servo's first-order time constant [s], the play in its
+        linkage [rad] and the drive's time constant [s]."""
+        return ("steering_offset", "steering_lag", "steering_backlash", "speed_lag")
 
     def with_actuators(self, values: Array) -> CarPlant:
-        """The plant with the steering servo of :meth:`actuator_names` set to ``values`` (absolute,
-        in rad and s), always on the servo kernel."""
-        return replace(self, steering_offset=float(values[0]), steering_lag=float(values[1]), servo_kernel=True)
+        """The plant with the actuators of :meth:`actuator_names` set to ``values`` (absolute, in rad
+        and s), always on the servo's (the lab's) kernel."""
+        offset, steering_lag, backlash, speed_lag = map(float, values)
+        return replace(
+            self,
+            steering_offset=offset,
+            steering_lag=steering_lag,
+            steering_backlash=backlash,
+            speed_lag=speed_lag,
+            servo_kernel=True,
+        )
+
+    def with_odometry(self, pulses: int) -> CarPlant:
+        """The plant whose controller dead-reckons its heading from ``pulses`` encoder pulses per turn
+        (the nominal model's ``encoder_pulses``: part of the controller, known to it)."""
+        return replace(self, encoder_pulses=int(pulses))
 
     def with_true_factors(self, factors: Array) -> CarPlant:
         f = check_factors(factors, self.factor_names)  # the user's own ratio named, not the product
