@@ -159,6 +159,9 @@ class ProcessPlant(ExternalPlantBase):
     kind: PlantKind  # the nested robot's kind, named process
     dimension: int
     frame: float = 0.0
+    encoder_pulses: int = 0
+    """The controller's odometry, as the nested robot's config states it (the program dead-reckons
+    its heading from these pulses per wheel turn; 0: it measures it): known to every learner."""
     _link: _Link = field(default_factory=_Link, compare=False, repr=False)
 
     @property
@@ -316,11 +319,15 @@ class ProcessPlantConfig:
     def __post_init__(self) -> None:
         require(not isinstance(self.robot, ProcessPlantConfig), "robot", "must be a robot's config, not a process")
         require(self.robot.kind.has_pose, "robot", f"must be a robot with a pose (x, y, theta), got {self.robot.model}")
+        nominal = self.nominal()
+        if self.encoder_pulses:  # the controller's odometry belongs to the controller, not to the plant
+            nominal = nominal.with_odometry(self.encoder_pulses)
         require(
-            self.robot.plant() == self.nominal(),
+            self.robot.plant() == nominal,
             "robot",
             "describes a simulated plant other than its nominal model (true_* keys, servo lags, backlash, ...): "
-            "with a process plant the program is the plant; give the nominal values only",
+            "with a process plant the program is the plant; give the nominal values only (and encoder_pulses, "
+            "the controller's odometry)",
         )
         require(
             isfinite(self.timeout) and 0 < self.timeout <= 86400,
@@ -378,6 +385,11 @@ class ProcessPlantConfig:
     def nominal_map(self) -> Any:
         return self.robot.nominal_map()
 
+    @property
+    def encoder_pulses(self) -> int:
+        """The controller's odometry the nested robot states (0: none; a car's ``encoder_pulses``)."""
+        return int(getattr(self.robot, "encoder_pulses", 0))
+
     def nominal(self) -> Any:
         """The plant the controller assumes: the nested robot with its nominal geometry."""
         robot: Any = self.robot
@@ -387,7 +399,7 @@ class ProcessPlantConfig:
         """The program as the true plant (not started: it starts on the first trial)."""
         return ProcessPlant(
             self.command, str(self.folder), self.timeout, self.control_rate, self.limits, self.nominal_map(),
-            self.nominal(), self.kind, self.robot.dimension,
+            self.nominal(), self.kind, self.robot.dimension, 0.0, self.encoder_pulses,
         )  # fmt: skip
 
     def check_task(self, max_step: float, cyclic: bool) -> None:
