@@ -5,7 +5,7 @@ module holds the arguments against it. :func:`against_args` takes its settings (
 ``quick``: :func:`resolve_settings` takes every setting the user left at its default from it and
 refuses one given otherwise, naming the option), its scenarios and priors, and keeps the output
 out of its folder (:func:`check_out`); :func:`committed_cells` checks its cells one by one against
-the plan's keys and :func:`joint_cells` lays out the joint grid; :mod:`ilc_steering.compare.command`
+the plan's keys and :func:`joint_cells` lays out the joint grid; :mod:`ilc_steering.compare.execute`
 copies the committed cells into ``--out`` as they are (:func:`copy_committed`) and computes only
 the cells the committed run lacks, so the report in ``--out`` is the joint one and the folder
 resumes like any other.

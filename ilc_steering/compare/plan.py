@@ -89,6 +89,13 @@ class Plan:
         """Where a cell's computation starts (:func:`~ilc_steering.compare.cells.cell_roots`)."""
         return cell_roots(cell[1], self.robots[cell[2]])
 
+    def cost(self, cell: Cell) -> float:
+        """A cell's rough cost [s], from its method's cost of a trial and its budget (the cells run
+        longest first, and the progress bar's estimate starts from it)."""
+        spec = registry.REGISTRY.get(cell[1])  # a user's learner: the spec's default cost of a trial
+        budget = self.budgets[cell[:3]]
+        return 1.0 + (spec.expected_seconds(budget) if spec else registry.LearnerSpec.trial_seconds * budget)
+
     def scenario_of(self, name: str) -> str:
         """The scenario as given (a name or a YAML path) of a config name."""
         return next(scenario for scenario, n in self.names.items() if n == name)
