@@ -182,7 +182,7 @@ def test_a_report_path_that_is_a_folder_is_refused_before_any_cell(tmp_path, cap
 def test_a_committed_report_holding_a_cell_twice_is_refused(tmp_path):
     import json
 
-    from ilc_steering.compare.against import read_committed
+    from ilc_steering.compare.committed import read_committed
 
     (tmp_path / "run.json").write_text(json.dumps({"version": "0.1.0", "configs": {"forward_parking": "x"}}))
     committed = Path(__file__).resolve().parents[1] / "results" / "compare" / "compare.json"

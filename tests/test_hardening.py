@@ -14,7 +14,7 @@ import yaml
 import ilc_steering  # noqa: F401  (registers the envs)
 from ilc_steering.cli import main
 from ilc_steering.compare import command as compare
-from ilc_steering.compare import plan as compare_plan
+from ilc_steering.compare import settings as compare_settings
 from ilc_steering.compare.args import Args
 from ilc_steering.compare.cells import run_cell
 from ilc_steering.compare.command import run_cells
@@ -221,9 +221,9 @@ def test_compare_refuses_bad_arguments_before_any_cell(tmp_path, capsys):
 
 
 def test_quick_keeps_explicit_seeds_and_budgets():
-    assert compare_plan.resolve(compare.parse(["--quick", "--seeds", "3"])).seeds == (3,)
-    assert compare_plan.resolve(compare.parse(["--quick"])).seeds == (0, 1)
-    assert compare_plan.resolve(compare.parse(["--quick", "--model-trials", "9"])).model_trials == 9
+    assert compare_settings.resolve(compare.parse(["--quick", "--seeds", "3"])).seeds == (3,)
+    assert compare_settings.resolve(compare.parse(["--quick"])).seeds == (0, 1)
+    assert compare_settings.resolve(compare.parse(["--quick", "--model-trials", "9"])).model_trials == 9
 
 
 @pytest.mark.slow  # a comparison

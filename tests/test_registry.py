@@ -15,7 +15,7 @@ from ilc_steering.agents.costs import NullSpaceCost
 from ilc_steering.agents.ilc import ILCAgent
 from ilc_steering.compare import cells as compare_cells
 from ilc_steering.compare import command as compare
-from ilc_steering.compare import plan as compare_plan
+from ilc_steering.compare import settings as compare_settings
 from ilc_steering.config import load_config
 from ilc_steering.envs.steering_vector_env import ChainedSteeringVectorEnv
 from ilc_steering.sweep import command as sweep
@@ -221,11 +221,11 @@ def test_sweep_and_compare_run_the_same_trials_for_the_same_learner_cost_and_pla
 
 def test_quick_is_resolved_in_one_place():
     """compare.main(Args(quick=True)) used to run 10 seeds: the plan resolves quick once."""
-    resolved = compare_plan.resolve(compare.Args(quick=True))
+    resolved = compare_settings.resolve(compare.Args(quick=True))
     assert resolved.seeds == compare.QUICK_SEEDS and resolved.model_trials == compare.QUICK["model_trials"]
-    assert compare_plan.resolve(compare.Args(quick=True, seeds=(5,), model_trials=9)).seeds == (5,)
-    assert compare_plan.resolve(compare.Args(quick=True, model_trials=9)).model_trials == 9
-    assert compare_plan.resolve(compare.Args()).seeds == compare_plan.SEEDS
+    assert compare_settings.resolve(compare.Args(quick=True, seeds=(5,), model_trials=9)).seeds == (5,)
+    assert compare_settings.resolve(compare.Args(quick=True, model_trials=9)).model_trials == 9
+    assert compare_settings.resolve(compare.Args()).seeds == compare_settings.SEEDS
     the_plan = compare.plan(compare.Args(quick=True, methods=("ilc", "ppo"), scenarios=("forward_parking",)))
     assert {cell[3] for cell in the_plan.grid} == set(compare.QUICK_SEEDS)
     assert the_plan.budgets["nominal", "ppo", "forward_parking"] == compare.QUICK["rl_trials"]

@@ -186,7 +186,7 @@ def test_a_resume_by_another_version_is_refused_saying_so(tmp_path, monkeypatch)
 
     args = compare.Args(out=tmp_path, methods=("ilc",), **TINY)
     compare.run_cells(args)
-    monkeypatch.setattr("ilc_steering.compare.plan.__version__", "9.9.9")
+    monkeypatch.setattr("ilc_steering.compare.settings.__version__", "9.9.9")
     with pytest.raises(ValueError, match=r"version '0\.1\.0', not '9\.9\.9'"):
         compare.run_cells(args)
 

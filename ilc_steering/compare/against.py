@@ -1,40 +1,45 @@
 """``compare --against DIR``: a new method's cells beside a committed run's, which is only read.
 
-A committed run folder (``results/compare``, or any ``compare --out`` folder) holds ``run.json``
-(its settings, the package version and each scenario's config content hash) and its cells, in
-``cells/`` or, in a clone that did not keep them, in ``compare.json``. :func:`read_committed`
-reads both and refuses a folder that is not a run of this kind; :func:`resolve_settings` takes
-every setting the user left at its default from the committed run and refuses one given
-otherwise, naming the option; :func:`check_out` keeps the output out of the committed folder.
-:mod:`ilc_steering.compare.command` runs the rest: the committed cells are checked one by one and copied
-into ``--out`` as they are, and only the cells the committed run lacks are computed, so the
-report in ``--out`` is the joint one and the folder resumes like any other.
+The committed run is read once (:func:`~ilc_steering.compare.committed.read_committed`); this
+module holds the arguments against it. :func:`against_args` takes its settings (budgets, seeds,
+``quick``: :func:`resolve_settings` takes every setting the user left at its default from it and
+refuses one given otherwise, naming the option), its scenarios and priors, and keeps the output
+out of its folder (:func:`check_out`); :func:`committed_cells` checks its cells one by one against
+the plan's keys and :func:`joint_cells` lays out the joint grid; :mod:`ilc_steering.compare.execute`
+copies the committed cells into ``--out`` as they are (:func:`copy_committed`) and computes only
+the cells the committed run lacks, so the report in ``--out`` is the joint one and the folder
+resumes like any other.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 from typing import Any
 
-from ilc_steering.compare.cells import CellRecord, read_report
-from ilc_steering.engine.provenance import CodeRecord, read_run
+from ilc_steering import __version__
+from ilc_steering.agents.base import PRIORS
+from ilc_steering.agents.registry import METHODS, is_custom
+from ilc_steering.compare.args import Args, seeds_of
+from ilc_steering.compare.cells import check_cell
+from ilc_steering.compare.committed import CommittedRun
+from ilc_steering.compare.settings import run_settings
+from ilc_steering.config import packaged_configs
+from ilc_steering.engine.staleness import staleness
 from ilc_steering.errors import BadInput
-from ilc_steering.output import RECORD_KEYS
-from ilc_steering.readers import is_file, read_json
-from ilc_steering.schema import check_record
+from ilc_steering.output import differences, write_json
 
 __all__ = [
-    "CommittedRun",
+    "against_args",
     "check_out",
     "committed_cells",
     "copy_committed",
     "describe",
     "joint_cells",
-    "read_committed",
     "resolve_settings",
+    "stale_warning",
 ]
 
 Cell = tuple[str, str, str, int]
@@ -42,96 +47,9 @@ Cell = tuple[str, str, str, int]
 Budget = Callable[[str, str, str], int]
 """The budget of (prior, method, scenario name) [trials]."""
 
-MAX_RUN_BYTES = 16 << 20
-"""The largest cell file read from a committed run [bytes]."""
-
-
-@dataclass(frozen=True)
-class CommittedRun:
-    """A committed compare run, as read: nothing in it is checked against this version yet."""
-
-    folder: Path
-    settings: dict[str, Any]
-    """``run.json`` without its configs: the budgets, seeds, ``quick`` and ``version``."""
-    configs: dict[str, str]
-    """Scenario (config) name -> the content hash of the config its cells were computed with."""
-    cells: list[tuple[str, Any]] = field(default_factory=list)
-    """``(where, cell)``: each cell as read, ``where`` naming its file (or its place in ``compare.json``)."""
-    failed: int = 0
-    """How many cells the committed run recorded as failed (they are not taken)."""
-    codes: dict[str, CodeRecord] = field(default_factory=dict)
-    """The codes its cells record (``run.json``'s ``codes``, :mod:`~ilc_steering.engine.provenance`)."""
-    label: str = ""
-    """How refusals name the run: ``--against DIR`` (or ``DIR`` for ``tables``)."""
-
 
 def _refuse(label: str, problem: str) -> ValueError:
     return BadInput(f"{label}: {problem}")
-
-
-def read_committed(folder: Path, label: str | None = None, cell_files: bool = True) -> CommittedRun:
-    """The run record and every cell of the compare run folder ``folder``; ``ValueError`` (one
-    line, naming ``label``, by default ``--against DIR``) if it is not one: no ``run.json``, a
-    record without the package version or the configs' content hashes (written before they were
-    kept, so its cells cannot be vouched for), a cell twice, or no cells. A cell in ``cells/``
-    wins over its copy in ``compare.json``; without ``cell_files``, ``compare.json`` alone is read
-    (what a clone holds: ``tables`` publishes it)."""
-    name = label or f"--against {folder}"
-    if not folder.is_dir():
-        raise _refuse(name, "not a folder; give a compare run folder (one with run.json)")
-    record_path = folder / "run.json"
-    if not is_file(record_path):  # a FIFO, a link loop, ...: there, and refused by name when read
-        raise _refuse(name, "no run.json, so this is not a compare run folder")
-    try:
-        stored, run = read_run(folder)  # checked against its schema (engine.provenance.RunRecord)
-    except ValueError as error:
-        raise _refuse(name, str(error)) from None
-    record = dict(stored)
-    configs = record.pop("configs", None)
-    for key in RECORD_KEYS:
-        record.pop(key, None)
-    if "version" not in record or not isinstance(configs, dict):
-        missing = "package version" if "version" not in record else "content hashes of its configs"
-        raise _refuse(
-            name,
-            f"{record_path} records no {missing} (written before they were kept), so its cells cannot be "
-            "checked against this version; recompute the run with this version",
-        )
-    if not all(isinstance(k, str) and isinstance(v, str) for k, v in configs.items()):
-        raise _refuse(name, f"{record_path}: 'configs' must map scenario names to content hashes")
-    cells: dict[str, tuple[str, Any]] = {}
-    report = folder / "compare.json"
-    if is_file(report):
-        try:
-            listed = read_report(report)["cells"]
-        except ValueError as error:
-            raise _refuse(name, str(error)) from None
-        for index, cell in enumerate(listed):
-            identity = _identity(cell, f"{report}: cells[{index}]")
-            if identity in cells:
-                raise _refuse(
-                    name, f"{report} holds the cell {identity} twice ({cells[identity][0]} and cells[{index}])"
-                )
-            cells[identity] = (f"{report}: cells[{index}]", cell)
-    for path in sorted((folder / "cells").glob("*.json")) if cell_files else ():
-        try:
-            cell = read_json(path, MAX_RUN_BYTES)
-            check_record(CellRecord, cell, path)
-        except ValueError as error:
-            raise _refuse(name, str(error)) from None
-        cells[_identity(cell, str(path))] = (str(path), cell)
-    if not cells:
-        raise _refuse(name, "holds no cells (neither cells/*.json nor compare.json)")
-    failed = len(list((folder / "failed").glob("*.json")))
-    return CommittedRun(folder, record, configs, list(cells.values()), failed, run.codes, name)
-
-
-def _identity(cell: Any, where: str) -> str:
-    """A cell's (prior, method, scenario, seed) as text, or ``ValueError`` naming ``where``."""
-    names = ("prior", "method", "scenario", "seed")
-    if not isinstance(cell, dict) or not all(name in cell for name in names):
-        raise BadInput(f"{where}: not a cell (a JSON object with {', '.join(names)})")
-    return json.dumps([cell[name] for name in names])
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -200,17 +118,58 @@ def check_out(out: Path, folder: Path) -> None:
         )
 
 
+def against_args(args: Args, committed: CommittedRun) -> Args:
+    """``args`` held against the ``committed`` run: its settings (budgets, seeds, ``quick``) where
+    ``args`` holds the defaults, its scenarios and priors unless a subset of them is given.
+    ``ValueError`` (one line, naming the option) for a run of another version or other settings,
+    an ``--out`` inside it, a method list left at the default, a prior it has no cells of, or a
+    scenario of its that is not packaged and not given as a YAML file. (A scenario given that it
+    has no cells of is refused when its config is loaded, :func:`~ilc_steering.compare.plan.plan`.)"""
+    folder = committed.folder
+    check_out(args.out, folder)
+    if args.methods == Args.methods:
+        raise _refuse(committed.label, "name the methods to add with --methods, e.g. --methods my_learners:make")
+    defaults = {f.name: f.default for f in fields(Args)}
+    args = replace(args, **resolve_settings(committed, asdict(args), defaults, __version__))
+    scenarios = committed.scenarios
+    if args.scenarios == Args.scenarios:
+        unknown = [name for name in scenarios if name not in packaged_configs()]
+        if unknown:
+            raise _refuse(
+                committed.label,
+                f"its scenario {unknown[0]!r} is not a packaged config; give its YAML file with --scenarios, "
+                f"beside those of its other scenarios to run ({' '.join(scenarios)})",
+            )
+        args = replace(args, scenarios=scenarios)
+    if args.priors == Args.priors:
+        args = replace(args, priors=committed.priors)
+    elif not set(args.priors) <= set(committed.priors):
+        raise BadInput(f"--priors: the committed run --against {folder} has cells of {' '.join(committed.priors)} only")
+    settings = run_settings(args)
+    if settings != committed.settings:
+        raise _refuse(committed.label, f"it was run with other settings: {differences(committed.settings, settings)}")
+    return args
+
+
+def stale_warning(committed: CommittedRun) -> str | None:
+    """A warning if some of the committed run's cells are stale for the code in this tree: they
+    are taken as they were made, beside cells this code computes (``ilc-steering current`` says more)."""
+    stale = sum(bool(staleness(cell, committed.codes, {})) for _, cell in committed.cells)
+    if not stale:
+        return None
+    return (
+        f"warning: --against {committed.folder}: {stale} of its {len(committed.cells)} cells are stale for the "
+        f"code in this tree (made by other code); they are taken as they were made (ilc-steering current "
+        f"{committed.folder} says what changed)"
+    )
+
+
 def committed_cells(
-    args: Any, committed: CommittedRun, configs: dict[str, str], budget: Budget
+    args: Args, committed: CommittedRun, configs: dict[str, str], budget: Budget
 ) -> tuple[dict[Cell, dict[str, Any]], dict[str, str]]:
     """The committed run's cells, each checked against its key and value by value, and the
     content hash of every scenario's config; ``ValueError`` if a scenario to run has another
     config than the committed run's cells of that name, or a committed cell is not one of its run."""
-    from ilc_steering import __version__
-    from ilc_steering.agents.base import PRIORS
-    from ilc_steering.agents.registry import METHODS, is_custom
-    from ilc_steering.compare.cells import check_cell
-
     for name, digest in configs.items():
         theirs = committed.configs.get(name)
         if theirs != digest:
@@ -243,12 +202,9 @@ def committed_cells(
     return held, {**{name: committed.configs[name] for name in scenarios}, **configs}
 
 
-def joint_cells(args: Any, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
+def joint_cells(args: Args, names: list[str], held: dict[Cell, dict[str, Any]]) -> list[Cell]:
     """The cells of an ``--against`` run, in the report's order: every committed one, and those of
     ``args.methods`` on ``names`` under ``args.priors`` that it lacks."""
-    from ilc_steering.agents.base import PRIORS
-    from ilc_steering.compare.args import seeds_of
-
     priors = [prior for prior in PRIORS if prior in args.priors or any(cell[0] == prior for cell in held)]
     scenarios = list(dict.fromkeys([*(cell[2] for cell in held), *names]))
     methods = list(dict.fromkeys([*(cell[1] for cell in held), *args.methods]))
@@ -268,8 +224,6 @@ def copy_committed(
     """Write each committed cell into the run folder (its file ``paths[cell]``) as it is, where it
     lacks it; ``ValueError`` if the folder holds another result for one of them (``read``: the
     resume checker; it is never overwritten)."""
-    from ilc_steering.output import write_json
-
     for cell, path in paths.items():
         found = held.get(cell)
         if found is None:

@@ -41,9 +41,8 @@ marked in the report.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -51,23 +50,14 @@ from typing import Any
 from ilc_steering.agents import registry
 from ilc_steering.agents.base import PRIORS
 from ilc_steering.arguments import Parser
-from ilc_steering.compare.against import Cell, copy_committed, describe
 from ilc_steering.compare.args import MAX_SEED, QUICK, QUICK_SEEDS, SCENARIOS, Args
-from ilc_steering.compare.cells import (
-    cell_name,
-    cell_path,
-    read_cell,
-    read_report,
-    run_cell,
-)
-from ilc_steering.compare.plan import Plan, plan
+from ilc_steering.compare.cells import run_cell
+from ilc_steering.compare.execute import Runner, execute
+from ilc_steering.compare.plan import plan
 from ilc_steering.compare.report import write_report
 from ilc_steering.engine.options import add_cell_options
-from ilc_steering.engine.provenance import copy_codes, record_report
-from ilc_steering.engine.runs import Cells, RunFolder, compute_cells, dry_run
-from ilc_steering.errors import BadInput
-from ilc_steering.output import output_folder, write_json
-from ilc_steering.readers import is_file
+from ilc_steering.engine.provenance import record_report
+from ilc_steering.output import output_folder
 
 __all__ = ["main", "main_with_failures", "method_families", "parse", "run_all", "run_cells", "validate"]
 
@@ -91,63 +81,6 @@ def validate(args: Args) -> dict[str, str]:
     return plan(args).names
 
 
-def _report_cells(folder: Path) -> dict[str, dict[str, Any]]:
-    """The cells the folder's ``compare.json`` holds, by file name (none without one)."""
-    report = folder / "compare.json"
-    if not is_file(report):
-        return {}
-    return {cell_name(c["prior"], c["method"], c["scenario"], c["seed"]): c for c in read_report(report)["cells"]}
-
-
-def _restore_cells(folder: Path) -> None:
-    """Write back the cells that the folder's ``compare.json`` holds and ``cells/`` lacks (a clone of a
-    run whose cells were not kept): the settings matched, so they are the cells this run would compute.
-    Each is checked like any resumed cell when it is read (its config's hash and version included)."""
-    report = folder / "compare.json"
-    if not is_file(report):
-        return
-    try:
-        cells = read_report(report)["cells"]
-    except ValueError as error:
-        raise BadInput(f"{error}; use another --out folder") from None
-    restored = 0
-    seen: set[Path] = set()
-    for cell in cells:
-        path = cell_path(folder, cell["prior"], cell["method"], cell["scenario"], cell["seed"])
-        if path in seen:
-            raise BadInput(f"{report}: holds the cell {path.stem} twice; use another --out folder")
-        seen.add(path)
-        if not path.exists():
-            write_json(path, cell)
-            restored += 1
-    if restored:
-        print(f"restored {restored} cells from {report}", flush=True)
-
-
-def _progress(cell: dict[str, Any]) -> str:
-    reached = cell["trials_to"]
-    return (
-        f"{cell['prior']:7s} {cell['scenario']:26s} {cell['method']:13s} seed {cell['seed']}: "
-        f"best {cell['best_error']:.2e}; 1 cm at trial {reached['1cm'] or '-'}, "
-        f"0.5 mm / 0.5 mrad at {reached['0.5mm'] or '-'} ('-': not within {cell['budget']}); "
-        f"{100 * cell['off_chart_fraction']:.0f}% off the chart; {cell['wall_s']:.1f} s"
-    )
-
-
-def expected_seconds(method: str, budget: int) -> float:
-    """A cell's rough cost [s], from the spec's cost of a trial (the cells run longest first, and
-    the progress bar's estimate starts from it)."""
-    spec = registry.REGISTRY.get(method)  # a user's learner: the spec's default cost of a trial
-    return 1.0 + (spec.expected_seconds(budget) if spec else registry.LearnerSpec.trial_seconds * budget)
-
-
-def workers(args: Args) -> int:
-    return args.workers or os.cpu_count() or 1
-
-
-Runner = Callable[..., dict[str, Any]]
-
-
 def run_cells(args: Args, runner: Runner = run_cell) -> list[dict[str, Any]]:
     """Every finished cell of the run (:func:`run_all`), in order; the failed ones are in ``failed/``."""
     return run_all(args, runner)[0]
@@ -158,87 +91,6 @@ def run_all(args: Args, runner: Runner = run_cell) -> tuple[list[dict[str, Any]]
     (:func:`~ilc_steering.engine.runs.compute_cells`; with a custom ``runner``, in this process, called as
     it is: a test's hook); returns the finished cells and the failed ones, each in the run's order."""
     return execute(plan(args), runner)
-
-
-def execute(the_plan: Plan, runner: Runner = run_cell) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Run the cells of ``the_plan``: everything was checked when it was made; each finished cell
-    is written the moment it finishes; a cell that raises or outlives ``cell_timeout`` is written
-    to ``failed/`` with its error and the run goes on (a resume computes it again)."""
-    args = the_plan.args
-    for warning in the_plan.warnings:
-        print(f"ilc-steering: {warning}", file=sys.stderr, flush=True)
-    folder = RunFolder(args.out, "cells", "compare")
-    reports = [f"compare.{suffix}" for suffix in ("csv", "json", "md")]
-    reports += [f"compare_{name}.png" for name in dict.fromkeys(cell[2] for cell in the_plan.grid)]
-    reports.append("compare_profile.png")
-    inline = runner is not run_cell
-    progress_bar = args.progress_bar  # SB3's bar only where one process runs every cell (see before)
-
-    def call(cell: Cell) -> tuple[Any, ...]:
-        prior, method, name, seed = cell
-        if inline:
-            return args, prior, method, the_plan.scenario_of(name), seed
-        budget = the_plan.budgets[prior, method, name]
-        return replace(args, progress_bar=progress_bar), prior, method, the_plan.scenario_of(name), seed, budget
-
-    def failure(cell: Cell, message: str) -> dict[str, Any]:
-        key = the_plan.key(cell)
-        return {**{name: key[name] for name in ("prior", "method", "scenario", "seed", "budget")}, "error": message}
-
-    def describe_cell(cell: Cell) -> str:
-        prior, method, name, seed = cell
-        return f"{prior:7s} {name:26s} {method:13s} seed {seed}"
-
-    cells = Cells(
-        keys=the_plan.grid,
-        name=lambda cell: cell_name(*cell),
-        read=lambda path, cell: read_cell(path, the_plan.identity(cell)),
-        call=call,
-        stamp=the_plan.stamp,
-        roots=the_plan.roots,
-        failure=failure,
-        describe=describe_cell,
-        progress=_progress,
-        cost=lambda cell: expected_seconds(cell[1], the_plan.budgets[cell[:3]]),
-        taken=frozenset(the_plan.held),
-    )
-    committed = the_plan.committed
-    if args.dry_run:
-        folder.check(the_plan.settings)
-        held = {cell_name(*cell): found for cell, found in the_plan.held.items()}
-        for line in dry_run(folder, cells, workers(args), {**_report_cells(args.out), **held}):
-            print(line, flush=True)
-        return [], []
-    if folder.prepare(the_plan.settings, the_plan.configs, reports):
-        _restore_cells(args.out)
-
-    def before(todo: Mapping[Cell, Path]) -> None:
-        nonlocal progress_bar
-        progress_bar = args.progress_bar and args.backend != "ray" and min(workers(args), len(todo)) <= 1
-        if committed is not None:
-            print(
-                f"--against {committed.folder}: {len(the_plan.held)} committed cells taken as they are (copied into "
-                f"{args.out}/cells), {len(todo)} cells to compute, with its settings: {describe(committed.settings)}",
-                flush=True,
-            )
-
-    if the_plan.held:
-        paths = {cell: folder.path(cell_name(*cell)) for cell in the_plan.grid}
-        with folder.locked():
-            copy_committed(the_plan.held, paths, lambda path, cell: read_cell(path, the_plan.key(cell)))
-            held_codes = {cell.get("code") for cell in the_plan.held.values()}
-            copy_codes(args.out, {k: v for k, v in committed.codes.items() if k in held_codes} if committed else {})
-    outcome = compute_cells(
-        folder,
-        cells,
-        runner,
-        backend=args.backend,
-        workers=args.workers,
-        timeout=args.cell_timeout,
-        inline=inline,
-        before=before,
-    )
-    return outcome.in_order(the_plan.grid)
 
 
 def main(args: Args) -> list[dict[str, Any]]:

@@ -141,8 +141,9 @@ def _cells(folder: Path) -> list[dict[str, Any]]:
     never twice) and value by value within its budget; ``ValueError`` naming the file and the cell.
     A table never publishes a cell its run could not have made."""
     from ilc_steering import __version__
-    from ilc_steering.compare.against import committed_cells, read_committed, resolve_settings
-    from ilc_steering.compare.plan import check_options
+    from ilc_steering.compare.against import committed_cells, resolve_settings
+    from ilc_steering.compare.committed import read_committed
+    from ilc_steering.compare.settings import check_options
 
     committed = read_committed(folder, label=str(folder), cell_files=False)
     defaults = {f.name: f.default for f in fields(Args)}
