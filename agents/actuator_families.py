@@ -118,7 +118,6 @@ class ActuatorFamilies:
             self.families += [ModelFamily(model, actuators=names) for names in ACTUATOR_FAMILIES]
         except BadInput:  # a robot without these actuators
             pass
-        self._parents = [self._parent(k) for k in range(len(self.families))]
 
     def escalate(
         self,
@@ -134,8 +133,9 @@ class ActuatorFamilies:
 
         The first :data:`GRID_FAMILIES` start from their actuators' grids at the geometry's ``shapes``
         (its best fit, the grid's best points: the geometry's fit to a trial the servo shaped may be
-        far from the true geometry) and at the nominal; each later one from its parent's best fits
-        (the richest earlier family whose parameters it holds) with its new actuator's grid (the
+        far from the true geometry) and at the nominal; each later one from its parents' best fits
+        (the richest earlier families whose parameters it holds: all four actuators' family from the
+        lag's and from the play and drive's) with the grids of the actuators each lacks (the
         product of four actuators' grids would be thousands of hypotheses a trial). ``family`` at
         ``theta`` (the current estimate) starts its own family's search too. ``residuals`` and
         ``fits`` are the identifier's (:meth:`~ilc_steering.agents.identifier.Identifier.residuals`,
@@ -144,18 +144,12 @@ class ActuatorFamilies:
         found: dict[int, list[Fit]] = {}
         for k, richer in enumerate(self.families[1:], start=1):
             if k <= GRID_FAMILIES:
-                names = richer.names[shapes[0].size :]
-                bases = [np.concatenate([g, np.full(len(names), np.nan)]) for g in [*shapes, np.zeros_like(shapes[0])]]
+                grids = [self._grown(base, 0, k) for base in [*shapes, np.zeros_like(shapes[0])]]
             else:
-                parent = self._parents[k]
-                names = tuple(n for n in richer.names if n not in self.families[parent].names)
-                bases = [self._extend(fit[1], parent, k) for fit in found.get(parent, [])]
-            if not bases:
+                grids = [self._grown(fit[1], j, k) for j in self._parents(k) for fit in found.get(j, [])]
+            if not grids:
                 continue
-            index = [richer.names.index(name) for name in names]
-            values = np.array(list(itertools.product(*(ACTUATOR_GRID[n] for n in names))))
-            grid = np.repeat(np.array(bases), len(values), axis=0)
-            grid[:, index] = np.tile(values, (len(bases), 1))
+            grid = np.vstack(grids)
             r = residuals(grid, trials, richer)
             cost = np.einsum("ij,ij->i", r, r)
             starts = grid[np.argsort(cost, kind="stable")[:ACTUATOR_STARTS]]
@@ -204,12 +198,20 @@ class ActuatorFamilies:
             raise ValueError("ActuatorFamilies.simplest: no fit of any family")  # a bug: the caller fitted none
         return chosen
 
-    def _parent(self, k: int) -> int:
-        """The richest earlier family whose parameters are all among family ``k``'s (0 for the first ones)."""
-        names = set(self.families[k].names)
-        return max((j for j in range(k) if set(self.families[j].names) < names), default=0)
+    def _parents(self, k: int) -> list[int]:
+        """The earlier richer families whose parameters are all among family ``k``'s, none of them
+        within another of them (the richest ways to family ``k``; the geometry's for the first ones)."""
+        names = [set(family.names) for family in self.families]
+        below = [j for j in range(1, k) if names[j] < names[k]]
+        return [j for j in below if not any(names[j] < names[i] for i in below)] or [0]
 
-    def _extend(self, theta: Array, parent: int, k: int) -> Array:
-        """``theta`` of family ``parent`` as a point of family ``k``, its new actuators NaN."""
+    def _grown(self, theta: Array, parent: int, k: int) -> Array:
+        """``theta`` of family ``parent`` as points ``(G, size)`` of family ``k``, each with one point
+        of the grids of the actuators ``parent`` lacks."""
         values = dict(zip(self.families[parent].names, theta))
-        return np.array([values.get(name, np.nan) for name in self.families[k].names])
+        names = [name for name in self.families[k].names if name not in values]
+        grid = np.array(list(itertools.product(*(ACTUATOR_GRID[name] for name in names))))
+        points = np.empty((len(grid), self.families[k].size))
+        for i, name in enumerate(self.families[k].names):
+            points[:, i] = values[name] if name in values else grid[:, names.index(name)]
+        return points

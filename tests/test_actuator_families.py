@@ -58,16 +58,25 @@ def test_the_lab_robot_is_its_family_at_its_true_parameters(lab):
     assert np.max(np.abs(blind.configurations(theta, c)[0] - measured)) > 1e-2
 
 
-def test_each_later_family_grows_from_its_parent_by_one_actuator(lab):
+def test_each_later_family_grows_from_its_richest_subfamilies(lab):
     families = ActuatorFamilies(lab.nominals[0])
     assert len(families.families) == 1 + len(ACTUATOR_FAMILIES)
-    for k in range(3, len(families.families)):
-        parent = families.families[families._parents[k]]
-        new = set(families.families[k].names) - set(parent.names)
-        assert set(parent.names) < set(families.families[k].names) and len(new) == 1
-    # a lag-free servo is reached without the steering lag (it is stiff near 0): the lag comes last
-    assert families.families[-1].names[-1] == "steering_lag"
-    assert "steering_lag" not in families.families[families._parents[-1]].names
+    names = [set(family.names) for family in families.families]
+    for k in range(1, len(names)):
+        parents = families._parents(k)
+        assert all(names[j] < names[k] for j in parents)
+        assert not any(names[j] < names[i] for i in parents for j in parents)  # none within another
+    # a lag-free servo is reached without the steering lag (stiff near 0): the lag comes last, all
+    # four grown from the lag's family and from the play and the drive's
+    everything = families.families[-1]
+    assert everything.names[-1] == "steering_lag"
+    assert [families.families[j].names[2:] for j in families._parents(len(names) - 1)] == [
+        ("steering_offset", "steering_lag"),
+        ("steering_offset", "steering_backlash", "speed_lag"),
+    ]
+    grown = families._grown(np.array([0.1, -0.1, 0.01, 0.1]), 2, len(names) - 1)
+    assert grown.shape == (5 * 6, everything.size)
+    np.testing.assert_array_equal(grown[:, [0, 1, 2, 5]], np.tile([0.1, -0.1, 0.01, 0.1], (30, 1)))
 
 
 def _fit(family, squared_misfit):
