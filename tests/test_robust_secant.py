@@ -53,10 +53,12 @@ def test_steps_within_the_scatter_teach_only_a_small_correction():
     assert np.linalg.norm(found.z - 0.3) < np.linalg.norm(z[0] - 0.3)
 
 
-@pytest.mark.slow  # 20 runs of the lab robot, about 2 min
-def test_the_calibrated_lab_robot_parks_in_two_trials_and_goes_forward_in_three():
+@pytest.mark.slow  # 20 runs of the lab robot, about 3 min
+def test_the_calibrated_lab_robot_parks_and_goes_forward_in_two_trials():
+    # results/reproduce/reproduce.txt: 2 [2, 3] on both (eqs. 33-34 take 5 and 4); the family holds the
+    # controller's odometry and the car's actuators, identified from the first two trials
     parallel = [run_ilc("experiment_parallel", learner="robust_ilc", seed=seed).converged_at for seed in range(10)]
     forward = [run_ilc("experiment_forward", learner="robust_ilc", seed=seed).converged_at for seed in range(10)]
     assert None not in parallel and None not in forward
-    assert statistics.median(parallel) <= 2  # 2 [2, 4] on the calibrated MARIO (results/reproduce/reproduce.txt)
-    assert statistics.median(forward) <= 3  # 3 [3, 3]: the rolling radius 7 % small, eqs. 33-34 take 4
+    assert statistics.median(parallel) <= 2 and max(parallel) <= 3
+    assert statistics.median(forward) <= 2 and max(forward) <= 3
