@@ -740,7 +740,7 @@ def issue26_attacks(tmp: str, cfg: Any) -> list[tuple[str, str, str, Any]]:
             PRE
             + textwrap.dedent(
                 """
-                from ilc_steering.compare.command import TrialLog, first_within
+                from ilc_steering.compare.cells import TrialLog, first_within
                 log = TrialLog()
                 log.cartesian, log.orientation, log.left_chart = [0.01 * (1 + 1e-12)], [0.0], [False]
                 print("ACCEPTED" if first_within(log, 0.01) == 1 else "CLEAR")

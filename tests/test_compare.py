@@ -353,3 +353,25 @@ def test_least_squares_uses_trf_where_lm_lacks_residuals(tmp_path):
     path.write_text(source.replace("v2_terms: 3 ", "v2_terms: 5 ").replace("name: forward_parking", "name: five"))
     cell = run_cell(Args(**{**TINY, "blackbox_trials": 60}), "nominal", "least_squares", str(path), 0)
     assert cell["trials"] == 60 and cell["trials_to"]["1cm"] is not None  # 6 coefficients, 5 residuals
+
+
+def test_a_committed_run_that_records_no_seeds_is_refused_as_its_bad_input(tmp_path):
+    """A run.json without one of the settings a run records (here its seeds) is the committed run's
+    fault, said in one line naming it (exit 2), not a TypeError of the library (exit 3)."""
+    from dataclasses import asdict, fields
+
+    from ilc_steering import __version__
+    from ilc_steering.compare.against import resolve_settings
+    from ilc_steering.compare.args import Args
+    from ilc_steering.compare.committed import CommittedRun
+    from ilc_steering.compare.settings import resolve, run_settings
+    from ilc_steering.errors import BadInput
+
+    settings = run_settings(resolve(Args()))
+    del settings["seeds"]
+    committed = CommittedRun(tmp_path, settings, {}, label=f"--against {tmp_path}")
+    defaults = {f.name: f.default for f in fields(Args)}
+    with pytest.raises(BadInput, match=r"--against .*: its run.json records no 'seeds'"):
+        resolve_settings(committed, asdict(Args()), defaults, __version__)
+    settings["seeds"] = [0]
+    assert resolve_settings(committed, asdict(Args()), defaults, __version__)["seeds"] == (0,)

@@ -25,7 +25,7 @@ from ilc_steering.agents.registry import METHODS, is_custom
 from ilc_steering.compare.args import Args, seeds_of
 from ilc_steering.compare.cells import check_cell
 from ilc_steering.compare.committed import CommittedRun
-from ilc_steering.compare.settings import run_settings
+from ilc_steering.compare.settings import UNRECORDED, run_settings
 from ilc_steering.config import packaged_configs
 from ilc_steering.engine.staleness import staleness
 from ilc_steering.errors import BadInput
@@ -82,7 +82,8 @@ def resolve_settings(
     option left out, or given at its default value: the run says which it took, :func:`describe`).
 
     ``ValueError`` naming ``--against`` and the option if the committed run was made by another
-    ``version`` of the package, holds a setting this version has no option for, or if ``given``
+    ``version`` of the package, holds a setting this version has no option for or lacks one it
+    records, or if ``given``
     sets an option otherwise than the committed run (its cells would not be comparable)."""
     stored = committed.settings
     if stored.get("version") != version:
@@ -91,6 +92,9 @@ def resolve_settings(
             f"made by ilc-steering {stored.get('version')}, this is {version}: its cells are not comparable "
             f"with this version's; recompute it with {version}, or install {stored.get('version')}",
         )
+    missing = [name for name in defaults if name not in UNRECORDED and name not in stored]
+    if missing:
+        raise _refuse(committed.label, f"its run.json records no {missing[0]!r}, so its cells cannot be held against")
     values = {}
     for name, value in stored.items():
         if name == "version":

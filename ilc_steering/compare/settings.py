@@ -20,7 +20,7 @@ from ilc_steering.errors import BadInput
 from ilc_steering.output import check_output_dir
 from ilc_steering.trial_board import require_tensorboard
 
-__all__ = ["check_options", "resolve", "run_settings"]
+__all__ = ["UNRECORDED", "check_options", "resolve", "run_settings"]
 
 
 def resolve(args: Args) -> Args:
@@ -35,13 +35,16 @@ def resolve(args: Args) -> Args:
     return args
 
 
+UNRECORDED = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
+UNRECORDED += ("dry_run", "tensorboard")
+"""The options ``run.json`` does not record (:func:`run_settings`): where and how cells run, the grid's axes."""
+
+
 def run_settings(args: Args) -> dict[str, Any]:
     """What ``run.json`` records and a resume (or ``--against``) must match: the budgets, the seeds,
     ``quick`` and the package version; not the grid's axes (a resume may add cells), nor how or
     where cells run, nor where their TensorBoard event files go."""
-    skip: tuple[str, ...] = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers")
-    skip += ("backend", "cell_timeout", "dry_run", "tensorboard")
-    settings = {k: v for k, v in asdict(args).items() if k not in skip}
+    settings = {k: v for k, v in asdict(args).items() if k not in UNRECORDED}
     settings["seeds"] = list(settings["seeds"])
     settings["version"] = __version__
     return settings
