@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 
 from ilc_steering.cli import main
 from ilc_steering.config import load_config
-from ilc_steering.core.robots.process import ProcessPlant, nominal_path
+from ilc_steering.core.robots.process import ProcessPlant
+from ilc_steering.core.robots.process_request import nominal_path
 from ilc_steering.runner import run_ilc
 
 ROBOT = r"""

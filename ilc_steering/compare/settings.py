@@ -35,8 +35,8 @@ def resolve(args: Args) -> Args:
     return args
 
 
-UNRECORDED = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers", "backend", "cell_timeout")
-UNRECORDED += ("dry_run", "tensorboard")
+UNRECORDED: tuple[str, ...] = ("out", "against", "progress_bar", "priors", "methods", "scenarios", "workers")
+UNRECORDED += ("backend", "cell_timeout", "dry_run", "tensorboard")
 """The options ``run.json`` does not record (:func:`run_settings`): where and how cells run, the grid's axes."""
 
 

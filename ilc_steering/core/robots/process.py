@@ -41,7 +41,7 @@ from ilc_steering.core.external import ExternalPlantBase, ExternalTrials
 from ilc_steering.core.grid import MAX_STEPS_PER_TRIAL
 from ilc_steering.core.integrate import LEFT_CHART, OK
 from ilc_steering.core.plants import PlantConfig, PlantKind
-from ilc_steering.core.profiles import InputProfile, PiecewiseProfile
+from ilc_steering.core.profiles import InputProfile
 from ilc_steering.core.robots.car import rotate
 from ilc_steering.core.robots.process_limits import (
     WRAPPED,
@@ -54,20 +54,10 @@ from ilc_steering.core.robots.process_limits import (
     reported_trajectory,
     steering_index,
 )
-from ilc_steering.core.simulate import simulate
-from ilc_steering.core.trapezoid import TrapezoidProfile
+from ilc_steering.core.robots.process_request import nominal_path, profile_message, sample
 from ilc_steering.entries import CONFIG_FOLDERS
-from ilc_steering.errors import BadInput
 
-__all__ = [
-    "PROTOCOL",
-    "ProcessPlant",
-    "ProcessPlantConfig",
-    "nominal_path",
-    "profile_message",
-    "sample",
-    "without_program",
-]
+__all__ = ["PROTOCOL", "ProcessPlant", "ProcessPlantConfig", "without_program"]
 
 Array = npt.NDArray[np.float64]
 
@@ -91,38 +81,6 @@ def without_program() -> Iterator[None]:
         yield
     finally:
         _PROGRAM_CHECKED.reset(token)
-
-
-def profile_message(profile: InputProfile) -> dict[str, Any]:
-    """The ``profile`` of a trial request: eqs. 15-17's pieces, fixed ``v1``, ``q``, and section 5's shape."""
-    if not isinstance(profile, PiecewiseProfile):
-        raise BadInput(f"a process plant sends eqs. 15-17's profiles, got {type(profile).__name__}")
-    trapezoid = isinstance(profile, TrapezoidProfile)
-    return {
-        "pieces": list(profile.durations),
-        "v1_fixed": list(profile.v1_fixed),
-        "v2_terms": profile.v2_terms,
-        "v1_shape": "trapezoid" if trapezoid else "constant",
-        "ramp": profile.ramp if isinstance(profile, TrapezoidProfile) else None,
-    }
-
-
-def nominal_path(nominal: Any, profile: InputProfile, x0: Array, c: Array, step: float) -> tuple[Array, Array, Array]:
-    """The path the robot would drive were it its nominal model, with its known steering stop: the
-    nominal plant (``nominal``, the controller's robot with its true geometry the nominal one)
-    simulated from ``x0`` (task frame) under ``c`` by the library's integrator, steps at most
-    ``step`` [s] long. Its times [s], configurations (task frame) and the states the robot's
-    inputs are computed from (eqs. 4-5), each row a step. Without a steering stop it is eq. 12's
-    nominal motion, to the integrator's accuracy (tested)."""
-    trials = simulate(nominal, profile, nominal.initial_state(x0)[None], c[None], step, record=True)
-    assert trials.times is not None and trials.states is not None  # record=True
-    states = trials.states[0]
-    return trials.times, nominal.configuration(states), nominal.estimate(states)
-
-
-def sample(times: Array, values: Array, at: Array) -> Array:
-    """``values`` (a row per time of ``times``) at the times ``at`` [s], linear between rows."""
-    return np.stack([np.interp(at, times, values[:, i]) for i in range(values.shape[1])], axis=-1)
 
 
 class _Link:
@@ -159,9 +117,7 @@ class ProcessPlant(ExternalPlantBase):
     kind: PlantKind  # the nested robot's kind, named process
     dimension: int
     frame: float = 0.0
-    encoder_pulses: int = 0
-    """The controller's odometry, as the nested robot's config states it (the program dead-reckons
-    its heading from these pulses per wheel turn; 0: it measures it): known to every learner."""
+    encoder_pulses: int = 0  # the controller's odometry (plant.robot's pulses a turn; 0: none), known to learners
     _link: _Link = field(default_factory=_Link, compare=False, repr=False)
 
     @property
@@ -319,11 +275,9 @@ class ProcessPlantConfig:
     def __post_init__(self) -> None:
         require(not isinstance(self.robot, ProcessPlantConfig), "robot", "must be a robot's config, not a process")
         require(self.robot.kind.has_pose, "robot", f"must be a robot with a pose (x, y, theta), got {self.robot.model}")
-        nominal = self.nominal()
-        if self.encoder_pulses:  # the controller's odometry belongs to the controller, not to the plant
-            nominal = nominal.with_odometry(self.encoder_pulses)
+        nominal = self.nominal()  # with the controller's odometry, which is the controller's, not the plant's
         require(
-            self.robot.plant() == nominal,
+            self.robot.plant() == (nominal.with_odometry(self.encoder_pulses) if self.encoder_pulses else nominal),
             "robot",
             "describes a simulated plant other than its nominal model (true_* keys, servo lags, backlash, ...): "
             "with a process plant the program is the plant; give the nominal values only (and encoder_pulses, "
