@@ -164,7 +164,8 @@ class ActuatorFamilies:
     def nearby(self, theta: Array, family: ModelFamily, trials: list[Trial], fits: Fits) -> list[Fit]:
         """The fits of the other actuators' families from ``theta`` of ``family`` alone (an actuator it
         lacks at its grid's first value): an estimate that explains the trials to the noise's level
-        (:data:`EXPLAINED`) needs no grid, and a simpler family may explain them as well or exactly."""
+        (:data:`EXPLAINED`) needs no grid, and a simpler family may explain them as well or exactly.
+        The identifier asks once per family it holds: within its noise the estimate moves little."""
         every: list[Fit] = []
         values = dict(zip(family.names, theta))
         for other in self.families[1:]:

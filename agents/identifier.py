@@ -128,6 +128,7 @@ class Identifier:
         self.forget_estimate()
         self._escalations = 0 if carried is None or carried.servo else ESCALATIONS
         self._outside = False  # whether the last thorough update went on to the grid
+        self._nearby: ModelFamily | None = None  # the family whose estimate last refitted the others from itself
         self.restarted: tuple[tuple[str, ...], bytes] | None = None
         """The estimate (family names, ``theta`` bytes) that :meth:`restarts` last searched from."""
         if carried is not None:
@@ -233,7 +234,10 @@ class Identifier:
                 return best[0], best[1]
             shapes = [best[1], *self._grid_starts(trials)]
             fits += self.actuators.escalate(shapes, family, theta, trials, self.residuals, self.fits)
-        elif spread(fits[0]) < EXPLAINED:  # explained to the noise: the other families from the estimate alone
+        elif spread(fits[0]) < EXPLAINED:  # explained to the noise: the other families from the estimate alone,
+            if family is self._nearby:  # once per family (the estimate moves within its noise)
+                return family, theta
+            self._nearby = family
             fits += self.actuators.nearby(theta, family, trials, self.fits)
         else:
             fits += self.actuators.escalate([theta[: geometry.size]], family, theta, trials, self.residuals, self.fits)
