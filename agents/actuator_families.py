@@ -63,7 +63,7 @@ ACTUATOR_GRID = {
 """[rad, s] the grids of the actuators' parameters in the global identification."""
 GRID_FAMILIES = 2
 """The first this many richer families are searched over the product of their actuators' grids at the
-geometry's best fits; each later one from its parent's best fits with its new actuator's grid."""
+geometry's best fits; each later one from its parents' best fits with the grids of what each lacks."""
 ACTUATOR_STARTS = 8
 """Grid points of each richer family the Levenberg-Marquardt refinement starts from (3 found no fit of
 one trial of the servo car at half the nominal wheel radius and a 0.0225 rad offset; 8 did)."""
@@ -75,7 +75,6 @@ The mean, not the largest: the largest of dozens of noisy numbers is three noise
 RICHER_GAIN = 2.0
 """A richer family is taken over a simpler one only if its squared misfit is below the simpler's over
 this: one parameter more absorbs about one noise variance of the trials' dozens of numbers, not half."""
-
 FAR_BETTER = 100.0
 """A richer family that does not explain the trials to :data:`EXPLAINED` is still taken if its squared
 misfit is this many times below the simpler's (residuals ten times smaller): the right family whose
@@ -177,13 +176,13 @@ class ActuatorFamilies:
     def simplest(self, fits: list[Fit], numbers: int, exact: float) -> Fit:
         """The best fit of the simplest family that explains the trials about as well as any: a richer
         family's best replaces the simpler's only if its squared misfit is below the simpler's over
-        :data:`RICHER_GAIN`, it explains them to :data:`EXPLAINED` or :data:`FAR_BETTER` than the
+        :data:`RICHER_GAIN`; it explains them to :data:`EXPLAINED`, or :data:`FAR_BETTER` than the
         simpler (one that does neither would only caricature what it lacks: a segment's errors
         re-based to its via point, highway-env's held actions; one far better is the right family
-        whose fit has not converged yet, from a wild trial), and the trials' ``numbers`` (measured numbers: four a trial
-        in the chart) determine it: more numbers than parameters, or as many and a fit to ``exact``
-        [m or rad] (a square system always has fits, at chance points of a wrong family too; one
-        that has none is the wrong family, or noise; fewer numbers say nothing)."""
+        whose fit has not converged yet, after a wild trial); and the trials' ``numbers`` (measured
+        numbers: four a trial in the chart) determine it: more numbers than parameters, or as many
+        and a fit to ``exact`` [m or rad] (a square system always has fits, at chance points of a
+        wrong family too; one that has none is the wrong family, or noise; fewer say nothing)."""
         chosen: Fit | None = None
         for family in self.families:
             own = [fit for fit in fits if fit[0] is family]

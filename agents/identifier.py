@@ -62,7 +62,7 @@ GRID_STARTS = 6
 FIT_TRIALS = 8
 """The identification uses at most this many trials: the best, the halted ones among the first and the latest."""
 ESCALATE = 1e-6
-"""[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the servo's families."""
+"""[m or rad] a geometry fit that leaves a trial unexplained by more than this calls the actuators' families."""
 ESCALATIONS = 2
 """Failed escalations to the actuators' families after which they are not tried again (one counts only
 when at least two trials stayed in the chart)."""

@@ -126,3 +126,13 @@ def test_a_family_the_trials_do_not_determine_is_not_kept(lab):
 def test_a_robot_without_actuators_has_the_geometrys_family_alone():
     unicycle = Scenario.from_config(load_config("unicycle_parking")).nominals[0]
     assert len(ActuatorFamilies(unicycle).families) == 1
+
+
+def test_odometry_on_a_robot_that_has_none_is_refused_naming_the_robot():
+    import dataclasses as dc
+
+    from ilc_steering.errors import BadInput
+
+    unicycle = Scenario.from_config(load_config("unicycle_parking")).nominals[0]
+    with pytest.raises(BadInput, match=r"counts 40 encoder pulses a turn, but the unicycle robot's plant"):
+        ModelFamily(dc.replace(unicycle, encoder_pulses=40))

@@ -84,6 +84,11 @@ class ModelFamily:
         self.max_step = max_step
         nominal: Any = nominal_plant(model.chained_map, model.dimension, model.steering_limit)
         if model.encoder_pulses:  # the controller's odometry: every hypothesis dead-reckons as it does
+            if not hasattr(nominal, "with_odometry"):
+                raise BadInput(
+                    f"ModelFamily: the nominal model counts {model.encoder_pulses} encoder pulses a turn, but the "
+                    f"{model.chained_map.robot} robot's plant has no odometry to count them (no with_odometry)"
+                )
             nominal = nominal.with_odometry(model.encoder_pulses)
         self.names: tuple[str, ...] = nominal.family_names()
         self._ratios = len(self.names)

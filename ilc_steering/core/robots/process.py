@@ -353,7 +353,7 @@ class ProcessPlantConfig:
         """The program as the true plant (not started: it starts on the first trial)."""
         return ProcessPlant(
             self.command, str(self.folder), self.timeout, self.control_rate, self.limits, self.nominal_map(),
-            self.nominal(), self.kind, self.robot.dimension, 0.0, self.encoder_pulses,
+            self.nominal(), self.kind, self.robot.dimension, encoder_pulses=self.encoder_pulses,
         )  # fmt: skip
 
     def check_task(self, max_step: float, cyclic: bool) -> None:
